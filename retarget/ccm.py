@@ -1,0 +1,107 @@
+"""Colour-correction matrices per sensor × illuminant (thesis §3.2 "CCM"; DESIGN.md "Ground truth").
+
+A CCM maps *white-balanced* camera raw to linear sRGB. For illuminant Φ and a reflectance training
+set ``S_n``:
+
+- camera raw ``ρ_n = Σ_i C(λ_i) Φ̄(λ_i) S_n(λ_i) Δλ``, white-balanced by the raw of the perfect
+  reflector ``ρ_w`` (so white becomes ``(1, 1, 1)``);
+- target ``t_n`` = linear sRGB of the same reflectance *as seen under Φ by an observer adapted to
+  Φ*: CIE 1931 XYZ under Φ (white Y = 1), chromatically adapted from Φ's white to sRGB's D65 white
+  by colour-science's ``chromatic_adaptation`` (``cat``, default Von Kries with CAT02), then the
+  sRGB matrix;
+- ``M = argmin Σ_n ‖M ρ̂_n − t_n‖²`` subject to ``M (1, 1, 1)ᵀ = (1, 1, 1)ᵀ`` (white preserving), each
+  row solved on the constraint's null space by least squares (robust to near-degenerate sensors).
+
+The fit's quality is reported as CIEDE2000 between ``M ρ̂_n`` and ``t_n`` in CIELAB (D65).
+Methods are dispatched by name: ``method="White Preserving"`` (default) or ``"Unconstrained"``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import colour
+import numpy as np
+
+from retarget.errors import SpectralError
+from retarget.grid import SpectralGrid, resample
+
+CCM_METHODS = ("White Preserving", "Unconstrained")
+_SRGB = colour.RGB_COLOURSPACES["sRGB"]
+_D65_XYZ = colour.xy_to_XYZ(_SRGB.whitepoint)
+
+
+@dataclass(frozen=True)
+class CCMFit:
+    """A fitted CCM: ``matrix`` ``(3, 3)`` (rows = sRGB R, G, B) and per-sample CIEDE2000."""
+
+    matrix: np.ndarray
+    delta_e00: np.ndarray = field(repr=False)
+
+    @property
+    def delta_e00_mean(self) -> float:
+        return float(np.mean(self.delta_e00))
+
+    @property
+    def delta_e00_max(self) -> float:
+        return float(np.max(self.delta_e00))
+
+
+@lru_cache(maxsize=16)
+def _cmfs(grid: SpectralGrid) -> np.ndarray:
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return resample(cmfs.wavelengths, cmfs.values, grid) * grid.step
+
+
+def target_linear_srgb(spd: np.ndarray, reflectances: np.ndarray, grid: SpectralGrid,
+                       cat: str = "CAT02") -> np.ndarray:
+    """Adapted linear-sRGB targets ``(N, 3)`` of reflectances ``(N, n_bands)`` under ``spd``."""
+    cmf = _cmfs(grid)
+    white = spd @ cmf
+    if white[1] <= 0:
+        raise SpectralError("CCM: the illuminant has no luminance on the grid")
+    xyz = (reflectances * spd) @ cmf / white[1]
+    xyz_adapted = colour.chromatic_adaptation(xyz, white / white[1], _D65_XYZ,
+                                              method="Von Kries", transform=cat)
+    return colour.XYZ_to_RGB(xyz_adapted, _SRGB, apply_cctf_encoding=False)
+
+
+def linear_srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
+    """CIELAB (D65) of linear sRGB ``(..., 3)``."""
+    xyz = colour.RGB_to_XYZ(rgb, _SRGB, apply_cctf_decoding=False)
+    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint)
+
+
+def _solve(a: np.ndarray, t: np.ndarray, white_preserving: bool) -> np.ndarray:
+    if not white_preserving:
+        return np.linalg.lstsq(a, t, rcond=None)[0].T
+    # m_r = 1/3·(1,1,1) + N z with N spanning {v : 1·v = 0}: the constraint holds for every z.
+    null = np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, -1.0]])
+    base = np.full(3, 1.0 / 3.0)
+    z = np.linalg.lstsq(a @ null, t - (a @ base)[:, None], rcond=None)[0]
+    return (base[:, None] + null @ z).T
+
+
+def fit_ccm(sensor_weights: np.ndarray, spd: np.ndarray, reflectances: np.ndarray, grid: SpectralGrid,
+            *, method: str = "White Preserving", cat: str = "CAT02") -> CCMFit:
+    """Fit the CCM of one sensor × illuminant (see module docstring).
+
+    sensor_weights : ``(n_bands, 3)`` ``C_k Δλ``; spd : ``(n_bands,)``; reflectances ``(N, n_bands)``.
+    """
+    if method not in CCM_METHODS:
+        raise SpectralError(f"CCM: unknown method {method!r}; choose one of {', '.join(CCM_METHODS)}")
+    r = np.asarray(reflectances, dtype=np.float64)
+    if r.ndim != 2 or r.shape[0] < 3:
+        raise SpectralError(f"CCM: need at least 3 training reflectances, got shape {r.shape}")
+    cw = np.asarray(sensor_weights, dtype=np.float64)
+    raw_white = spd @ cw
+    if np.any(raw_white <= 0):
+        raise SpectralError("CCM: the illuminant gives no response in some sensor channel")
+    raw = (r * spd) @ cw / raw_white
+    target = target_linear_srgb(spd, r, grid, cat)
+    m = _solve(raw, target, method == "White Preserving")
+    if not np.all(np.isfinite(m)):
+        raise SpectralError("CCM: the fit is degenerate (sensor channels are linearly dependent)")
+    de = colour.delta_E(linear_srgb_to_lab(raw @ m.T), linear_srgb_to_lab(target), method="CIE 2000")
+    return CCMFit(matrix=m, delta_e00=np.asarray(de, dtype=np.float64))

@@ -1,0 +1,101 @@
+"""One sample, end to end: relight + project + ground truth + ISP (DESIGN.md, all equations).
+
+This is what the service runs per request and what ``bench/compose.py`` times. Work a request does
+not need is skipped: groups at zero intensity are not read, bands a group's weights zero out are not
+multiplied, and outputs not asked for are not computed (the gain map needs weights; sRGB needs gain
+and CCM maps).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from retarget import exposure as aec
+from retarget import groundtruth as gt
+from retarget.ccm import fit_ccm
+from retarget.errors import SpectralError
+from retarget.isp import apply_ccm, render_srgb
+from retarget.relight import band_scales, project_groups, raw_weights
+from retarget.sensors import Sensor
+
+OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask")
+
+
+@dataclass
+class Composition:
+    """Arrays of one sample (``None`` where not requested) plus scalars for metadata.
+
+    raw ``(H, W, 3)``, gain ``(H, W, 3)``, ccm ``(H, W, 3, 3)``, srgb ``(H, W, 3)`` in [0, 1],
+    weights ``(H, W, G)``, mask ``(H, W)`` bool; all float32 but the mask.
+    """
+
+    white_points: np.ndarray
+    exposure_gain: float
+    raw: np.ndarray | None = None
+    gain: np.ndarray | None = None
+    ccm: np.ndarray | None = None
+    srgb: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in OUTPUTS if getattr(self, k) is not None}
+
+
+def group_ccms(sensor: Sensor, illuminants: np.ndarray, reflectances: np.ndarray) -> np.ndarray:
+    """``(G, 3, 3)`` white-preserving CCMs, one per group illuminant (see :mod:`retarget.ccm`)."""
+    return np.stack([fit_ccm(sensor.weights(), spd, reflectances, sensor.grid).matrix for spd in illuminants])
+
+
+def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: np.ndarray,
+            intensities: np.ndarray, sensor: Sensor, ccms: np.ndarray | None = None,
+            outputs: Iterable[str] = OUTPUTS, exposure: float | str | None = None,
+            group_names: Sequence[str] | None = None) -> Composition:
+    """Compose one sample from per-group transport cubes.
+
+    cubes : G arrays ``(H, W, n_bands)``; emissions, illuminants : ``(G, n_bands)``;
+    intensities : ``(G,)``; ccms : ``(G, 3, 3)`` (needed for ``ccm``/``srgb``).
+    exposure : ``None`` leaves raw in relative units (sRGB then gets its own constant-M_min AEC),
+    a number multiplies raw, ``"constant"``/``"adaptive"`` is the thesis AEC (eq. 4.2) on raw.
+    """
+    want = set(outputs)
+    unknown = want - set(OUTPUTS)
+    if unknown:
+        raise SpectralError(f"compose: unknown outputs {sorted(unknown)}; choose from {', '.join(OUTPUTS)}")
+    if ({"ccm", "srgb"} & want) and ccms is None:
+        raise SpectralError("compose: CCMs are needed for the ccm and srgb outputs")
+    illuminants = np.atleast_2d(illuminants)
+    wps = gt.white_points(sensor.weights(), illuminants)
+    scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
+    group_raw = project_groups(cubes, raw_weights(scales, sensor.weights()))
+    raw = group_raw.sum(axis=0)
+    if exposure is None or isinstance(exposure, str):
+        gain_exp = 1.0 if exposure is None else aec.aec_gain(raw, method=exposure)
+    else:
+        gain_exp = float(exposure)
+        if not (np.isfinite(gain_exp) and gain_exp > 0):
+            raise SpectralError(f"compose: exposure must be a positive number, got {exposure}")
+    if gain_exp != 1.0:
+        raw *= np.float32(gain_exp)
+    out = Composition(white_points=wps, exposure_gain=gain_exp)
+    if "raw" in want:
+        out.raw = raw
+    if not ({"gain", "ccm", "srgb", "weights", "mask"} & want):
+        return out
+    weights, mask = gt.illuminant_weights(group_raw[..., 1])
+    del group_raw
+    out.weights = weights if "weights" in want else None
+    out.mask = mask if "mask" in want else None
+    gain = gt.gain_map(gt.mixed_white_point(weights, wps)) if ({"gain", "srgb"} & want) else None
+    ccm = gt.ccm_map(weights, ccms) if ({"ccm", "srgb"} & want) else None
+    out.gain = gain if "gain" in want else None
+    out.ccm = ccm if "ccm" in want else None
+    if "srgb" in want:
+        srgb_exposure = 1.0
+        if exposure is None:
+            srgb_exposure = aec.aec_gain(apply_ccm(raw * gain, ccm), method="constant")
+        out.srgb = render_srgb(raw, gain, ccm, srgb_exposure)
+    return out

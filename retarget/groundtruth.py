@@ -1,0 +1,84 @@
+"""Ground truth for pixel-wise colour constancy (thesis §3.2, eqs. 3.2–3.3; DESIGN.md "Ground truth").
+
+::
+
+    w_{g,k}   = Σ_i C_k(λ_i) Φ̄_g(λ_i) Δλ,  normalised w_{g,G} = 1     sensor white point (eq. 3.2)
+    ω_g(x)    = R_{g,G}(x) / Σ_h R_{h,G}(x)                          illuminant weight (eq. 3.3)
+    W_k(x)    = Σ_g ω_g(x) · w_{g,k}                                 mixed white point (LSMI map)
+    gain_k(x) = max_j W_j(x) / W_k(x)                                white-balance gain (eq. 3.3)
+    CCM(x)    = Σ_g ω_g(x) · CCM_g                                   CCM map
+
+Pixels with no light (``Σ_h R_{h,G}`` at most ``rel_eps`` of the frame's brightest pixel) have no
+defined weight: they are flagged ``False`` in the validity mask and given the frame-average weights
+(the light-weighted mean over valid pixels, or equal weights if the frame is dark), so that every
+output stays finite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from retarget.errors import SpectralError
+
+DEFAULT_REL_EPS = 1e-7
+
+
+def white_point(sensor_weights: np.ndarray, spd: np.ndarray, what: str = "illuminant") -> np.ndarray:
+    """Sensor white point of one illuminant, eq. 3.2: ``(3,)`` float64 with G = 1.
+
+    sensor_weights : ``(n_bands, 3)`` = ``C_k(λ_i) Δλ``; spd : ``(n_bands,)`` band averages.
+    """
+    rgb = np.asarray(spd, dtype=np.float64) @ np.asarray(sensor_weights, dtype=np.float64)
+    if not (np.all(np.isfinite(rgb)) and rgb[1] > 0 and np.all(rgb >= 0)):
+        raise SpectralError(f"white point: {what} gives no green response on this sensor "
+                            f"(raw {rgb.tolist()}); the illuminant and sensor do not overlap")
+    if rgb[0] <= 0 or rgb[2] <= 0:
+        ch = "R" if rgb[0] <= 0 else "B"
+        raise SpectralError(f"white point: {what} gives zero {ch} response on this sensor; no finite "
+                            "white-balance gain exists")
+    return rgb / rgb[1]
+
+
+def white_points(sensor_weights: np.ndarray, spds: np.ndarray) -> np.ndarray:
+    """``(G, 3)`` white points for ``(G, n_bands)`` SPDs."""
+    return np.stack([white_point(sensor_weights, s, what=f"illuminant #{g}") for g, s in enumerate(spds)])
+
+
+def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Illuminant weights ω (eq. 3.3) and validity mask from per-group green raw.
+
+    group_green : ``(G, H, W)`` ``R_{g,G}`` (negative noise is clipped to 0).
+    Returns ``(weights (H, W, G) float32 summing to 1, mask (H, W) bool)``.
+    """
+    g = np.clip(np.asarray(group_green, dtype=np.float64), 0.0, None)
+    total = g.sum(axis=0)
+    peak = float(total.max()) if total.size else 0.0
+    mask = total > max(rel_eps * peak, np.finfo(np.float64).tiny)
+    n = g.shape[0]
+    if mask.any():
+        fallback = g[:, mask].sum(axis=1) / total[mask].sum()
+    else:
+        fallback = np.full(n, 1.0 / n)
+    safe = np.where(mask, total, 1.0)
+    w = np.where(mask[None], g / safe[None], fallback[:, None, None])
+    return np.moveaxis(w, 0, -1).astype(np.float32), mask
+
+
+def mixed_white_point(weights: np.ndarray, wps: np.ndarray) -> np.ndarray:
+    """``W(x) = Σ_g ω_g(x) w_g`` — ``(H, W, 3)`` float32 from weights ``(H, W, G)`` and ``(G, 3)``."""
+    return (weights.astype(np.float32) @ np.asarray(wps, dtype=np.float32)).astype(np.float32)
+
+
+def gain_map(mixed_wp: np.ndarray) -> np.ndarray:
+    """White-balance gains ``max_j W_j / W_k`` (eq. 3.3), ``(H, W, 3)`` float32, all ≥ 1."""
+    wp = np.asarray(mixed_wp, dtype=np.float32)
+    if np.any(wp <= 0):
+        raise SpectralError("gain map: a white point has a zero or negative channel")
+    return (wp.max(axis=-1, keepdims=True) / wp).astype(np.float32)
+
+
+def ccm_map(weights: np.ndarray, ccms: np.ndarray) -> np.ndarray:
+    """``CCM(x) = Σ_g ω_g(x) CCM_g`` — ``(H, W, 3, 3)`` float32 from ``(H, W, G)`` and ``(G, 3, 3)``."""
+    c = np.asarray(ccms, dtype=np.float32).reshape(len(ccms), 9)
+    return (weights.astype(np.float32) @ c).reshape(*weights.shape[:2], 3, 3)

@@ -1,0 +1,99 @@
+"""Readers for the tabulated spectral file formats users bring.
+
+- CSV: first column wavelength in nm, then one column per spectrum (a header row is optional;
+  ``wavelength,value`` for an SPD, ``wavelength,r,g,b`` for a camera).
+- rawtoaces camera JSON (``spectral_data.data.main`` maps ``"380"`` → ``[R, G, B]``).
+
+Readers return raw samples; resampling to a grid is :func:`retarget.grid.resample`'s job.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from retarget.errors import SpectralError
+
+
+def read_csv_table(source: str | Path | bytes, *, columns: int | None = None, what: str = "CSV"
+                   ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read a spectral CSV table.
+
+    Returns ``(wavelengths (n,), values (n, k), column_names)``. ``columns`` (if given) is the
+    number of value columns required (1 for an SPD, 3 for a camera).
+    """
+    text = _text(source, what)
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    rows = [r for r in rows if not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise SpectralError(f"{what}: empty file; expected rows 'wavelength,value[,value…]'")
+    names: list[str] = []
+    try:
+        float(rows[0][0])
+    except ValueError:
+        names = [c.strip() for c in rows[0][1:]]
+        rows = rows[1:]
+    try:
+        data = np.array([[float(c) for c in r] for r in rows], dtype=np.float64)
+    except ValueError as exc:
+        raise SpectralError(f"{what}: non-numeric cell ({exc}); every row must be numbers") from None
+    except Exception:
+        raise SpectralError(f"{what}: rows have different numbers of columns") from None
+    if data.ndim != 2 or data.shape[1] < 2:
+        raise SpectralError(f"{what}: need a wavelength column and at least one value column")
+    k = data.shape[1] - 1
+    if columns is not None and k != columns:
+        raise SpectralError(f"{what}: expected {columns} value column(s) after wavelength, found {k}")
+    if not names or len(names) != k:
+        names = [f"s{i}" for i in range(k)]
+    return data[:, 0], data[:, 1:], names
+
+
+def read_rawtoaces_camera(source: str | Path | bytes, what: str = "camera JSON"
+                          ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Read a rawtoaces camera spectral-sensitivity JSON.
+
+    Returns ``(wavelengths (n,), rgb (n, 3), header)``; the channels are reordered to R, G, B
+    following ``spectral_data.index.main``.
+    """
+    text = _text(source, what)
+    try:
+        doc = json.loads(text)
+        sd = doc["spectral_data"]
+        table = sd["data"]["main"]
+        index = [str(c).upper() for c in sd.get("index", {}).get("main", ["R", "G", "B"])]
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise SpectralError(
+            f"{what}: not a rawtoaces camera JSON ({type(exc).__name__}: {exc}); expected "
+            "spectral_data.data.main mapping wavelength -> [R, G, B]"
+        ) from None
+    if sorted(index) != ["B", "G", "R"]:
+        raise SpectralError(f"{what}: channel index {index} is not R, G, B")
+    try:
+        wl = np.array([float(k) for k in table], dtype=np.float64)
+        vals = np.array([[float(x) for x in table[k]] for k in table], dtype=np.float64)
+    except (ValueError, TypeError):
+        raise SpectralError(f"{what}: wavelengths and values must be numbers") from None
+    if vals.ndim != 2 or vals.shape[1] != 3:
+        raise SpectralError(f"{what}: each wavelength needs exactly 3 values (R, G, B)")
+    order = [index.index(c) for c in "RGB"]
+    return wl, vals[:, order], dict(doc.get("header", {}))
+
+
+def _text(source: str | Path | bytes, what: str) -> str:
+    if isinstance(source, bytes):
+        try:
+            return source.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            raise SpectralError(f"{what}: not UTF-8 text") from None
+    path = Path(source)
+    if not path.is_file():
+        raise SpectralError(f"{what}: no such file {str(path)!r}")
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise SpectralError(f"{what}: {str(path)!r} is not UTF-8 text") from None

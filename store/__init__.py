@@ -1,0 +1,1 @@
+"""The Zarr cube store: layout, chunking, metadata schema, dtype policy, integrity (issue: Cube store)."""
