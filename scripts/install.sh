@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Install illumix into the current Python environment, plus the one system library it wants:
+# Debian's libllvm19 for Mitsuba's LLVM backend (LLVM <= 15 crashes it; without any, illumix falls
+# back to the much slower scalar_spectral variant). Usage: bash scripts/install.sh [--test]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+extras=""
+[ "${1:-}" = "--test" ] && extras="[test]"
+if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* >/dev/null 2>&1; then
+  if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
+    echo "install: adding libllvm19 (Mitsuba LLVM backend)" >&2
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19) >&2 \
+      || echo "install: could not install libllvm19; rendering will use scalar_spectral" >&2
+  else
+    echo "install: no libLLVM >= 16 found and cannot apt-get it (not root / not Debian);" \
+         "rendering will use scalar_spectral. On Debian: apt-get install libllvm19" >&2
+  fi
+fi
+python3 -m pip install -q -e ".${extras}"
