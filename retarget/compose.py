@@ -8,7 +8,7 @@ and CCM maps).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,13 +53,17 @@ def group_ccms(sensor: Sensor, illuminants: np.ndarray, reflectances: np.ndarray
 def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: np.ndarray,
             intensities: np.ndarray, sensor: Sensor, ccms: np.ndarray | None = None,
             outputs: Iterable[str] = OUTPUTS, exposure: float | str | None = None,
-            group_names: Sequence[str] | None = None) -> Composition:
+            group_names: Sequence[str] | None = None,
+            resize: Callable[[np.ndarray], np.ndarray] | None = None) -> Composition:
     """Compose one sample from per-group transport cubes.
 
     cubes : G arrays ``(H, W, n_bands)``; emissions, illuminants : ``(G, n_bands)``;
     intensities : ``(G,)``; ccms : ``(G, 3, 3)`` (needed for ``ccm``/``srgb``).
     exposure : ``None`` leaves raw in relative units (sRGB then gets its own constant-M_min AEC),
     a number multiplies raw, ``"constant"``/``"adaptive"`` is the thesis AEC (eq. 4.2) on raw.
+    resize : optional map of per-group raw ``(G, H, W, 3)`` → ``(G, H', W', 3)``. Projection is linear
+    per pixel, so a linear (area/bilinear) resize of per-group raw equals resizing the cubes first,
+    and the ground truth is then computed at the output resolution, consistent with its raw.
     """
     want = set(outputs)
     unknown = want - set(OUTPUTS)
@@ -71,6 +75,8 @@ def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: 
     wps = gt.white_points(sensor.weights(), illuminants)
     scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
     group_raw = project_groups(cubes, raw_weights(scales, sensor.weights()))
+    if resize is not None:
+        group_raw = np.ascontiguousarray(resize(group_raw), dtype=np.float32)
     raw = group_raw.sum(axis=0)
     if exposure is None or isinstance(exposure, str):
         gain_exp = 1.0 if exposure is None else aec.aec_gain(raw, method=exposure)
