@@ -25,6 +25,8 @@ def _register() -> None:
     from illumix import cmd_spectra
 
     cmd_spectra.register(app)
+    from illumix import cmd_render
+    cmd_render.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:

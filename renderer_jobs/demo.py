@@ -91,12 +91,14 @@ def colorchecker(center, normal, up=(0, 1, 0), patch: float = 0.1, gap: float = 
     return materials, shapes
 
 
-def _pale_samples(rng: np.random.Generator, k: int, lo: float) -> list[int]:
-    """``k`` distinct CIE 2017 sample indices whose mean reflectance is at least ``lo``."""
+def _pale_samples(rng: np.random.Generator, k: int, lo: float, max_chroma: float = 10.0) -> list[int]:
+    """``k`` distinct CIE 2017 sample indices with mean reflectance ≥ ``lo`` and relative spectral
+    spread (std / mean over the grid) ≤ ``max_chroma``."""
     from retarget.reflectances import get_reflectances
 
     _, r = get_reflectances("CIE 2017")
-    idx = np.flatnonzero(r.mean(axis=1) >= lo)
+    m = r.mean(axis=1)
+    idx = np.flatnonzero((m >= lo) & (r.std(axis=1) / m <= max_chroma))
     return [int(i) for i in rng.choice(idx, size=k, replace=False)]
 
 
@@ -108,7 +110,7 @@ def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name
     h = float(rng.uniform(2.6, 2.9))   # ceiling height
     x0, x1, z0, z1 = -w / 2, w / 2, -d / 2, d / 2
 
-    walls = _pale_samples(rng, 3, 0.45)
+    walls = _pale_samples(rng, 2, 0.4, max_chroma=0.25)
     (floor_idx,) = [int(i) for i in rng.choice(_dark_floor_candidates(), size=1)]
     ball_idx, table_idx = _pale_samples(rng, 2, 0.15)
     materials: dict = {
@@ -169,7 +171,7 @@ def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name
     ]
     # Chart on the back wall, facing the room.
     chart_mats, chart_shapes = colorchecker(center=(float(rng.uniform(-0.6, 0.2)), 1.35, z0 + 0.005),
-                                            normal=(0, 0, 1), patch=0.11, gap=0.02)
+                                            normal=(0, 0, 1), patch=0.14, gap=0.025)
     materials.update(chart_mats)
     shapes += chart_shapes
     # Ceiling panel light (one-sided area emitter facing down) with a housing above it.

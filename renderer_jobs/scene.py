@@ -35,7 +35,7 @@ from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 import yaml
-from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator,
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator,
                       model_validator)
 
 from retarget.errors import SpectralError
@@ -43,7 +43,7 @@ from retarget.grid import SpectralGrid
 from retarget.illuminants import spd_from_samples
 from retarget.illuminants import illuminant_spd as _library_spd
 
-NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$"
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"  # the cube store's name rules (no "..", see below)
 SCHEMA_VERSION = 1
 
 
@@ -52,7 +52,13 @@ class SceneError(ValueError):
 
 
 Vec3 = tuple[float, float, float]
-Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=100)]
+def _no_dotdot(v: str) -> str:
+    if ".." in v:
+        raise ValueError(f"name {v!r} must not contain '..'")
+    return v
+
+
+Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=100), AfterValidator(_no_dotdot)]
 
 
 class _Model(BaseModel):

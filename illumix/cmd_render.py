@@ -1,0 +1,133 @@
+"""``illumix render CONFIG --store PATH`` / ``illumix render --demo --store PATH``.
+
+Renders every (scene, view, light group) transport cube not yet complete in the store (resume after
+an interruption is just running the command again). The whole plan is validated first: a bad
+config, an unknown view/group, or a store holding the scene from another description stops the run
+with one line and exit 2 before anything is written.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from illumix.errors import UserError
+
+console = Console(stderr=True)
+
+
+def _split(text: str | None) -> list[str] | None:
+    if not text:
+        return None
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def render(
+    config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]})."),
+    store: str = typer.Option(..., "--store", help="Cube store directory or fsspec URL (created if missing)."),
+    demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
+    demo_seed: int = typer.Option(0, "--demo-seed", help="Seed of the demo room's layout and materials."),
+    resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
+    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (4 wavelengths each; >= 16 on 63 bands)."),
+    seed: int = typer.Option(0, "--seed", help="Render seed (same seed, same cube)."),
+    wavelengths: str = typer.Option("stratified", "--wavelengths",
+                                    help="Wavelength sampling: stratified (default) or random (Mitsuba's)."),
+    views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
+    groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
+    executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
+    address: str | None = typer.Option(None, "--address", help="Ray cluster address (ray executor)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
+) -> None:
+    """Render spectral transport cubes (one per view and light group) into a cube store."""
+    from renderer_jobs import jobs
+    from renderer_jobs.mitsuba_backend import WAVELENGTH_MODES, RenderSettings
+    from renderer_jobs.scene import SceneError, load_scenes
+
+    try:
+        if demo == (config is not None):
+            raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
+        if executor not in jobs.EXECUTORS:
+            raise UserError(f"--executor {executor!r} unknown; choose one of {', '.join(jobs.EXECUTORS)}")
+        if wavelengths not in WAVELENGTH_MODES:
+            raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")
+        if executor == "local" and address:
+            raise UserError("--address is for --executor ray")
+        res = jobs.parse_resolution(resolution)
+        if demo:
+            from renderer_jobs.demo import demo_room
+
+            scenes = [demo_room(demo_seed)]
+        else:
+            scenes = load_scenes(config)
+        scenes = [jobs.apply_resolution(s, res) for s in scenes]
+        for s in scenes:
+            if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified":
+                raise UserError(f"--spp {spp} is too low: stratified sampling of {s.spectral_grid.n_bands} "
+                                f"bands needs spp >= {-(-s.spectral_grid.n_bands // 4)}")
+        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths)
+        p = jobs.plan(scenes, store, views=_split(views), groups=_split(groups), overwrite=overwrite)
+    except SceneError as exc:
+        raise UserError(str(exc)) from None
+    except Exception as exc:
+        from store import StoreError
+
+        if isinstance(exc, StoreError):
+            raise UserError(f"store {store}: {exc}") from None
+        raise
+    if p.conflicts and not overwrite:
+        raise UserError(f"{p.conflicts[0]}" + (f" (and {len(p.conflicts) - 1} more)" if len(p.conflicts) > 1 else "")
+                        + "; use another store or scene name, or --overwrite to re-render")
+    n_cubes = len(p.cube_jobs)
+    summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
+               "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
+               "spp": spp, "seed": seed, "wavelengths": wavelengths, "executor": executor}
+    if dry_run:
+        for j in p.jobs:
+            console.print(f"would render {j.label}")
+        if as_json:
+            print(json.dumps({**summary, "jobs": [j.label for j in p.jobs]}))
+        return
+    if not p.jobs:
+        console.print(f"nothing to do: all {summary['already_complete']} cube(s) are complete in {store}")
+        if as_json:
+            print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
+        return
+    t0 = time.perf_counter()
+    done: list[dict] = []
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
+                  transient=False, disable=as_json and not console.is_terminal) as prog:
+        task = prog.add_task("rendering", total=len(p.jobs), last="")
+
+        def on_done(job, result, exc) -> None:
+            if exc is None:
+                done.append(result)
+                prog.update(task, advance=1, last=f"{job.label} {result['seconds']:.1f}s")
+            else:
+                prog.update(task, last=f"[red]{job.label} failed")
+
+        try:
+            jobs.execute(p, store, settings, executor=executor, workers=workers, address=address,
+                         on_done=on_done, overwrite=overwrite)
+        except SceneError as exc:
+            raise UserError(str(exc)) from None
+        except jobs.JobError as exc:
+            raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
+                            "and are kept; run again to resume)") from None
+    elapsed = time.perf_counter() - t0
+    console.print(f"rendered {len([d for d in done if d['kind'] == 'cube'])} cube(s) and "
+                  f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s")
+    if as_json:
+        print(json.dumps({**summary, "rendered": [d["job"] for d in done], "seconds": round(elapsed, 3)}))
+
+
+def register(app: typer.Typer) -> None:
+    app.command("render")(render)

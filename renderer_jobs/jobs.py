@@ -1,0 +1,351 @@
+"""Render jobs: every (scene, view, light group) cube not yet complete in the store, resumable.
+
+A run is planned in the calling process (scenes validated, store consulted; nothing is written
+until the whole plan is known to be valid), then executed by an executor:
+
+- ``local`` (default): ``workers`` processes (``spawn``), or in-process when ``workers == 1``. Each
+  process runs Dr.Jit's own thread pool, sized ``cpu_count // workers``.
+- ``ray``: one Ray task per job on the cluster at ``address`` (``ray.init(address=...)``); the store
+  location must be reachable from the workers (shared filesystem or an fsspec URL).
+
+Jobs write straight into the store: first, per view, the view metadata and geometry AOVs; then one
+cube per (view, group). The store's writes are complete-or-invisible, so an interrupted run leaves
+only whole cubes, and the next run renders what is missing (resume).
+
+A cube already complete but rendered from a different scene description (another ``scene_hash``)
+or at another resolution is a conflict: the run refuses to start unless ``overwrite`` is set.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from renderer_jobs.scene import Scene, SceneError, scene_from_dict
+
+EXECUTORS = ("local", "ray")
+
+
+class JobError(RuntimeError):
+    """A render job failed (the message names the job)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: ``group is None`` means "view metadata + AOVs" of ``view``."""
+
+    scene: str
+    view: str
+    group: str | None
+
+    @property
+    def label(self) -> str:
+        return f"{self.scene}/{self.view}/" + (self.group if self.group is not None else "[view+aovs]")
+
+
+@dataclass
+class Plan:
+    scenes: dict[str, Scene]
+    jobs: list[Job]
+    skipped: list[Job] = field(default_factory=list)
+    conflicts: list[str] = field(default_factory=list)
+
+    @property
+    def cube_jobs(self) -> list[Job]:
+        return [j for j in self.jobs if j.group is not None]
+
+    @property
+    def view_jobs(self) -> list[Job]:
+        return [j for j in self.jobs if j.group is None]
+
+
+def parse_resolution(text: str | None) -> tuple[int, int] | None:
+    """``"WxH"`` → ``(W, H)``; None passes through. Raises :class:`SceneError` on anything else."""
+    if text is None:
+        return None
+    parts = text.lower().replace("×", "x").split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise SceneError(f"resolution {text!r} is not WIDTHxHEIGHT (e.g. 320x240)") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise SceneError(f"resolution {text!r}: width and height must be 1..16384")
+    return w, h
+
+
+def apply_resolution(scene: Scene, resolution: tuple[int, int] | None) -> Scene:
+    """The scene with every view's resolution replaced (None: unchanged)."""
+    if resolution is None:
+        return scene
+    doc = scene.model_dump(mode="json")
+    for v in doc["views"]:
+        v["resolution"] = list(resolution)
+    return scene_from_dict(doc, source=f"scene {scene.name!r}", base=scene._base, check=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# Store adapter (the store package is the only place that knows the on-disk layout)
+
+
+def _open_store(path: str, mode: str = "a"):
+    from store import CubeStore
+
+    return CubeStore.open(path, mode=mode)
+
+
+def _store_errors() -> tuple[type[BaseException], ...]:
+    try:
+        from store import StoreError
+
+        return (StoreError,)
+    except ImportError:  # pragma: no cover
+        return ()
+
+
+def _view_meta(scene: Scene, view: str):
+    from store import ViewMeta
+
+    v = scene.view(view)
+    return ViewMeta(width=v.width, height=v.height, origin=tuple(v.origin), target=tuple(v.target),
+                    up=tuple(v.up), fov=v.fov, fov_axis="x", groups=scene.group_names,
+                    scene_hash=scene.scene_hash, view_hash=scene.view_hash(view))
+
+
+def _stored_view(st, scene: str, view: str):
+    try:
+        if view not in st.views(scene):
+            return None
+        return st.view_meta(scene, view)
+    except Exception:  # noqa: BLE001 — a scene that does not exist yet has no views
+        return None
+
+
+def _stored_cube_meta(st, scene: str, view: str, group: str):
+    try:
+        return st.cube_meta(scene, view, group)
+    except Exception:  # noqa: BLE001
+        return None
+
+
+def _scene_list(st) -> list[str]:
+    try:
+        return list(st.scenes())
+    except Exception:  # noqa: BLE001
+        return []
+
+
+def plan(scenes: Iterable[Scene], store_path: str | None, *, views: list[str] | None = None,
+         groups: list[str] | None = None, overwrite: bool = False) -> Plan:
+    """Jobs still to do for ``scenes`` against the store at ``store_path`` (None or missing: all).
+
+    Reads the store only. ``views``/``groups`` restrict the plan (unknown names are errors).
+    """
+    scenes = list(scenes)
+    by_name = {s.name: s for s in scenes}
+    for s in scenes:
+        for v in views or []:
+            s.view(v)
+        for g in groups or []:
+            s.group(g)
+    st = None
+    if store_path is not None and _store_exists(store_path):
+        st = _open_store(store_path, mode="r")
+    out = Plan(scenes=by_name, jobs=[])
+    for s in scenes:
+        stored_scenes = _scene_list(st) if st is not None else []
+        for v in s.views:
+            if views and v.name not in views:
+                continue
+            vm = _stored_view(st, s.name, v.name) if (st is not None and s.name in stored_scenes) else None
+            if vm is not None and (vm.width, vm.height) != (v.width, v.height):
+                out.conflicts.append(f"{s.name}/{v.name}: the store holds it at {vm.width}x{vm.height}, "
+                                     f"this run renders {v.width}x{v.height}")
+            if vm is not None and getattr(vm, "view_hash", None) not in (None, s.view_hash(v.name)):
+                out.conflicts.append(f"{s.name}/{v.name}: the store holds this view rendered from a "
+                                     "different scene description or camera")
+            view_job = Job(s.name, v.name, None)
+            if vm is None or overwrite:
+                out.jobs.append(view_job)
+            else:
+                out.skipped.append(view_job)
+            for g in s.group_names:
+                if groups and g not in groups:
+                    continue
+                job = Job(s.name, v.name, g)
+                done = vm is not None and st.is_complete(s.name, v.name, g)
+                if done:
+                    meta = _stored_cube_meta(st, s.name, v.name, g)
+                    h = getattr(meta, "scene_hash", None) if meta is not None else None
+                    if h and h != s.scene_hash:
+                        out.conflicts.append(f"{job.label}: stored cube has scene_hash {h[:12]}…, the "
+                                             f"description now hashes to {s.scene_hash[:12]}…")
+                if done and not overwrite:
+                    out.skipped.append(job)
+                else:
+                    out.jobs.append(job)
+    return out
+
+
+def _store_exists(path: str) -> bool:
+    if "://" in path and not path.startswith("file://"):
+        return True  # remote store: let the store decide
+    p = Path(path.removeprefix("file://"))
+    return p.exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# Job execution (runs in worker processes / Ray tasks)
+
+
+def _scene_payload(scene: Scene) -> tuple[dict, str | None]:
+    return scene.model_dump(mode="json"), (str(scene._base) if scene._base is not None else None)
+
+
+def _scene_from_payload(payload: tuple[dict, str | None]) -> Scene:
+    doc, base = payload
+    return scene_from_dict(doc, source="job scene", base=Path(base) if base else None, check=False)
+
+
+def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, settings_dict: dict,
+            threads: int | None = None, overwrite: bool = False) -> dict:
+    """Render one job and write it into the store. Returns a small summary dict."""
+    from renderer_jobs import mitsuba_backend as mb
+
+    if threads:
+        os.environ.setdefault("DRJIT_NUM_THREADS", str(threads))
+    scene = _scene_from_payload(payload)
+    settings = mb.RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v)
+                                    for k, v in settings_dict.items()})
+    mb.select_variant()
+    if threads:
+        import drjit as dr
+
+        try:
+            dr.set_thread_count(int(threads))
+        except Exception:  # noqa: BLE001 — cuda variants have no thread pool
+            pass
+    t0 = time.perf_counter()
+    st = _open_store(store_path, mode="a")
+    if job.group is None:
+        aovs = mb.render_aovs(scene, job.view, settings)
+        st.write_view(scene.name, job.view, _view_meta(scene, job.view), aovs)
+        return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view"}
+    from store import CubeMeta
+
+    result = mb.render_cube(scene, job.view, job.group, settings)
+    meta = CubeMeta(grid=scene.spectral_grid.to_dict(), emission=result.emission.tolist(),
+                    emission_name=result.emission_name, renderer=result.renderer, spp=settings.spp,
+                    seed=settings.seed, scene_hash=scene.scene_hash, view_hash=scene.view_hash(job.view),
+                    render_stats=result.stats, units="radiance per unit emission (band averages)",
+                    denoiser="none")
+    if not (result.cube.max() > 0):
+        # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
+        st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
+    else:
+        st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite)
+    return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
+            "trace_s": result.stats.get("trace_s")}
+
+
+# ---------------------------------------------------------------------------------------------
+# Executors
+
+
+ProgressFn = Callable[[Job, dict | None, BaseException | None], None]
+
+
+def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
+               on_done: ProgressFn, overwrite: bool = False) -> list[dict]:
+    payloads = {n: _scene_payload(s) for n, s in plan_.scenes.items()}
+    results: list[dict] = []
+    cpu = os.cpu_count() or 1
+    threads = max(1, cpu // max(1, workers))
+    phases = [plan_.view_jobs, plan_.cube_jobs]
+    if workers <= 1:
+        for phase in phases:
+            for job in phase:
+                try:
+                    r = run_job(payloads[job.scene], job, store_path, settings_dict, None, overwrite)
+                except SceneError:
+                    raise
+                except Exception as exc:
+                    on_done(job, None, exc)
+                    raise JobError(f"{job.label}: {type(exc).__name__}: {exc}") from exc
+                results.append(r)
+                on_done(job, r, None)
+        return results
+    import multiprocessing as mp
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        for phase in phases:
+            pending = {pool.submit(run_job, payloads[j.scene], j, store_path, settings_dict, threads, overwrite): j
+                       for j in phase}
+            try:
+                while pending:
+                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        job = pending.pop(fut)
+                        exc = fut.exception()
+                        if exc is not None:
+                            on_done(job, None, exc)
+                            raise JobError(f"{job.label}: {exc}") from exc
+                        results.append(fut.result())
+                        on_done(job, fut.result(), None)
+            except BaseException:
+                for fut in pending:
+                    fut.cancel()
+                raise
+    return results
+
+
+def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | None,
+             on_done: ProgressFn, ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
+    try:
+        import ray
+    except ImportError:
+        raise JobError("the ray executor needs Ray: pip install 'illumix[ray]'") from None
+    if not ray.is_initialized():
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+    remote = ray.remote(num_cpus=1)(run_job)
+    payloads = {n: ray.put(_scene_payload(s)) for n, s in plan_.scenes.items()}
+    results: list[dict] = []
+    for phase in (plan_.view_jobs, plan_.cube_jobs):
+        refs = {remote.remote(payloads[j.scene], j, store_path, settings_dict, None, overwrite): j
+                for j in phase}
+        while refs:
+            done, _ = ray.wait(list(refs), num_returns=1)
+            for ref in done:
+                job = refs.pop(ref)
+                try:
+                    r = ray.get(ref)
+                except Exception as exc:
+                    on_done(job, None, exc)
+                    for other in refs:
+                        ray.cancel(other)
+                    raise JobError(f"{job.label}: {exc}") from exc
+                results.append(r)
+                on_done(job, r, None)
+    return results
+
+
+def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,
+            address: str | None = None, on_done: ProgressFn | None = None,
+            ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
+    """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries."""
+    if executor not in EXECUTORS:
+        raise SceneError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+    settings_dict = settings.to_dict() if hasattr(settings, "to_dict") else dict(settings)
+    cb = on_done or (lambda job, r, exc: None)
+    if not plan_.jobs:
+        return []
+    if executor == "ray":
+        return _run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)
+    return _run_local(plan_, store_path, settings_dict, workers, cb, overwrite)
+
+
+__all__ = ["EXECUTORS", "Job", "JobError", "Plan", "apply_resolution", "execute", "parse_resolution", "plan",
+           "run_job"]
