@@ -25,8 +25,9 @@ def _register() -> None:
     from illumix import cmd_spectra
 
     cmd_spectra.register(app)
-    from illumix import cmd_render
+    from illumix import cmd_render, cmd_validate
     cmd_render.register(app)
+    cmd_validate.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:
