@@ -22,9 +22,11 @@ app = typer.Typer(
 
 
 def _register() -> None:
-    from illumix import cmd_spectra
+    from illumix import cmd_serve, cmd_spectra
 
     cmd_spectra.register(app)
+    from illumix import cmd_store; cmd_store.register(app)
+    cmd_serve.register(app)
     from illumix import cmd_render, cmd_validate
     cmd_render.register(app)
     cmd_validate.register(app)

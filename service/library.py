@@ -1,0 +1,131 @@
+"""Sensors and illuminants for the service: built-ins plus uploads persisted in the store registry,
+with cached sensor objects, white points and CCMs (the per-request work is then only the cubes).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from functools import lru_cache
+
+import numpy as np
+
+from retarget import illuminants as ill
+from retarget import sensors as sen
+from retarget.ccm import fit_ccm
+from retarget.errors import SpectralError, unknown_name
+from retarget.grid import SpectralGrid
+from retarget.groundtruth import white_point
+from retarget.reflectances import DEFAULT_TRAINING_SET, get_reflectances
+from retarget.tables import read_csv_table
+
+
+class Library:
+    """Name → sensor / illuminant resolution over built-ins and a store's upload registries.
+
+    Uploaded names may not shadow built-in ones. Every derived quantity is cached under a key that
+    includes the content hash of the upload, so an overwrite or delete can never serve stale data.
+    """
+
+    def __init__(self, store) -> None:
+        self.store = store
+        self._lock = threading.Lock()
+        self._sensors: dict[tuple, sen.Sensor] = {}
+
+    # -- registries -------------------------------------------------------------------------
+    def _registry(self, kind: str):
+        return self.store.registry(kind)
+
+    def uploaded_sensors(self) -> list[str]:
+        return sorted(self._registry("sensors").names())
+
+    def uploaded_illuminants(self) -> list[str]:
+        return sorted(self._registry("illuminants").names())
+
+    def _upload(self, kind: str, name: str) -> tuple[bytes, str] | None:
+        reg = self._registry(kind)
+        return reg.get(name) if name in reg.names() else None
+
+    # -- sensors ----------------------------------------------------------------------------
+    def is_builtin_sensor(self, name: str) -> bool:
+        return name in sen.builtin_names()
+
+    def sensor(self, name: str, grid: SpectralGrid) -> tuple[sen.Sensor, str]:
+        """``(Sensor, cache key)`` for a built-in or uploaded sensor name."""
+        if self.is_builtin_sensor(name):
+            return sen.get_sensor(name, grid), f"builtin:{name}"
+        up = self._upload("sensors", name)
+        if up is None:
+            raise unknown_name("sensor", name, sen.builtin_names() + self.uploaded_sensors())
+        data, fmt = up
+        key = ("sensor", name, hashlib.sha1(data).hexdigest(), grid)
+        with self._lock:
+            s = self._sensors.get(key)
+        if s is None:
+            s = parse_sensor(name, data, fmt, grid)
+            with self._lock:
+                self._sensors[key] = s
+        return s, f"upload:{name}:{key[2]}"
+
+    # -- illuminants ------------------------------------------------------------------------
+    def illuminant(self, name: str, grid: SpectralGrid) -> tuple[np.ndarray, str]:
+        """``(normalised SPD (n_bands,), cache key)``."""
+        up = None
+        if name not in ill.builtin_names() and ":" not in name:
+            up = self._upload("illuminants", name)
+        if up is None:
+            if name not in ill.builtin_names() and name.partition(":")[0].lower() not in ill.PARAMETRIC:
+                raise unknown_name("illuminant", name, ill.builtin_names()
+                                   + [f"{k}:<K>" for k in ill.PARAMETRIC] + self.uploaded_illuminants())
+            return ill.illuminant_spd(name, grid), f"builtin:{name}"
+        data, _ = up
+        return parse_illuminant(name, data, grid), f"upload:{name}:{hashlib.sha1(data).hexdigest()}"
+
+    # -- derived, cached ----------------------------------------------------------------------
+    def white_point(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str) -> np.ndarray:
+        return _white_point(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
+
+    def ccm(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str) -> tuple[np.ndarray, float]:
+        return _ccm(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
+
+
+class _Frozen:
+    """Carries an array through lru_cache without hashing it (the string keys identify it)."""
+
+    def __init__(self, a: np.ndarray) -> None:
+        self.a = a
+
+    def __hash__(self) -> int:
+        return 0
+
+    def __eq__(self, other: object) -> bool:
+        return True
+
+
+@lru_cache(maxsize=4096)
+def _white_point(skey: str, ikey: str, grid: SpectralGrid, w: _Frozen, spd: _Frozen) -> np.ndarray:
+    return white_point(w.a, spd.a, what=ikey.split(":")[1])
+
+
+@lru_cache(maxsize=4096)
+def _ccm(skey: str, ikey: str, grid: SpectralGrid, w: _Frozen, spd: _Frozen) -> tuple[np.ndarray, float]:
+    _, refl = get_reflectances(DEFAULT_TRAINING_SET, grid)
+    fit = fit_ccm(w.a, spd.a, refl, grid)
+    return fit.matrix, fit.delta_e00_mean
+
+
+def parse_sensor(name: str, data: bytes, fmt: str, grid: SpectralGrid) -> sen.Sensor:
+    """Validate uploaded sensor bytes (rawtoaces JSON or CSV ``wavelength,r,g,b``) into a Sensor."""
+    wl, rgb = sen.read_sensor_file(data, fmt=fmt, what=f"uploaded sensor {name!r}")
+    return sen.sensor_from_samples(name, wl, rgb, grid, source="uploaded")
+
+
+def parse_illuminant(name: str, data: bytes, grid: SpectralGrid) -> np.ndarray:
+    """Validate uploaded SPD bytes (CSV ``wavelength,value``) into a normalised band-averaged SPD."""
+    wl, v, _ = read_csv_table(data, columns=1, what=f"uploaded illuminant {name!r}")
+    return ill.spd_from_samples(wl, v[:, 0], grid, what=f"uploaded illuminant {name!r}")
+
+
+def check_upload_name(kind: str, name: str, builtin: list[str]) -> None:
+    if name in builtin or (kind == "illuminants" and ":" in name):
+        raise SpectralError(f"{kind[:-1]} name {name!r} is taken by a built-in; choose another name")
