@@ -1,0 +1,140 @@
+"""``illumix demo`` — render the demo room into a local store (if needed), serve it on 127.0.0.1,
+fetch samples for two illuminant pairs over HTTP, save PNGs, print how to get more, keep serving."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import socket
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+
+from illumix.errors import UserError
+
+console = Console(stderr=True)
+PAIRS = (("A", "D65"), ("FL11", "daylight:5500"))
+DEMO_SENSOR = "Nikon 5100 (NPL)"
+
+
+def _free_port(preferred: int) -> int:
+    for port in (preferred, 0):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+                return s.getsockname()[1]
+            except OSError:
+                continue
+    raise UserError("no free port on 127.0.0.1")
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    """Atomic 8-bit PNG of an ``(H, W, 3)`` image in [0, 1]."""
+    import cv2
+
+    ok, data = cv2.imencode(".png", np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8)[..., ::-1])
+    if not ok:
+        raise UserError(f"could not encode {path}")
+    tmp = path.with_suffix(".png.tmp")
+    tmp.write_bytes(data.tobytes())
+    os.replace(tmp, path)
+
+
+def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> None:
+    from illumix.cmd_render import render
+
+    render(config=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
+           wavelengths="stratified", views=None, groups=None, workers=workers, executor="local",
+           address=None, overwrite=False, dry_run=False, as_json=False)
+
+
+def _save_samples(url: str, out: Path) -> list[str]:
+    import httpx
+
+    from retarget.isp import preview
+
+    out.mkdir(parents=True, exist_ok=True)
+    scenes = httpx.get(f"{url}/scenes", timeout=60).json()["scenes"]
+    scene = next(s for s in scenes if s["name"].startswith("demo"))
+    written = []
+    for view in scene["views"]:
+        for a, b in PAIRS:
+            r = httpx.get(f"{url}/sample", timeout=300, params={
+                "scene": scene["name"], "view": view["name"], "sensor": DEMO_SENSOR, "pair": f"{a},{b}",
+                "outputs": "raw,gain,srgb,meta"})
+            if r.status_code != 200:
+                raise UserError(f"the service answered {r.status_code}: {r.json().get('detail')}")
+            z = np.load(io.BytesIO(r.content))
+            meta = json.loads(str(z["meta"]))
+            stem = f"{scene['name']}_{view['name']}_{a}+{b}".replace(":", "")
+            raw = z["raw"]
+            _write_png(out / f"{stem}_raw.png", preview(raw, 0.5 / max(float(np.percentile(raw, 99)), 1e-12)))
+            gain = z["gain"]
+            _write_png(out / f"{stem}_gain.png", gain / float(gain.max()))
+            _write_png(out / f"{stem}_srgb.png", z["srgb"])
+            (out / f"{stem}_meta.json").write_text(json.dumps(meta, indent=1))
+            written += [f"{stem}_{k}.png" for k in ("raw", "gain", "srgb")]
+            console.print(f"  {view['name']} {a}+{b}: white points "
+                          + ", ".join(f"{i['illuminant']} R/G {i['white_point_rgb'][0]:.3f} "
+                                      f"B/G {i['white_point_rgb'][2]:.3f}"
+                                      for i in meta["illuminants"] if i["illuminant"]))
+    return written
+
+
+def demo(
+    store: str = typer.Option("./illumix-store", "--store", help="Where the demo cubes live."),
+    out: Path = typer.Option(Path("./illumix-demo"), "--out", help="Where sample PNGs are written."),
+    resolution: str = typer.Option("240x180", "--resolution", help="Render resolution WIDTHxHEIGHT."),
+    spp: int = typer.Option(32, "--spp", min=16, help="Render paths per pixel."),
+    workers: int = typer.Option(1, "--workers", min=1, help="Render worker processes."),
+    port: int = typer.Option(8000, "--port", help="Port on 127.0.0.1 (a free one if taken)."),
+    serve: bool = typer.Option(True, "--serve/--no-serve", help="Keep serving after the samples."),
+) -> None:
+    """Render the demo room (if needed), serve it on 127.0.0.1, fetch and save samples."""
+    import uvicorn
+
+    from illumix.cmd_serve import open_store
+    from service.app import create_app
+
+    console.rule("[bold]1. render the demo room (skipped where the store is complete)")
+    _ensure_rendered(store, resolution, spp, workers)
+    console.rule("[bold]2. serve")
+    port = _free_port(port)
+    app = create_app(open_store(store, mode="a"), cache_mb=512)
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    while not server.started:
+        if not thread.is_alive():
+            raise UserError(f"the service could not start on 127.0.0.1:{port}")
+        time.sleep(0.05)
+    url = f"http://127.0.0.1:{port}"
+    console.print(f"serving {store} at {url} (OpenAPI docs: {url}/docs)")
+    try:
+        console.rule(f"[bold]3. fetch samples ({DEMO_SENSOR})")
+        written = _save_samples(url, out)
+        console.print(f"wrote {len(written)} PNGs into {out}/ (raw preview, gain map, sRGB)")
+        console.rule("[bold]4. get more")
+        print(f"curl -o sample.npz '{url}/sample?sensor=XYZ&pair=A,D65'")
+        print(f"curl -o srgb.png '{url}/sample?pair=FL11,D50&outputs=srgb&format=png'")
+        print("python -c \"import httpx, numpy as np, io; "
+              f"z = np.load(io.BytesIO(httpx.get('{url}/sample', params={{'pair': 'A,D65'}}).content)); "
+              "print({k: z[k].shape for k in z.files})\"")
+        if serve:
+            console.print("serving until Ctrl-C …")
+            while thread.is_alive():
+                thread.join(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("demo")(demo)
