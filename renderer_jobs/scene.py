@@ -683,6 +683,9 @@ def _format_errors(doc: Any, exc: ValidationError, source: str) -> str:
     for err in exc.errors():
         loc = _format_loc(doc, tuple(err["loc"]))
         msg = err["msg"].removeprefix("Value error, ")
+        if err.get("type") in ("union_tag_invalid", "union_tag_not_found"):
+            tag = str((err.get("ctx") or {}).get("discriminator", "")).strip("'")
+            loc = f"{loc}.{tag}" if loc != "(top level)" else tag
         msgs.append(f"{loc}: {msg}" if loc != "(top level)" else msg)
     # Union branches repeat the same location; keep each message once.
     unique = list(dict.fromkeys(msgs))

@@ -1,0 +1,193 @@
+"""Mitsuba backend: variant selection, closed-form validation, relighting, additivity, determinism.
+
+Renders are tiny (≤ 96×64, 16–32 spp). Statistical checks compare a difference of two renders with
+the noise of that same difference: pixels are independent (box filter, independent samples), so the
+image mean of a difference ``d`` has standard error ``std(d) / √N``; a 5σ bound on three broad
+spectral channels fails by chance with probability < 1e-5 for Gaussian noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer_jobs import demo
+from renderer_jobs import mitsuba_backend as mb
+from renderer_jobs.scene import SceneError, scene_from_dict
+
+RES = (40, 30)
+
+
+def box_scene(**group_emission) -> dict:
+    """An open box (floor, back and left wall, a ColorChecker) with three light groups:
+    ``lamp`` (area light), ``bulb`` (point light), ``sky`` (constant) — all Lambertian, low variance."""
+    mats, shapes = demo.colorchecker(center=(0, 1.0, -0.99), normal=(0, 0, 1), patch=0.2, gap=0.03)
+    mats.update({"white": {"kind": "diffuse", "reflectance": {"value": 0.7}},
+                 "red": {"kind": "diffuse", "reflectance": {"library": "ColorChecker N Ohta", "index": 14}}})
+    shapes += [
+        {"name": "floor", "type": "rectangle", "material": "white",
+         "transform": {"matrix": demo.frame_matrix((0, 0, 0), (0, 1, 0), (0, 0, -1), (2, 2))}},
+        {"name": "back", "type": "rectangle", "material": "white",
+         "transform": {"matrix": demo.frame_matrix((0, 1, -1), (0, 0, 1), (0, 1, 0), (2, 2))}},
+        {"name": "left", "type": "rectangle", "material": "red",
+         "transform": {"matrix": demo.frame_matrix((-1, 1, 0), (1, 0, 0), (0, 1, 0), (2, 2))}},
+        {"name": "panel", "type": "rectangle", "emitter": {"group": "lamp", "strength": 4.0},
+         "transform": {"matrix": demo.frame_matrix((0.3, 1.95, -0.3), (0, -1, 0), (0, 0, -1), (0.6, 0.6))}},
+    ]
+    return {"name": "box", "materials": mats, "shapes": shapes,
+            "lights": [{"name": "bulb", "type": "point", "group": "bulb", "position": (-0.5, 1.2, 0.3), "strength": 1.0},
+                       {"name": "sky", "type": "constant", "group": "sky", "strength": 0.3}],
+            "light_groups": [{"name": g, "emission": group_emission.get(g, "flat")} for g in ("lamp", "bulb", "sky")],
+            "views": [{"name": "cam", "origin": (0, 1.0, 2.2), "target": (0, 0.9, -1), "fov": 60, "resolution": RES}],
+            "max_depth": 5}
+
+
+@pytest.fixture(scope="module")
+def box():
+    return scene_from_dict(box_scene())
+
+
+def broad(cube: np.ndarray) -> np.ndarray:
+    """(H, W, 3) sums over thirds of the bands (a cheap stand-in for camera channels)."""
+    return np.stack([c.sum(axis=-1) for c in np.array_split(cube, 3, axis=-1)], axis=-1)
+
+
+def assert_same_within_noise(a: np.ndarray, b: np.ndarray, k: float = 5.0) -> None:
+    d = broad(a) - broad(b)
+    n = d.shape[0] * d.shape[1]
+    se = d.reshape(n, 3).std(axis=0) / np.sqrt(n)
+    z = d.reshape(n, 3).mean(axis=0) / se
+    assert np.all(np.abs(z) < k), f"means differ by {z} standard errors"
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def test_find_libllvm_refuses_old_versions(tmp_path):
+    for name in ("libLLVM-14.so.1", "libLLVM-15.so", "libLLVM.so.19.1", "libLLVM-17.so", "libLLVMCore.a"):
+        (tmp_path / name).write_bytes(b"")
+    path, version = mb.find_libllvm(dirs=(str(tmp_path),))
+    assert version[0] == 19 and path.endswith("libLLVM.so.19.1")
+    (tmp_path / "libLLVM.so.19.1").unlink()
+    (tmp_path / "libLLVM-17.so").unlink()
+    assert mb.find_libllvm(dirs=(str(tmp_path),)) is None  # 14 and 15 only: refused
+    assert mb._llvm_version("/usr/lib/llvm-19/lib/libLLVM.so") == (19,)
+    assert mb._llvm_version("/usr/lib/x86_64-linux-gnu/libLLVM-14.0.6.so.1") == (14, 0, 6)
+
+
+def test_variant_selected_and_llvm_path_set():
+    import os
+
+    v = mb.select_variant()
+    assert v in mb.VARIANTS
+    if v == "llvm_ad_spectral":
+        lib = os.environ["DRJIT_LIBLLVM_PATH"]
+        assert mb._llvm_version(lib)[0] >= mb.MIN_LLVM
+
+
+def test_step_spectrum_never_all_zero_irregular(box):
+    assert mb.step_spectrum(np.zeros(63), box) == {"type": "uniform", "value": 0.0}
+    assert mb.step_spectrum(np.full(63, 2.0), box) == {"type": "uniform", "value": 2.0}
+    d = mb.step_spectrum(np.r_[np.zeros(62), 1.0], box)
+    assert d["type"] == "irregular" and len(d["values"].split(",")) == 126
+
+
+def test_validation_matches_closed_form():
+    """Delta light, Lambertian patches, no other geometry, stratified wavelengths: the estimator has
+    zero variance, so rendered raw equals closed form to float32 rounding (~1e-6 relative)."""
+    from renderer_jobs.validate import run_validation
+
+    r = run_validation(illuminants=("D65", "FL11", "blackbody:2300"), spp=16, resolution=(96, 64))
+    assert len(r.patches) == 72 and {p["patch"] for p in r.patches} == set(range(1, 25))
+    for p in r.patches:
+        np.testing.assert_allclose(p["raw_rendered"], p["raw_closed_form"], rtol=1e-5)
+        assert p["delta_e00"] < 1e-3 and p["relative_rg_bg_pct"] < 1e-3 and p["angular_deg"] < 1e-3
+    assert all(s["max_delta_e00"] < 1e-3 for s in r.summary)
+
+
+def test_stratified_wavelengths_remove_band_count_noise():
+    """On the validation chart only the wavelength sampling is random: stratified bands are exact,
+    Mitsuba's random wavelengths leave the band-count noise ≈ √((1 − p)/(N p)), p = 4/63, N = spp
+    paths: 96 % at 16 spp (× √(E[L²])/E[L] ≈ 1.2 for the spread of patch radiances over the pixels)."""
+    from scipy.ndimage import binary_erosion
+
+    scene = demo.validation_chart(resolution=(48, 32))
+    out = {}
+    for mode in ("stratified", "random"):
+        a = mb.render_cube(scene, "head-on", "light", mb.RenderSettings(spp=16, seed=1, wavelengths=mode)).cube
+        b = mb.render_cube(scene, "head-on", "light", mb.RenderSettings(spp=16, seed=2, wavelengths=mode)).cube
+        lit = binary_erosion(a.mean(-1) > 0.01)
+        out[mode] = np.median(np.std(a[lit] - b[lit], axis=0) / np.sqrt(2) / a[lit].mean(axis=0))
+    assert out["stratified"] < 1e-5
+    assert 0.7 < out["random"] < 1.6
+
+
+def test_same_seed_same_cube_other_seed_differs(box):
+    s = mb.RenderSettings(spp=16, seed=7)
+    a = mb.render_cube(box, "cam", "lamp", s)
+    b = mb.render_cube(box, "cam", "lamp", s)
+    c = mb.render_cube(box, "cam", "lamp", mb.RenderSettings(spp=16, seed=8))
+    assert a.cube.shape == (RES[1], RES[0], 63) and a.cube.dtype == np.float32
+    assert np.array_equal(a.cube, b.cube)
+    assert not np.array_equal(a.cube, c.cube)
+    assert a.emission_name == "flat" and np.all(a.emission == 1)
+    assert a.renderer["name"] == "mitsuba" and a.renderer["settings"]["wavelength_sampling"] == "stratified"
+    assert np.all(np.isfinite(a.cube)) and a.cube.min() >= 0
+
+
+def test_relight_flat_by_fl11_equals_fl11_emission():
+    """Linearity per band: a cube rendered with FL11 emission equals the flat cube × FL11̄ — exactly
+    (same seed: identical paths) and within noise (another seed)."""
+    from retarget.illuminants import illuminant_spd
+    from retarget.relight import band_scales, relight
+
+    flat = scene_from_dict(box_scene())
+    fl11 = scene_from_dict(box_scene(lamp="FL11"))
+    e = illuminant_spd("FL11")
+    t_flat = mb.render_cube(flat, "cam", "lamp", mb.RenderSettings(spp=32, seed=1))
+    t_fl11 = mb.render_cube(fl11, "cam", "lamp", mb.RenderSettings(spp=32, seed=1))
+    np.testing.assert_allclose(t_fl11.emission, e)
+    relit = relight([t_flat.cube], band_scales(e[None], t_flat.emission[None], np.ones(1)))
+    np.testing.assert_allclose(t_fl11.cube, relit, rtol=2e-5, atol=1e-7 * relit.max())
+    other = mb.render_cube(fl11, "cam", "lamp", mb.RenderSettings(spp=32, seed=2))
+    assert_same_within_noise(other.cube, relit)
+    # And FL11's spikes survive: the 545 nm band is far brighter than its neighbours.
+    i = int(np.argmin(np.abs(flat.spectral_grid.wavelengths - 545)))
+    assert other.cube[..., i].mean() > 2 * other.cube[..., i - 3].mean()
+
+
+def test_groups_add_up_to_all_on(box):
+    parts = [mb.render_cube(box, "cam", g, mb.RenderSettings(spp=32, seed=3)).cube for g in box.group_names]
+    total = sum(parts)
+    all_on = mb.render_cube(box, "cam", None, mb.RenderSettings(spp=32, seed=4)).cube
+    assert_same_within_noise(total, all_on)
+    # every group contributes (a group missing from the all-on render would fail the test above)
+    assert all(p.mean() > 0.02 * total.mean() for p in parts)
+
+
+def test_aovs(box):
+    a = mb.render_aovs(box, "cam", mb.RenderSettings(aov_spp=2))
+    h, w = RES[1], RES[0]
+    assert a["albedo"].shape == (h, w, 3) and a["normal"].shape == (h, w, 3)
+    assert a["depth"].shape == (h, w) and a["mask"].shape == (h, w) and a["mask"].dtype == bool
+    m = a["mask"]
+    assert 0.3 < m.mean() < 1.0  # the box is open at the top/right: some pixels see the sky
+    np.testing.assert_allclose(np.linalg.norm(a["normal"][m], axis=-1), 1, atol=1e-3)
+    assert np.all(a["depth"][m] > 0) and np.all(a["depth"][~m] == 0)
+    assert 0 <= a["albedo"].min() and a["albedo"].max() <= 1
+    # the floor (white 0.7, two-sided diffuse) near the bottom centre
+    np.testing.assert_allclose(a["albedo"][h - 2, w // 2], 0.7, atol=1e-3)
+
+
+def test_narrowband_emission_and_low_spp_refused():
+    d = box_scene()
+    d["light_groups"][1]["emission"] = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780],
+                                        "values": [0, 0, 1, 1, 0, 0]}
+    s = scene_from_dict(d)
+    r = mb.render_cube(s, "cam", "bulb", mb.RenderSettings(spp=16, seed=1))
+    wl = s.spectral_grid.wavelengths
+    lit = (wl >= 545) & (wl <= 555)
+    assert np.all(r.cube[..., ~((wl >= 537.5) & (wl <= 562.5))] == 0)
+    assert np.all(r.cube[..., lit].mean(axis=(0, 1)) > 0)
+    with pytest.raises(SceneError, match="spp >= 16"):
+        mb.render_cube(s, "cam", "bulb", mb.RenderSettings(spp=8))
