@@ -17,3 +17,11 @@ if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* 
   fi
 fi
 python3 -m pip install -q -e ".${extras}"
+# The Python client is its own package (numpy + httpx only); install it beside the server.
+python3 -m pip install -q -e clients/python
+if [ -n "$extras" ]; then
+  # The client's PyTorch dataset tests want torch. Pin the CPU build so pip takes the local CPU
+  # wheel and never pulls the multi-GB CUDA one; without it those tests skip with a reason.
+  python3 -m pip install -q "torch==2.13.0+cpu" \
+    || echo "install: torch==2.13.0+cpu not available; the client's torch tests will skip" >&2
+fi

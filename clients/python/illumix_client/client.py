@@ -1,0 +1,132 @@
+"""The synchronous client (httpx). See :class:`Client`."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from illumix_client import _protocol as P
+from illumix_client.sample import Sample
+
+DEFAULT_TIMEOUT = httpx.Timeout(60.0, connect=5.0)
+
+
+class Client:
+    """Talks to an illumix service over HTTP.
+
+    ``Client("http://127.0.0.1:8000", token=None, timeout=60.0, retry=RetryPolicy())``. ``token`` is
+    sent as ``Authorization: Bearer`` (needed for uploads and deletes when the service has one);
+    ``timeout`` is seconds (or an ``httpx.Timeout``) per try; ``retry`` bounds the retries on
+    connection errors and 5xx (never on 4xx, see :mod:`illumix_client._protocol`). Errors are raised
+    as :class:`illumix_client.IllumixError` subclasses. Thread-safe; use as a context manager or call
+    :meth:`close`.
+    """
+
+    def __init__(self, base_url: str = "http://127.0.0.1:8000", token: str | None = None,
+                 timeout: float | httpx.Timeout | None = DEFAULT_TIMEOUT,
+                 retry: P.RetryPolicy | None = None, transport: httpx.BaseTransport | None = None) -> None:
+        self.base_url = P.check_base_url(base_url)
+        self.retry = retry or P.RetryPolicy()
+        self._http = httpx.Client(base_url=self.base_url, headers=P.headers(token), timeout=timeout,
+                                  transport=transport)
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._http.close()
+
+    def _run(self, call: P.Call) -> Any:
+        retry_after: str | None = None
+        for attempt in range(self.retry.attempts):
+            if attempt:
+                time.sleep(self.retry.delay(attempt, retry_after))
+            last = attempt == self.retry.attempts - 1
+            try:
+                resp = self._http.request(call.method, call.path, **call.request_kwargs())
+            except httpx.TransportError as exc:
+                if last or not call.retry_on_exception(exc):
+                    raise call.connection_failure(exc, self.base_url, attempt + 1) from exc
+                retry_after = None
+                continue
+            if resp.status_code < 400:
+                return call.read(resp)
+            if last or not call.retry_on_status(resp.status_code):
+                raise call.failure(resp)
+            retry_after = resp.headers.get("retry-after")
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    # -- reads -----------------------------------------------------------------------------------
+    def health(self) -> dict:
+        """``{"status": "ok", "scenes": n, "cache_bytes": ..., ...}``."""
+        return self._run(P.health())
+
+    def scenes(self) -> list[dict]:
+        """``[{"name", "views": [{"name", "width", "height", "groups": [{"name", "emission"}]}]}]``."""
+        return self._run(P.scenes())
+
+    def sensors(self) -> dict:
+        """``{"builtin": [names], "uploaded": [names]}``."""
+        return self._run(P.sensors())
+
+    def sensor(self, name: str) -> dict:
+        """One sensor: ``name``, ``source``, ``grid``, ``wavelengths`` ``(n,)`` nm and
+        ``sensitivities`` ``(n, 3)`` (numpy)."""
+        return self._run(P.sensor(name))
+
+    def illuminants(self) -> dict:
+        """``{"builtin": [names], "parametric": {"blackbody": {"min_kelvin", "max_kelvin"}, ...},
+        "uploaded": [names]}``."""
+        return self._run(P.illuminants())
+
+    def sample(self, scene: str | None = None, view: str | None = None, *, seed: int | None = None,
+               sensor: str | None = None, pair: str | Sequence[str] | None = None,
+               illuminants: str | Sequence[str] | None = None,
+               intensities: str | Sequence[float] | None = None,
+               crop: str | Sequence[int] | None = None, size: str | Sequence[int] | None = None,
+               outputs: str | Sequence[str] | None = None, exposure: str | float | None = None,
+               noise: str | Mapping[str, float] | None = None, bayer: str | None = None) -> Sample:
+        """One sample (GET /sample, npz) as a :class:`Sample`.
+
+        ``pair=("A", "D65")`` lights the view's first two groups; ``illuminants=[...]`` gives one per
+        group; ``intensities`` one per lit group (default 1); ``crop=(x, y, w, h)`` and
+        ``size=(W, H)`` in pixels; ``outputs`` a subset of raw, gain, ccm, srgb, weights, mask, meta
+        (default all); ``exposure`` ``"auto"``/``"adaptive"``/a gain; ``noise`` a preset
+        (low, phone, high) or a mapping of sensor parameters; ``bayer`` RGGB/BGGR/GRBG/GBRG.
+        ``scene``/``view`` omitted are drawn by the service, reproducibly given ``seed``.
+        """
+        return self._run(P.sample(_spec(locals())))
+
+    def batch(self, specs: Iterable[Mapping[str, Any]]) -> list[Sample]:
+        """Many samples in one POST /batch; each spec is a mapping of :meth:`sample`'s parameters.
+        Samples come back in the order of ``specs``."""
+        return self._run(P.batch(specs))
+
+    def image(self, output: str = "srgb", format: str = "png", **spec: Any) -> bytes:
+        """One output encoded as a PNG or TIFF file (bytes); ``spec`` as for :meth:`sample`."""
+        return self._run(P.image(output, format, spec))
+
+    # -- writes (need the token when the service has one) ---------------------------------------
+    def upload_sensor(self, name: str, path: str | Path | bytes, overwrite: bool = False) -> dict:
+        """Register a sensor from a rawtoaces camera JSON or a CSV ``wavelength,r,g,b`` (a path, or
+        the file's bytes). Returns ``{"name", "format", "bytes"}``."""
+        return self._run(P.upload("sensors", name, path, overwrite))
+
+    def delete_sensor(self, name: str) -> dict:
+        """Delete an uploaded sensor (built-ins raise :class:`ForbiddenError`)."""
+        return self._run(P.delete_sensor(name))
+
+    def upload_illuminant(self, name: str, path: str | Path | bytes, overwrite: bool = False) -> dict:
+        """Register an illuminant from an SPD CSV ``wavelength,value`` (a path or bytes)."""
+        return self._run(P.upload("illuminants", name, path, overwrite))
+
+
+def _spec(local: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in local.items() if k != "self" and v is not None}

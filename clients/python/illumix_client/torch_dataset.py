@@ -1,0 +1,264 @@
+"""``IllumixDataset``: a PyTorch ``IterableDataset`` streaming illumix samples into a DataLoader.
+
+Item layout (a dict; every tensor channels-first, float32 unless noted)
+--------------------------------------------------------------------------
+==========  ===============  ==================================================================
+key         shape            content
+==========  ===============  ==================================================================
+raw         (3, H, W)        camera raw, linear, normalised by ``raw_norm`` (``(1, H, W)`` when
+                             Bayer mosaicked):
+                             ``"max"`` (default) — divided by the sample's maximum, so max = 1;
+                             ``"exposure"`` — the service's auto-exposure (thesis eq. 4.2) is
+                             applied and raw is relative to the white level (1 = saturation);
+                             with ``noise`` both first map DN to ``(DN − black) / (white − black)``;
+                             ``"none"`` — as the service sends it.
+gain        (3, H, W)        white-balance gain map ``max_j W_j / W_k`` (≥ 1; G ≈ 1).
+mask        (1, H, W) bool   True where ground truth is defined (the pixel receives light).
+srgb        (3, H, W)        sRGB rendering in [0, 1]               (only if in ``outputs``)
+ccm         (3, 3, H, W)     per-pixel CCM, ``ccm[:, :, y, x] @ rgb`` (only if in ``outputs``)
+weights     (G, H, W)        illuminant weight per light group       (only if in ``outputs``)
+index       int              the item's index in the epoch, ``0 … epoch_length − 1``
+meta        str              the service's metadata as JSON (``json.loads`` it): scene, view,
+                             groups, illuminants with sensor white points and CCMs, intensities,
+                             seed, exposure gain, provenance
+==========  ===============  ==================================================================
+
+With a ``crop`` (or ``size``) every item has the same H × W, so PyTorch's default collate batches
+them; without one, views of different sizes cannot be stacked.
+
+Sampling, seeding, workers
+--------------------------
+Item ``i`` of epoch ``e`` is drawn from ``numpy.random.default_rng([seed, e, i])`` — scene/view,
+one illuminant per light group (:class:`illumix_client.draw.IlluminantPool`), intensity ratios, a
+sensor, a crop position and the service-side seed (noise) — so an epoch is the same whatever the
+number of workers, and ``set_epoch(e)`` (call it each epoch, as with ``DistributedSampler``) gives a
+fresh one. The ``epoch_length`` indices are split between distributed ranks (``i % world_size``),
+then in chunks of ``batch_size`` between DataLoader workers (``torch.utils.data.get_worker_info``):
+no two workers ever produce the same item. Each chunk is one ``POST /batch``; ``prefetch`` chunks
+per worker are requested ahead on background threads while the current one is consumed.
+
+torch is imported by this module only; ``import illumix_client`` does not need it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from itertools import islice
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import IterableDataset, get_worker_info
+
+from illumix_client._protocol import RetryPolicy
+from illumix_client.client import Client
+from illumix_client.draw import IlluminantPool, SpecSampler, ViewInfo, select_views, views_from_scenes
+from illumix_client.sample import Sample
+
+RAW_NORMS = ("max", "exposure", "none")
+
+
+class IllumixDataset(IterableDataset):
+    """Random mixed-illuminant samples from an illumix service, as tensors (layout above).
+
+    Parameters
+    ----------
+    base_url, token, timeout, retry
+        Where the service is (see :class:`illumix_client.Client`).
+    scenes
+        Which views to draw from: ``None`` (all), scene names, ``"scene/view"`` keys or fnmatch
+        patterns, or a predicate on :class:`illumix_client.draw.ViewInfo`. Views smaller than
+        ``crop`` or with fewer than ``min_groups`` light groups are left out.
+    illuminants
+        The illuminant pool (names, ranges like ``"blackbody:2500-7500"``, or a per-group mapping);
+        see :mod:`illumix_client.draw`. ``distinct_illuminants`` redraws so groups differ.
+    sensors
+        Sensor names, one drawn uniformly per item.
+    intensity_range
+        ``(lo, hi)``: per-group intensities ~ U(lo, hi), divided by their maximum.
+    crop, size
+        ``(w, h)`` crop placed uniformly in the frame (an int for a square), optional ``(W, H)``
+        resample after it; ``None`` = full frame.
+    outputs
+        Tensors to fetch: any of raw, gain, mask, srgb, ccm, weights.
+    exposure, noise, bayer
+        Passed to the service (``noise`` a preset like ``"phone"`` or a parameter mapping).
+    raw_norm
+        ``"max"``, ``"exposure"`` or ``"none"`` (see the layout table).
+    epoch_length
+        Items per epoch, over all ranks and workers.
+    batch_size, prefetch
+        Items per ``POST /batch`` (≤ the service's batch limit, 64 by default) and requests in
+        flight per worker.
+    seed
+        Makes the stream reproducible; ``None`` draws one at construction (shared by all workers).
+    rank, world_size
+        Distributed sharding; by default from ``torch.distributed`` when it is initialised.
+
+    The constructor asks the service for its scenes, sensors and illuminants once, so a typo fails
+    here rather than in a worker.
+    """
+
+    def __init__(self, base_url: str = "http://127.0.0.1:8000", *, token: str | None = None,
+                 timeout: float | None = 60.0, retry: RetryPolicy | None = None,
+                 scenes: str | Sequence[str] | Callable[[ViewInfo], bool] | None = None,
+                 illuminants: Any = ("A", "D65", "FL11", "blackbody:2500-7500", "daylight:4000-10000"),
+                 sensors: Sequence[str] = ("XYZ",), intensity_range: tuple[float, float] = (0.25, 1.0),
+                 crop: int | tuple[int, int] | None = None, size: tuple[int, int] | None = None,
+                 outputs: Sequence[str] = ("raw", "gain", "mask"), exposure: str | float | None = None,
+                 noise: str | Mapping[str, float] | None = None, bayer: str | None = None,
+                 raw_norm: str = "max", epoch_length: int = 1024, batch_size: int = 16, prefetch: int = 2,
+                 seed: int | None = None, min_groups: int = 1, distinct_illuminants: bool = True,
+                 cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None) -> None:
+        super().__init__()
+        if raw_norm not in RAW_NORMS:
+            raise ValueError(f"raw_norm must be one of {', '.join(RAW_NORMS)}, got {raw_norm!r}")
+        if epoch_length < 1 or batch_size < 1 or prefetch < 0:
+            raise ValueError("epoch_length and batch_size must be >= 1 and prefetch >= 0")
+        if raw_norm == "exposure" and exposure is None:
+            exposure = "auto"
+        self.base_url, self.token, self.timeout, self.retry = base_url, token, timeout, retry
+        self.raw_norm, self.epoch_length = raw_norm, int(epoch_length)
+        self.batch_size, self.prefetch = int(batch_size), int(prefetch)
+        self.seed = int(seed) if seed is not None else int.from_bytes(os.urandom(4), "little")
+        self.epoch = 0
+        if world_size is None or rank is None:
+            dist = torch.distributed
+            on = dist.is_available() and dist.is_initialized()
+            rank = rank if rank is not None else (dist.get_rank() if on else 0)
+            world_size = world_size if world_size is not None else (dist.get_world_size() if on else 1)
+        if not 0 <= rank < world_size:
+            raise ValueError(f"need 0 <= rank < world_size, got {rank}, {world_size}")
+        self.rank, self.world_size = int(rank), int(world_size)
+        pool = IlluminantPool(illuminants, cct_step=cct_step)
+        crop_wh = (crop, crop) if isinstance(crop, int) else (tuple(crop) if crop is not None else None)
+        with self._client() as c:
+            views = select_views(views_from_scenes(c.scenes()), scenes, min_groups=min_groups, crop=crop_wh)
+            _check_names(c, pool, sensors)
+        self.sampler = SpecSampler(views, pool, sensors, intensity_range=intensity_range, crop=crop_wh,
+                                   size=size, outputs=outputs, exposure=exposure, noise=noise,
+                                   bayer=bayer, distinct=distinct_illuminants)
+
+    # -- indices ---------------------------------------------------------------------------------
+    def set_epoch(self, epoch: int) -> None:
+        """Choose the epoch whose items the next iteration yields (call before each epoch)."""
+        self.epoch = int(epoch)
+
+    def _rank_indices(self) -> range:
+        return range(self.rank, self.epoch_length, self.world_size)
+
+    def __len__(self) -> int:
+        return len(self._rank_indices())
+
+    def worker_chunks(self, worker_id: int = 0, num_workers: int = 1) -> list[list[int]]:
+        """The epoch indices this (rank, worker) yields, in request chunks of ``batch_size``."""
+        idx = list(self._rank_indices())
+        chunks = [idx[i:i + self.batch_size] for i in range(0, len(idx), self.batch_size)]
+        return chunks[worker_id::num_workers]
+
+    def spec(self, index: int, epoch: int | None = None) -> dict[str, Any]:
+        """The /batch item for ``index`` of ``epoch`` (default: the current one)."""
+        e = self.epoch if epoch is None else int(epoch)
+        return self.sampler.spec(np.random.default_rng([self.seed, e, int(index)]))
+
+    # -- iteration -------------------------------------------------------------------------------
+    def _client(self) -> Client:
+        return Client(self.base_url, token=self.token, timeout=self.timeout, retry=self.retry)
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        info = get_worker_info()
+        wid, nw = (info.id, info.num_workers) if info is not None else (0, 1)
+        chunks = self.worker_chunks(wid, nw)
+        epoch = self.epoch
+        client = self._client()
+        pool = ThreadPoolExecutor(max_workers=max(1, self.prefetch), thread_name_prefix="illumix")
+        pending: deque = deque()
+
+        def fetch(chunk: list[int]) -> tuple[list[int], list[Sample]]:
+            return chunk, client.batch([self.spec(i, epoch) for i in chunk])
+
+        def refill() -> None:
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.append(pool.submit(fetch, nxt))
+
+        it = iter(chunks)
+        try:
+            for chunk in islice(it, max(1, self.prefetch)):
+                pending.append(pool.submit(fetch, chunk))
+            while pending:
+                indices, samples = pending.popleft().result()
+                if self.prefetch:
+                    refill()  # keep `prefetch` requests in flight while this chunk is consumed
+                for i, s in zip(indices, samples):
+                    yield self.to_item(i, s)
+                if not self.prefetch:
+                    refill()
+        finally:
+            for f in pending:
+                f.cancel()
+            pool.shutdown(wait=True, cancel_futures=True)
+            client.close()
+
+    # -- conversion ------------------------------------------------------------------------------
+    def to_item(self, index: int, s: Sample) -> dict[str, Any]:
+        """A :class:`Sample` → the item dict (layout in the module docstring)."""
+        item: dict[str, Any] = {}
+        if s.raw is not None:
+            item["raw"] = torch.from_numpy(self._norm_raw(s))
+        for k in ("gain", "srgb", "weights"):
+            a = getattr(s, k)
+            if a is not None:
+                item[k] = torch.from_numpy(np.ascontiguousarray(a.transpose(2, 0, 1), dtype=np.float32))
+        if s.ccm is not None:
+            item["ccm"] = torch.from_numpy(np.ascontiguousarray(s.ccm.transpose(2, 3, 0, 1), dtype=np.float32))
+        if s.mask is not None:
+            item["mask"] = torch.from_numpy(np.ascontiguousarray(s.mask[None], dtype=bool))
+        item["index"] = int(index)
+        item["meta"] = json.dumps(s.meta)
+        return item
+
+    def _norm_raw(self, s: Sample) -> np.ndarray:
+        raw = np.asarray(s.raw, dtype=np.float32)
+        raw = raw[None] if raw.ndim == 2 else raw.transpose(2, 0, 1)
+        raw = np.ascontiguousarray(raw)
+        if self.raw_norm == "none":
+            return raw
+        noise = s.meta.get("noise")
+        if noise:
+            white = noise.get("white_level") or 2 ** int(noise.get("bit_depth", 12)) - 1
+            black = float(noise.get("black_level", 0.0))
+            raw = (raw - black) / np.float32(max(white - black, 1e-12))
+        if self.raw_norm == "max":
+            peak = float(raw.max()) if raw.size else 0.0
+            if peak > 0:
+                raw = raw / np.float32(peak)
+        return raw.astype(np.float32, copy=False)
+
+
+def _check_names(client: Client, pool: IlluminantPool, sensors: Sequence[str]) -> None:
+    """Fail at construction on sensor or illuminant names the service does not know."""
+    if isinstance(sensors, str):
+        raise ValueError("sensors must be a list of names, e.g. ['XYZ']")
+    known_s = client.sensors()
+    known = set(known_s["builtin"]) | set(known_s["uploaded"])
+    bad = [s for s in sensors if s not in known]
+    if bad:
+        raise ValueError(f"unknown sensor(s) {bad}; the service has {sorted(known)}")
+    ill = client.illuminants()
+    names = set(ill["builtin"]) | set(ill["uploaded"])
+    param = ill.get("parametric", {})
+    for e in pool.entries():
+        if e.name is not None:
+            kind, sep, _ = e.name.partition(":")
+            if e.name not in names and not (sep and kind.lower() in param):
+                raise ValueError(f"unknown illuminant {e.name!r}; see Client.illuminants()")
+        else:
+            lim = param.get(e.kind)
+            if lim is None or e.lo < lim["min_kelvin"] or e.hi > lim["max_kelvin"]:
+                raise ValueError(f"illuminant range {e.kind}:{e.lo:g}-{e.hi:g} is outside what the "
+                                 f"service allows: {param}")
