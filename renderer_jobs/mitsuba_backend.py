@@ -338,12 +338,21 @@ def mitsuba_d65(scene: Scene) -> np.ndarray:
     return resample(fine, np.asarray(vals), grid)
 
 
-def _emitter_dicts(mi, scene: Scene, group: str, radius: float) -> tuple[dict[str, dict], dict[str, dict]]:
-    """``(shape emitters by shape name, other emitters by light name)`` for one group."""
+PORTAL_PASSES = ("without", "only")
+
+
+def _emitter_dicts(mi, scene: Scene, group: str, radius: float, portals: str = "without"
+                   ) -> tuple[dict[str, dict], dict[str, dict]]:
+    """``(shape emitters by shape name, other emitters by light name)`` for one group.
+
+    ``portals``: ``"without"`` — every emitter but portals; ``"only"`` — portals only.
+    """
     spectrum = _group_emission(scene, group)
     shape_em: dict[str, dict] = {}
     lights: dict[str, dict] = {}
     for e in scene.emitters_of(group):
+        if scene.is_portal(e) != (portals == "only"):
+            continue
         w = max(emitter_power(scene, e, radius), 1e-12)
         if hasattr(e, "emitter") and e.emitter is not None:
             shape_em[e.name] = {"type": "area", "radiance": step_spectrum(spectrum, scene, e.emitter.strength),
@@ -385,9 +394,12 @@ def _sensor_dict(mi, scene: Scene, view: str, resolution: tuple[int, int] | None
 
 
 def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
-                     resolution: tuple[int, int] | None = None, radius: float | None = None) -> dict:
+                     resolution: tuple[int, int] | None = None, radius: float | None = None,
+                     portals: str = "without") -> dict:
     """Mitsuba ``load_dict`` document of ``scene`` seen from ``view`` with only ``groups`` lit
-    (``None`` = every group on; ``[]`` = all dark, geometry only)."""
+    (``None`` = every group on; ``[]`` = all dark, geometry only). ``portals="without"`` leaves
+    portal shapes out entirely; ``"only"`` keeps only the groups' portals as emitters (the geometry
+    stays, the other emitters go)."""
     mi, _ = _mi()
     groups = scene.group_names if groups is None else groups
     if radius is None:
@@ -397,11 +409,13 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
                  "sensor": _sensor_dict(mi, scene, view, resolution)}
     shape_em: dict[str, dict] = {}
     for g in groups:
-        se, lights = _emitter_dicts(mi, scene, g, radius)
+        se, lights = _emitter_dicts(mi, scene, g, radius, portals)
         shape_em.update(se)
         for name, d in lights.items():
             doc[f"light_{name}"] = d
     for s in scene.shapes:
+        if scene.is_portal(s) and s.name not in shape_em:
+            continue  # a portal is not geometry: present only as its own pass's emitter
         d = _shape_dict(mi, scene, s)
         if s.name in shape_em:
             d["emitter"] = shape_em[s.name]
@@ -409,10 +423,11 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
     return doc
 
 
-def _load(scene: Scene, view: str, groups: list[str] | None, resolution=None, radius=None):
+def _load(scene: Scene, view: str, groups: list[str] | None, resolution=None, radius=None, portals="without"):
     mi, _ = _mi()
     try:
-        ms = mi.load_dict(build_scene_dict(scene, view, groups, resolution=resolution, radius=radius))
+        ms = mi.load_dict(build_scene_dict(scene, view, groups, resolution=resolution, radius=radius,
+                                           portals=portals))
     except SceneError:
         raise
     except Exception as exc:
@@ -506,10 +521,10 @@ def _aligned(a: np.ndarray) -> np.ndarray:
 class _Tracer:
     """Mitsuba scene + sensor + integrator for one (view, set of groups), reused across passes."""
 
-    def __init__(self, scene: Scene, view: str, groups: list[str] | None, resolution=None):
+    def __init__(self, scene: Scene, view: str, groups: list[str] | None, resolution=None, portals="without"):
         self.mi, self.dr = _mi()
         self.scene = scene
-        self.ms, self.sensor = _load(scene, view, groups, resolution)
+        self.ms, self.sensor = _load(scene, view, groups, resolution, portals=portals)
         self.integrator = self.ms.integrator()
         size = self.sensor.film().crop_size()
         self.width, self.height = int(size[0]), int(size[1])
@@ -566,11 +581,15 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     for g in groups:
         scene.group(g)
     t0 = time.perf_counter()
-    tracer = _Tracer(scene, view, groups, settings.resolution)
+    # Portals render in a pass of their own (they occlude nothing); the cube is the passes' sum.
+    passes = [p for p, present in (
+        ("without", any(not scene.is_portal(e) for g in groups for e in scene.emitters_of(g))),
+        ("only", any(scene.is_portal(e) for g in groups for e in scene.emitters_of(g)))) if present]
+    tracers = [_Tracer(scene, view, groups, settings.resolution, portals=p) for p in passes]
     t_load = time.perf_counter() - t0
-    grid = tracer.grid
+    grid = tracers[0].grid
     nb = grid.n_bands
-    w, h = tracer.width, tracer.height
+    w, h = tracers[0].width, tracers[0].height
     npix = w * h
     if settings.wavelengths == "stratified" and 4 * settings.spp < nb:
         raise SceneError(f"spp {settings.spp} is too low for stratified wavelengths: every band of the "
@@ -600,15 +619,17 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
             frac = (u0 + np.arange(4)[None, :] / 4.0) % 1.0
             lam = lo + span * frac
             bands = np.minimum((frac * nb).astype(np.int64), nb - 1)
-        t1 = time.perf_counter()
-        L = tracer.trace(pix, jitter, lam.astype(np.float32), seed=int(_hash_u32(np.array([k]), settings.seed)[0]))
-        t_trace += time.perf_counter() - t1
-        bad = ~np.isfinite(L)
-        if bad.any():
-            n_bad += int(bad.sum())
-            L = np.where(bad, 0.0, L)
-        idx = pix[:, None] * nb + bands
-        acc += np.bincount(idx.ravel(), weights=L.ravel().astype(np.float64), minlength=npix * nb)
+        idx = (pix[:, None] * nb + bands).ravel()
+        for j, tracer in enumerate(tracers):
+            t1 = time.perf_counter()
+            L = tracer.trace(pix, jitter, lam.astype(np.float32),
+                             seed=int(_hash_u32(np.array([k * 8 + j]), settings.seed)[0]))
+            t_trace += time.perf_counter() - t1
+            bad = ~np.isfinite(L)
+            if bad.any():
+                n_bad += int(bad.sum())
+                L = np.where(bad, 0.0, L)
+            acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=npix * nb)
         s0 += spp_pass
     acc = acc.reshape(npix, nb)
     if settings.wavelengths == "stratified":
@@ -625,6 +646,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
                 "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
                              "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                              "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
+                             "passes": passes,
                              "libllvm": _STATE.get("libllvm")}}
     stats = {"load_s": round(t_load, 4), "trace_s": round(t_trace, 4),
              "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": n_bad,

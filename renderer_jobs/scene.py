@@ -227,10 +227,19 @@ def rotation_matrix(axis: Vec3, angle_deg: float) -> np.ndarray:
 
 
 class AreaEmission(_Model):
-    """Makes a shape an area light of ``group`` with radiance ``strength`` × the group's spectrum."""
+    """Makes a shape an area light of ``group`` with radiance ``strength`` × the group's spectrum.
+
+    ``portal``: the shape is an emitting *opening*, not geometry — e.g. a window pane standing in for
+    the constant sky seen through it (for a uniform sky, a Lambertian emitter of the sky's radiance
+    filling the opening gives exactly the light that enters through it, and next-event estimation
+    then samples the window instead of the whole sphere). A portal occludes nothing: it is rendered
+    in a pass of its own and added (linearity), so it does not block e.g. the sun through the same
+    window. A portal has no material, and nothing outside it is seen through it.
+    """
 
     group: Name
     strength: float = Field(gt=0)
+    portal: bool = False
 
 
 class _Shape(_Model):
@@ -428,6 +437,8 @@ class Scene(_Model):
             if s.emitter is not None and declared and s.emitter.group not in declared:
                 errors.append(f"shapes[{i}] ({s.name}): emitter.group: unknown light group "
                               f"{s.emitter.group!r}; declared: {', '.join(declared)}")
+            if s.emitter is not None and s.emitter.portal and s.material is not None:
+                errors.append(f"shapes[{i}] ({s.name}): material: a portal is not geometry; remove its material")
             if s.emitter is not None and s.material is not None and isinstance(
                     self.materials.get(s.material), Dielectric):
                 errors.append(f"shapes[{i}] ({s.name}): emitter: an emitting shape cannot be dielectric")
@@ -492,6 +503,11 @@ class Scene(_Model):
             if v.name == name:
                 return v
         raise SceneError(f"scene {self.name!r}: no view {name!r}; views: {', '.join(v.name for v in self.views)}")
+
+    def is_portal(self, item) -> bool:
+        """True for a shape whose area emission is a portal (see :class:`AreaEmission`)."""
+        em = getattr(item, "emitter", None)
+        return em is not None and em.portal
 
     def emitters_of(self, group: str) -> list[Shape | Light]:
         """Shapes with area emission and lights of ``group``."""

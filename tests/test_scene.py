@@ -89,6 +89,8 @@ def test_errors_name_object_and_field():
                                             "strength": 1}]))
     assert "shapes[0] (floor).type" in err(doc(shapes__0__type="torus"))
     assert "'..'" in err(doc(name="a..b"))
+    m = err(doc(shapes__2__emitter={"group": "lamp", "strength": 1, "portal": True}, shapes__2__material="grey"))
+    assert "shapes[2] (lamp): material: a portal is not geometry" in m
 
 
 def test_missing_files_and_zero_emission(tmp_path):
@@ -168,8 +170,9 @@ def test_demo_room_is_seeded_and_complete():
     s = demo.demo_room(3, resolution=(64, 48))
     assert len(s.views) >= 2 and all(v.resolution == (64, 48) for v in s.views)
     assert s.group_names == ["daylight", "ceiling", "desk"]
-    day = {e.type if hasattr(e, "type") else "" for e in s.emitters_of("daylight")}
-    assert {"directional", "constant"} <= day
+    day = s.emitters_of("daylight")
+    assert {e.type for e in day} == {"directional", "rectangle"}
+    assert [e.name for e in day if s.is_portal(e)] == ["window_sky"]
     patches = [x for x in s.shapes if x.name.startswith("cc_") and x.name != "cc_board"]
     assert len(patches) == 24
     kinds = {m.kind for m in s.materials.values()}
