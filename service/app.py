@@ -39,6 +39,8 @@ def _spec(params: dict) -> SampleSpec:
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
+        if first["type"] == "extra_forbidden":
+            raise SpectralError(f"unknown parameter {where!r}; see /docs for the sample parameters") from None
         raise SpectralError(f"{where}: {first['msg'].removeprefix('Value error, ')}") from None
 
 
@@ -114,6 +116,8 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
         if not body.samples or len(body.samples) > limits.max_batch:
             raise SpectralError(f"batch needs 1..{limits.max_batch} samples, got {len(body.samples)}")
         specs = [_spec(s) for s in body.samples]
+        if any(s.format != "npz" for s in specs):
+            raise SpectralError("batch items are always npz; drop format= from the items")
         arrays: dict = {}
         pixels = 0
         for i, spec in enumerate(specs):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from retarget.compose import OUTPUTS
 from retarget.errors import SpectralError
@@ -28,6 +28,7 @@ def _split(value: str | list | None) -> list[str] | None:
 class SampleSpec(BaseModel):
     """What one sample is: which view, lit how, seen by which sensor, cut and encoded how."""
 
+    model_config = ConfigDict(extra="forbid")  # a typo (crops=) must be a 422, not ignored
     scene: str | None = None
     view: str | None = None
     seed: int | None = Field(None, ge=0, le=2**63 - 1)

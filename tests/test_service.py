@@ -200,6 +200,10 @@ def test_batch(client):
     assert json.loads(str(z["0/meta"]))["illuminants"][0]["illuminant"] == "A"
     assert client.post("/batch", json={"samples": []}).status_code == 422
     assert client.post("/batch", json={"samples": [{"scene": "nope"}]}).status_code == 404
+    typo = client.post("/batch", json={"samples": [{"scene": "synth", "crops": "0,0,8,8"}]})
+    assert typo.status_code == 422 and "crops" in typo.json()["detail"]
+    png = client.post("/batch", json={"samples": [{"scene": "synth", "format": "png"}]})
+    assert png.status_code == 422
 
 
 def test_sensor_upload_token_and_delete(client):
