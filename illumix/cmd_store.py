@@ -1,0 +1,95 @@
+"""``illumix store info PATH [--json]`` and ``illumix store verify PATH [--json]``."""
+
+from __future__ import annotations
+
+import json
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from illumix.errors import UserError
+
+console = Console()
+store_app = typer.Typer(help="Inspect and check a cube store.", no_args_is_help=True)
+
+PATH_HELP = "Store directory or fsspec URL (e.g. ./illumix-store, s3://bucket/store)."
+
+
+def _open(path: str):
+    from store import CubeStore, StoreError
+
+    try:
+        return CubeStore.open(path, mode="r")
+    except StoreError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _mib(n: int | None) -> str:
+    return "" if n is None else f"{n / 2**20:.1f}"
+
+
+@store_app.command("info")
+def info(path: str = typer.Argument(..., help=PATH_HELP),
+         as_json: bool = typer.Option(False, "--json", help="Print JSON: {scenes: [{name, views: [{name, "
+                                      "width, height, groups: [{name, emission, dtype, complete}]}]}]}.")) -> None:
+    """List scenes, views, light groups, shapes, dtypes, sizes and completeness."""
+    from store import StoreError
+    from store.report import info as store_info
+
+    st = _open(path)
+    try:
+        rep = store_info(st)
+    except StoreError as exc:
+        raise UserError(str(exc)) from None
+    if as_json:
+        print(json.dumps(rep))
+        return
+    table = Table("scene", "view", "size", "group", "emission", "dtype", "complete", "MiB",
+                  title=f"illumix store {rep['store']}")
+    for s in rep["scenes"]:
+        for v in s["views"]:
+            size = f"{v['width']}x{v['height']}" if v["width"] else "[red]?[/]"
+            if not v["groups"]:
+                table.add_row(s["name"], v["name"], size, "[dim](no groups)[/]", "", "", "", "")
+            for g in v["groups"]:
+                done = "yes" if g["complete"] else "[yellow]no[/]"
+                dtype = "empty" if g.get("empty") else (g["dtype"] or "")
+                table.add_row(s["name"], v["name"], size, g["name"], g["emission"] or "", dtype, done,
+                              _mib(g.get("bytes")))
+    console.print(table)
+    regs = ", ".join(f"{k}: {len(v)}" for k, v in rep["registries"].items())
+    console.print(f"registries — {regs}; pending writes: {rep['pending_writes']}")
+
+
+@store_app.command("verify")
+def verify(path: str = typer.Argument(..., help=PATH_HELP),
+           as_json: bool = typer.Option(False, "--json", help="Print the report as JSON.")) -> None:
+    """Check every array and all metadata (schema, shapes, chunks, finiteness, statistics).
+
+    Exit code 0 when the store is sound, 1 when any problem is found (each printed with where)."""
+    from store import StoreError
+    from store.report import verify as store_verify
+
+    st = _open(path)
+    try:
+        rep = store_verify(st)
+    except StoreError as exc:
+        raise UserError(str(exc)) from None
+    if as_json:
+        print(json.dumps(rep))
+    else:
+        for p in rep["problems"]:
+            console.print(f"[red]PROBLEM[/] {p['where']}: {p['what']}", soft_wrap=True, highlight=False)
+        for n in rep["notes"]:
+            console.print(f"[yellow]note[/] {n['where']}: {n['what']}", soft_wrap=True, highlight=False)
+        c = rep["checked"]
+        status = "[green]OK[/]" if rep["ok"] else f"[red]{len(rep['problems'])} problem(s)[/]"
+        console.print(f"{status}: checked {c['views']} views, {c['aovs']} AOVs, {c['cubes']} cubes, "
+                      f"{c['registry_entries']} registry entries in {rep['store']}", highlight=False)
+    if not rep["ok"]:
+        raise typer.Exit(1)
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(store_app, name="store")

@@ -1,0 +1,233 @@
+"""Where a store lives: a local directory or any fsspec URL.
+
+The two differ in how a write becomes visible (*complete-or-invisible*):
+
+* **local directory** (the embedded default): a node (cube group, AOV array) is written whole under
+  ``_staging/<id>`` and then moved into place with one ``os.rename`` of its directory — atomic on
+  POSIX, so readers see either nothing or everything. A replaced node is first renamed into
+  ``_trash/<id>`` and deleted afterwards.
+* **fsspec URL** (object storage, ``memory://`` …) has no atomic directory rename: the node is
+  written in place with ``complete: false`` in its metadata and the metadata is rewritten with
+  ``complete: true`` as the very last write (one object PUT, atomic on object stores). Readers
+  treat an incomplete node as absent.
+
+Both write small metadata files atomically (temp file + rename locally; one PUT remotely).
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import uuid
+from pathlib import Path
+from typing import Any
+
+import zarr
+
+from store.errors import StoreError
+
+STAGING = "_staging"
+TRASH = "_trash"
+
+
+def _is_local(location: str) -> bool:
+    return "://" not in location or location.startswith("file://")
+
+
+class Backend:
+    """File-level access to a store root plus the zarr store object for array I/O.
+
+    Keys are ``/``-separated paths relative to the root (``"scenes/s/v/zarr.json"``).
+    """
+
+    def __init__(self, location: str | os.PathLike, read_only: bool,
+                 storage_options: dict[str, Any] | None = None, atomic_rename: bool | None = None) -> None:
+        loc = os.fspath(location)
+        self.read_only = read_only
+        self.local = _is_local(loc)
+        if self.local:
+            self.root: Path | None = Path(loc.removeprefix("file://")).expanduser().absolute()
+            self.url = str(self.root)
+            self.zstore = zarr.storage.LocalStore(self.root, read_only=read_only)
+            self.fs = None
+            self.fsroot = ""
+        else:
+            import fsspec
+
+            self.root = None
+            self.url = loc.rstrip("/")
+            self.fs, self.fsroot = fsspec.core.url_to_fs(self.url, **(storage_options or {}))
+            self.fsroot = self.fsroot.rstrip("/")
+            self.zstore = zarr.storage.FsspecStore.from_url(
+                self.url, storage_options=storage_options, read_only=read_only)
+        #: True: publish by directory rename; False: in-place write + completion marker.
+        self.atomic_rename = self.local if atomic_rename is None else (atomic_rename and self.local)
+
+    # ---- files -------------------------------------------------------------------------------
+    def _p(self, key: str) -> Path:
+        assert self.root is not None
+        return self.root / key.lstrip("/")  # never an absolute path: keys stay under the root
+
+    def _f(self, key: str) -> str:
+        key = key.lstrip("/")
+        return f"{self.fsroot}/{key}" if key else self.fsroot
+
+    def exists(self, key: str) -> bool:
+        return self._p(key).exists() if self.local else bool(self.fs.exists(self._f(key)))
+
+    def read_bytes(self, key: str) -> bytes | None:
+        """The file's bytes, or ``None`` when it does not exist."""
+        try:
+            if self.local:
+                return self._p(key).read_bytes()
+            return bytes(self.fs.cat_file(self._f(key)))
+        except (FileNotFoundError, NotADirectoryError):
+            return None
+        except IsADirectoryError:
+            return None
+
+    def read_json(self, key: str) -> Any:
+        """Parsed JSON of ``key``; ``None`` when missing; :class:`StoreError` when unreadable."""
+        raw = self.read_bytes(key)
+        if raw is None:
+            return None
+        try:
+            return json.loads(raw)
+        except ValueError as exc:
+            raise StoreError(f"corrupt metadata file {key} in {self.url}: {exc}; rewrite this node") from None
+
+    def write_bytes(self, key: str, data: bytes, exclusive: bool = False) -> None:
+        """Atomically write ``key`` (temp file + rename locally, one PUT remotely).
+
+        ``exclusive``: fail with ``FileExistsError`` if it exists (atomic via ``os.link`` locally;
+        check-then-put remotely, where two simultaneous creators may race).
+        """
+        self.check_writable()
+        if self.local:
+            p = self._p(key)
+            p.parent.mkdir(parents=True, exist_ok=True)
+            tmp = p.with_name(f"{p.name}.{uuid.uuid4().hex}.partial")
+            try:
+                with open(tmp, "wb") as f:
+                    f.write(data)
+                    f.flush()
+                    os.fsync(f.fileno())
+                if exclusive:
+                    os.link(tmp, p)
+                else:
+                    os.replace(tmp, p)
+            finally:
+                tmp.unlink(missing_ok=True)
+        else:
+            path = self._f(key)
+            if exclusive and self.fs.exists(path):
+                raise FileExistsError(path)
+            self.fs.pipe_file(path, data)
+
+    def list_dirs(self, key: str) -> list[str]:
+        """Names of the sub-directories (node children) of ``key``; ``[]`` when it does not exist."""
+        if self.local:
+            try:
+                with os.scandir(self._p(key)) as it:
+                    return sorted(e.name for e in it if e.is_dir() and not e.name.startswith("."))
+            except (FileNotFoundError, NotADirectoryError):
+                return []
+        try:
+            entries = self.fs.ls(self._f(key), detail=True)
+        except FileNotFoundError:
+            return []
+        return sorted(e["name"].rstrip("/").rsplit("/", 1)[-1] for e in entries if e.get("type") == "directory")
+
+    def size(self, key: str) -> int:
+        """Total bytes of all files under ``key``."""
+        if self.local:
+            total = 0
+            for dirpath, _, files in os.walk(self._p(key)):
+                for name in files:
+                    try:
+                        total += os.stat(os.path.join(dirpath, name)).st_size
+                    except FileNotFoundError:
+                        pass
+            return total
+        try:
+            return int(self.fs.du(self._f(key), total=True))
+        except FileNotFoundError:
+            return 0
+
+    def count_files(self, key: str) -> int:
+        """Number of files under ``key`` (used to check that every chunk is present)."""
+        if self.local:
+            return sum(len(files) for _, _, files in os.walk(self._p(key)))
+        try:
+            return len(self.fs.find(self._f(key)))
+        except FileNotFoundError:
+            return 0
+
+    # ---- nodes -------------------------------------------------------------------------------
+    def check_writable(self) -> None:
+        if self.read_only:
+            raise StoreError(f"store {self.url} is opened read-only; open it with mode='a' to write")
+
+    def ensure_group(self, key: str) -> None:
+        """Create the zarr group ``key`` (and its parents) if missing; never touches existing attrs."""
+        if not self.exists(f"{key}/zarr.json"):
+            zarr.open_group(self.zstore, path=key, mode="a")
+
+    def new_write_path(self, final: str) -> tuple[str, str]:
+        """(path to write the node at, write id). A staging path when publishing by rename."""
+        wid = uuid.uuid4().hex
+        if self.atomic_rename:
+            self.ensure_group(STAGING)
+        return (f"{STAGING}/{wid}" if self.atomic_rename else final), wid
+
+    def publish(self, written: str, final: str, replace: bool) -> None:
+        """Make the node written at ``written`` visible at ``final`` (rename mode only; in marker
+        mode the node is already in place and its ``complete`` flag published it).
+
+        ``replace``: an existing node at ``final`` is swapped out (renamed to ``_trash`` and
+        deleted); otherwise an existing node makes this raise ``FileExistsError``.
+        """
+        if written == final:
+            return
+        src, dst = self._p(written), self._p(final)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        for _ in range(20):
+            try:
+                os.rename(src, dst)
+                return
+            except OSError as exc:
+                if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.EISDIR):
+                    raise
+                if not replace:
+                    raise FileExistsError(final) from None
+                self.remove(final)
+        raise StoreError(f"could not replace {final} in {self.url}: another writer keeps replacing it")
+
+    def remove(self, key: str) -> None:
+        """Delete the node ``key`` (atomically invisible locally: renamed to ``_trash`` first)."""
+        self.check_writable()
+        if self.local:
+            self.ensure_group(TRASH)
+            trash = self._p(f"{TRASH}/{uuid.uuid4().hex}")
+            try:
+                os.rename(self._p(key), trash)
+            except FileNotFoundError:
+                return
+            shutil.rmtree(trash, ignore_errors=True)
+        else:
+            try:
+                self.fs.rm(self._f(key), recursive=True)
+            except FileNotFoundError:
+                pass
+
+    def discard(self, key: str) -> None:
+        """Best-effort removal of a staging node after a failed write."""
+        try:
+            if self.local:
+                shutil.rmtree(self._p(key), ignore_errors=True)
+            else:
+                self.fs.rm(self._f(key), recursive=True)
+        except (FileNotFoundError, OSError):
+            pass

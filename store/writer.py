@@ -1,0 +1,226 @@
+"""Writing views, AOVs and cubes (used by :class:`store.CubeStore`; see its methods for the API).
+
+Every node is written complete-or-invisible: at ``_staging/<id>`` then renamed into place (local
+directories), or in place with ``complete: false`` until its last metadata write (fsspec URLs).
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from store import layout
+from store.codec import EXPONENT_FILL, Policy, encode
+from store.errors import StoreError
+from store.names import check_name
+from store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
+from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, StorageInfo, ViewMeta, utc_now
+
+if TYPE_CHECKING:
+    from store.cubestore import CubeStore
+
+VIEW_ATTR = "illumix_view"
+CUBE_ATTR = "illumix_cube"
+#: Known AOVs: channels (``None`` = ``(H, W)``) and storage dtype.
+KNOWN_AOVS: dict[str, tuple[int | None, type]] = {
+    "albedo": (3, np.float32), "normal": (3, np.float32), "depth": (None, np.float32), "mask": (None, np.bool_)}
+
+
+def _validated(model: type, meta: Any, what: str) -> Any:
+    if isinstance(meta, model):
+        return meta
+    try:
+        return model.model_validate(dict(meta))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ValidationError):
+            e = exc.errors()[0]
+            loc = ".".join(str(p) for p in e["loc"]) or "(root)"
+            raise StoreError(f"invalid {what} field {loc!r}: {e['msg']}") from None
+        raise StoreError(f"{what} must be a {model.__name__} or a dict, got {type(meta).__name__}") from None
+
+
+def _check_aov(name: str, arr: Any, h: int, w: int, where: str) -> np.ndarray:
+    check_name(name, "AOV")
+    a = np.asarray(arr)
+    chans, dtype = KNOWN_AOVS.get(name, (-1, np.float32))
+    if chans is None:
+        ok, want = a.shape == (h, w), f"({h}, {w})"
+    elif chans == -1:
+        ok, want = a.shape[:2] == (h, w) and a.ndim in (2, 3), f"({h}, {w}) or ({h}, {w}, C)"
+    else:
+        ok, want = a.shape == (h, w, chans), f"({h}, {w}, {chans})"
+    if not ok:
+        raise StoreError(f"AOV {name!r} of {where} has shape {a.shape}; expected {want}")
+    if dtype is np.bool_:
+        if a.dtype != np.bool_ and not (a.dtype.kind in "iuf" and np.isin(a, (0, 1)).all()):
+            raise StoreError(f"AOV {name!r} of {where} must be boolean (or 0/1), got dtype {a.dtype}")
+        return a.astype(np.bool_)
+    if a.dtype.kind not in "iuf":
+        raise StoreError(f"AOV {name!r} of {where} must be numeric, got dtype {a.dtype}")
+    a = a.astype(np.float32)
+    bad = int(a.size - np.count_nonzero(np.isfinite(a)))
+    if bad:
+        raise StoreError(f"AOV {name!r} of {where} has {bad} NaN/inf values; use finite values "
+                         "(0 where nothing was hit, with the mask marking valid pixels)")
+    return a
+
+
+def _check_cube(cube: Any, shape: tuple[int, int, int], where: str) -> np.ndarray:
+    a = np.asarray(cube)
+    if a.shape != shape:
+        raise StoreError(f"cube for {where} has shape {a.shape}; expected {shape} = (view height, "
+                         "view width, grid bands)")
+    if a.dtype.kind != "f":
+        raise StoreError(f"cube for {where} must be floating point, got dtype {a.dtype}")
+    with np.errstate(over="ignore"):
+        a = np.ascontiguousarray(a, dtype=np.float32)
+    finite = np.isfinite(a)
+    if not finite.all():
+        bad = np.argwhere(~finite)
+        y, x, b = bad[0]
+        raise StoreError(f"cube for {where} has {len(bad)} NaN/inf values (or beyond float32), first at "
+                         f"x={x}, y={y}, band {b}; the renderer output must be finite")
+    return a
+
+
+def write_array_node(st: CubeStore, final: str, arr: np.ndarray, chunks: tuple[int, ...],
+                     dims: tuple[str, ...]) -> None:
+    """Write one array node (an AOV) complete-or-invisible."""
+    b = st.backend
+    wpath, wid = b.new_write_path(final)
+    state = {"complete": False, "write_id": wid, "target": final, "started": utc_now(), "pid": os.getpid()}
+    try:
+        fill = False if arr.dtype == np.bool_ else np.nan
+        a = create_array(b, wpath, arr.shape, chunks, arr.dtype, st.codec, fill, dims, {STATE_ATTR: state})
+        a[...] = arr
+        a.attrs.update({STATE_ATTR: {**state, "complete": True, "finished": utc_now()}})
+        b.publish(wpath, final, replace=True)
+    except BaseException:
+        if wpath != final:
+            b.discard(wpath)
+        raise
+
+
+def write_view(st: CubeStore, scene: str, view: str, meta: ViewMeta | Mapping[str, Any],
+               aovs: Mapping[str, np.ndarray] | None) -> ViewMeta:
+    b = st.backend
+    b.check_writable()
+    check_name(scene, "scene"), check_name(view, "view")
+    meta = _validated(ViewMeta, meta, "ViewMeta")
+    for g in meta.groups:
+        check_name(g, "group")
+    where = f"{scene}/{view}"
+    h, w = meta.height, meta.width
+    prepared = {n: _check_aov(n, a, h, w, where) for n, a in (aovs or {}).items()}
+    vp = layout.view_path(scene, view)
+    old_attrs = node_attrs(b, vp) or {}
+    old = None
+    if VIEW_ATTR in old_attrs:
+        try:
+            old = ViewMeta.model_validate(old_attrs[VIEW_ATTR])
+        except ValidationError:
+            old = None  # unreadable old metadata: replaced below
+    kept: set[str] = set()
+    if old is not None and (old.width, old.height) != (w, h):
+        if st.groups(scene, view, include_incomplete=True):
+            raise StoreError(f"view {where} is stored at {old.width}x{old.height} and has cubes; cannot change "
+                             f"it to {w}x{h}: delete the view first (CubeStore.delete)")
+        for name in old.aovs:
+            b.remove(layout.aov_path(scene, view, name))
+    elif old is not None:
+        kept = set(old.aovs)
+    b.ensure_group(f"scenes/{scene}")
+    if node_attrs(b, vp) is None:
+        write_group(b, vp, {})
+    if prepared:
+        b.ensure_group(f"{vp}/aov")
+    tile = st.tile
+    for name, arr in prepared.items():
+        chunks = (min(tile, h), min(tile, w)) + arr.shape[2:]
+        dims = ("y", "x") + (("channel",) if arr.ndim == 3 else ())
+        write_array_node(st, layout.aov_path(scene, view, name), arr, chunks, dims)
+    new = meta.model_copy(update={
+        "aovs": sorted(kept | set(prepared)), "schema_version": SCHEMA_VERSION,
+        "created": meta.created or (old.created if old else None) or utc_now()})
+    write_group(b, vp, {**old_attrs, VIEW_ATTR: new.model_dump(mode="json")})
+    return new
+
+
+def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarray | None,
+               meta: CubeMeta | Mapping[str, Any], *, overwrite: bool, policy: Policy,
+               progress: Callable[[int, int], None] | None) -> CubeMeta:
+    """Write a cube (``cube`` array) or an empty-group record (``cube=None``)."""
+    b = st.backend
+    b.check_writable()
+    check_name(group, "group")
+    vm = st.view_meta(scene, view)
+    meta = _validated(CubeMeta, meta, "CubeMeta")
+    where = f"{scene}/{view}/{group}"
+    final = layout.cube_path(scene, view, group)
+    try:
+        prev = read_state(b, final)
+    except StoreError:
+        prev = {"complete": False}
+    if prev and prev.get("complete") and not overwrite:
+        raise StoreError(f"cube {where} already exists in {b.url}; pass overwrite=True to replace it")
+    nb = meta.n_bands
+    shape = (vm.height, vm.width, nb)
+    chunks = (min(st.tile, shape[0]), min(st.tile, shape[1]), nb)
+    if cube is None:
+        enc = None
+        stats = BandStats(max=[0.0] * nb, mean=[0.0] * nb, min=[0.0] * nb)
+        storage = StorageInfo(dtype="none", encoding="empty", policy="auto", nbytes_stored=0,
+                              reason="group contributes nothing to this view; reads give zeros")
+    else:
+        arr = _check_cube(cube, shape, where)
+        stats = BandStats.of(arr)
+        enc = encode(arr, policy)
+        del arr
+        storage = StorageInfo(dtype=enc.dtype, encoding="f16-exp2" if enc.dtype == "float16" else "raw",
+                              policy=policy, reason=enc.reason, band_exponent=enc.band_exponent,
+                              chunks=list(chunks), codec=st.codec, rel_error_bound=enc.rel_error_bound,
+                              underflow_values=enc.underflow)
+    meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None,
+                                   "created": meta.created or utc_now(), "schema_version": SCHEMA_VERSION})
+    first = (prev or {}).get("first_written") or utc_now()
+    b.ensure_group(f"{layout.view_path(scene, view)}/cubes")
+    wpath, wid = b.new_write_path(final)
+    state = {"complete": False, "write_id": wid, "target": final, "shape": list(shape),
+             "first_written": first, "started": utc_now(), "pid": os.getpid(), "host": socket.gethostname()}
+    try:
+        if wpath == final and prev is not None:
+            b.remove(final)  # in-place (marker) mode: the old version disappears first
+        write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
+        if enc is not None:
+            data = create_array(b, f"{wpath}/data", shape, chunks, enc.data.dtype, st.codec, np.nan,
+                                ("y", "x", "band"))
+            cy = chunks[0]
+            for r0 in range(0, shape[0], cy):
+                data[r0:r0 + cy] = enc.data[r0:r0 + cy]
+                if progress is not None:
+                    progress(min(r0 + cy, shape[0]), shape[0])
+            if enc.exponent is not None:
+                exp = create_array(b, f"{wpath}/exponent", shape[:2], layout.exponent_chunks(st.tile, *shape[:2]),
+                                   np.int8, "zstd", EXPONENT_FILL, ("y", "x"))
+                exp[...] = enc.exponent
+            meta.storage.nbytes_stored = b.size(wpath)
+        state = {**state, "complete": True, "finished": utc_now()}
+        write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
+        try:
+            b.publish(wpath, final, replace=overwrite or (prev is not None and not prev.get("complete")))
+        except FileExistsError:
+            raise StoreError(f"cube {where} was written by another writer meanwhile; pass overwrite=True "
+                             "to replace it") from None
+    except BaseException:
+        if wpath != final:
+            b.discard(wpath)
+        raise
+    return meta
+
+
+__all__ = ["write_view", "write_cube", "write_array_node", "KNOWN_AOVS"]
