@@ -21,6 +21,10 @@ import numpy as np
 from retarget.errors import SpectralError
 
 DEFAULT_REL_EPS = 1e-7
+# A channel answering less than this fraction of the strongest channel has no meaningful
+# white-balance gain (it would exceed 1e10 and, mixed across groups, overflow float32).
+MIN_CHANNEL_RATIO = 1e-10
+_F32_MAX = float(np.finfo(np.float32).max)
 
 
 def white_point(sensor_weights: np.ndarray, spd: np.ndarray, what: str = "illuminant") -> np.ndarray:
@@ -36,6 +40,11 @@ def white_point(sensor_weights: np.ndarray, spd: np.ndarray, what: str = "illumi
         ch = "R" if rgb[0] <= 0 else "B"
         raise SpectralError(f"white point: {what} gives zero {ch} response on this sensor; no finite "
                             "white-balance gain exists")
+    if rgb.min() < MIN_CHANNEL_RATIO * rgb.max():
+        ch = "RGB"[int(np.argmin(rgb))]
+        raise SpectralError(f"white point: {what} gives channel {ch} only {rgb.min() / rgb.max():.3g} of "
+                            f"the strongest channel's response on this sensor (below "
+                            f"{MIN_CHANNEL_RATIO:g}); no meaningful white-balance gain exists")
     return rgb / rgb[1]
 
 
@@ -72,10 +81,14 @@ def mixed_white_point(weights: np.ndarray, wps: np.ndarray) -> np.ndarray:
 
 def gain_map(mixed_wp: np.ndarray) -> np.ndarray:
     """White-balance gains ``max_j W_j / W_k`` (eq. 3.3), ``(H, W, 3)`` float32, all ≥ 1."""
-    wp = np.asarray(mixed_wp, dtype=np.float32)
-    if np.any(wp <= 0):
-        raise SpectralError("gain map: a white point has a zero or negative channel")
-    return (wp.max(axis=-1, keepdims=True) / wp).astype(np.float32)
+    wp = np.asarray(mixed_wp, dtype=np.float64)
+    if not np.all(wp > 0):  # also catches NaN
+        raise SpectralError("gain map: a white point has a zero, negative or NaN channel")
+    gain = wp.max(axis=-1, keepdims=True) / wp
+    if not np.all(gain <= _F32_MAX):  # inf or beyond float32: channels ~1e-39 of each other
+        raise SpectralError(f"gain map: a gain of {float(np.max(gain)):.3g} exceeds float32; one "
+                            "white-point channel is (nearly) zero relative to another")
+    return gain.astype(np.float32)
 
 
 def ccm_map(weights: np.ndarray, ccms: np.ndarray) -> np.ndarray:

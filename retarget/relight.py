@@ -56,8 +56,21 @@ def band_scales(illuminants: np.ndarray, emissions: np.ndarray, intensities: np.
             "requested illuminant has power; re-render it with flat emission or pick an illuminant "
             "that is dark there"
         )
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(wanted, a[:, None] * phi / np.where(dark, 1.0, emi), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        scales = np.where(wanted, a[:, None] * phi / np.where(dark, 1.0, emi), 0.0)
+    # Projection runs in float32: a ratio beyond its range (emission ~1e-38 of the illuminant,
+    # e.g. the far tail of a Gaussian emitter) would overflow there. Refuse it here, by name.
+    huge = ~(scales <= np.finfo(np.float32).max)
+    if np.any(huge):
+        g, i = map(int, np.argwhere(huge)[0])
+        gname = group_names[g] if group_names is not None else f"#{g}"
+        band = f"{wavelengths[i]:g} nm" if wavelengths is not None else f"band {i}"
+        raise SpectralError(
+            f"relight: light group {gname!r} was rendered with emission {emi[g, i]:.3g} at {band}, "
+            f"too small to relight to the requested illuminant ({phi[g, i]:.3g} at intensity "
+            f"{a[g]:.3g}: a scale beyond float32); re-render it with flat emission"
+        )
+    return scales
 
 
 def raw_weights(scales: np.ndarray, sensor_weights: np.ndarray) -> np.ndarray:
@@ -106,7 +119,8 @@ def project_groups(cubes: Sequence[np.ndarray], weights: np.ndarray, *, skip_ban
         if not live.any():
             continue  # group off (zero intensity or illuminant dark under this sensor): not read
         bands = np.flatnonzero(live) if skip_bands and not live.all() else None
-        out[g] = _matmul_f32(cube, m[bands] if bands is not None else m, bands)
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite results are refused below
+            out[g] = _matmul_f32(cube, m[bands] if bands is not None else m, bands)
     if not np.all(np.isfinite(out)):
         raise SpectralError("project: a cube contains NaN or inf (or overflowed float32); "
                             "check the store with `illumix store verify`")

@@ -4,7 +4,7 @@ Input is noise-free linear raw ``(H, W, 3)`` scaled so 1.0 is the full-well (sat
 (apply exposure first). With full-well capacity ``FW`` electrons::
 
     e   ~ Poisson(FW · raw) + Normal(0, σ_read)                    electrons
-    DN  = round(black + e / FW · (white − black)),  clipped to [0, 2^bits − 1]
+    DN  = round(black + e / FW · (white − black)),  clipped to [0, white]  (white ≤ 2^bits − 1)
 
 Ground truth is computed from the noise-free signal; this model only changes the raw a camera
 would record. Generators are seeded (``numpy.random.default_rng(seed)``), so a sample is
@@ -39,6 +39,9 @@ class NoiseModel:
         if not 0 <= self.black_level < self.white:
             raise SpectralError(f"noise model: black level {self.black_level} must be below white "
                                 f"level {self.white}")
+        if self.white > 2 ** self.bit_depth - 1:
+            raise SpectralError(f"noise model: white level {self.white:g} does not fit in "
+                                f"{self.bit_depth} bits (max {2 ** self.bit_depth - 1})")
 
     @property
     def white(self) -> float:
@@ -64,7 +67,8 @@ def simulate_raw(raw: np.ndarray, model: NoiseModel, seed: int | None = 0, *, no
         electrons = rng.poisson(np.minimum(electrons, 64 * model.full_well)).astype(np.float64)
         electrons += rng.normal(0.0, model.read_noise, size=electrons.shape)
     dn = model.black_level + electrons / model.full_well * (model.white - model.black_level)
-    return np.clip(np.round(dn), 0, 2 ** model.bit_depth - 1).astype(np.float32)
+    # A saturated pixel reads the white level (full well), not the ADC's largest code.
+    return np.clip(np.round(dn), 0, model.white).astype(np.float32)
 
 
 def mosaic(rgb: np.ndarray, pattern: str = "RGGB") -> np.ndarray:

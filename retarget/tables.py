@@ -37,12 +37,16 @@ def read_csv_table(source: str | Path | bytes, *, columns: int | None = None, wh
     except ValueError:
         names = [c.strip() for c in rows[0][1:]]
         rows = rows[1:]
+    if not rows:
+        raise SpectralError(f"{what}: a header but no data rows; expected rows 'wavelength,value[,value…]'")
+    widths = {len(r) for r in rows}
+    if len(widths) != 1:
+        # Checked first: numpy reports ragged rows as a ValueError, which would read "non-numeric".
+        raise SpectralError(f"{what}: rows have different numbers of columns ({sorted(widths)})")
     try:
         data = np.array([[float(c) for c in r] for r in rows], dtype=np.float64)
     except ValueError as exc:
         raise SpectralError(f"{what}: non-numeric cell ({exc}); every row must be numbers") from None
-    except Exception:
-        raise SpectralError(f"{what}: rows have different numbers of columns") from None
     if data.ndim != 2 or data.shape[1] < 2:
         raise SpectralError(f"{what}: need a wavelength column and at least one value column")
     k = data.shape[1] - 1
