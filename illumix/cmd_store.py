@@ -25,8 +25,15 @@ def _open(path: str):
         raise UserError(str(exc)) from None
 
 
-def _mib(n: int | None) -> str:
-    return "" if n is None else f"{n / 2**20:.1f}"
+def _size(n: int | None) -> str:
+    """Bytes as B / KiB / MiB / GiB."""
+    if n is None:
+        return ""
+    for unit in ("B", "KiB", "MiB"):
+        if n < 1024:
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.2f} GiB"
 
 
 @store_app.command("info")
@@ -45,7 +52,7 @@ def info(path: str = typer.Argument(..., help=PATH_HELP),
     if as_json:
         print(json.dumps(rep))
         return
-    table = Table("scene", "view", "size", "group", "emission", "dtype", "complete", "MiB",
+    table = Table("scene", "view", "size", "group", "emission", "dtype", "complete", "on disk",
                   title=f"illumix store {rep['store']}")
     for s in rep["scenes"]:
         for v in s["views"]:
@@ -56,7 +63,7 @@ def info(path: str = typer.Argument(..., help=PATH_HELP),
                 done = "yes" if g["complete"] else "[yellow]no[/]"
                 dtype = "empty" if g.get("empty") else (g["dtype"] or "")
                 table.add_row(s["name"], v["name"], size, g["name"], g["emission"] or "", dtype, done,
-                              _mib(g.get("bytes")))
+                              _size(g.get("bytes")))
     console.print(table)
     regs = ", ".join(f"{k}: {len(v)}" for k, v in rep["registries"].items())
     console.print(f"registries — {regs}; pending writes: {rep['pending_writes']}")

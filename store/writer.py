@@ -93,7 +93,8 @@ def write_array_node(st: CubeStore, final: str, arr: np.ndarray, chunks: tuple[i
     """Write one array node (an AOV) complete-or-invisible."""
     b = st.backend
     wpath, wid = b.new_write_path(final)
-    state = {"complete": False, "write_id": wid, "target": final, "started": utc_now(), "pid": os.getpid()}
+    state = {"complete": False, "write_id": wid, "target": final, "started": utc_now(), "pid": os.getpid(),
+             "host": socket.gethostname()}
     try:
         fill = False if arr.dtype == np.bool_ else np.nan
         a = create_array(b, wpath, arr.shape, chunks, arr.dtype, st.codec, fill, dims, {STATE_ATTR: state})
@@ -104,6 +105,24 @@ def write_array_node(st: CubeStore, final: str, arr: np.ndarray, chunks: tuple[i
         if wpath != final:
             b.discard(wpath)
         raise
+
+
+def _pid_alive(pid: Any) -> bool:
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, TypeError, ValueError, OverflowError):
+        return True
+    return True
+
+
+def discard_dead_staging(st: CubeStore, target: str) -> None:
+    """Remove staged writes of ``target`` left by writers that died on this host (a rerun's cleanup)."""
+    host = socket.gethostname()
+    for pw in st.pending_writes():
+        if pw.get("target") == target and pw.get("host") == host and not _pid_alive(pw.get("pid")):
+            st.backend.discard(pw["path"])
 
 
 def write_view(st: CubeStore, scene: str, view: str, meta: ViewMeta | Mapping[str, Any],
@@ -189,6 +208,8 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
                                    "created": meta.created or utc_now(), "schema_version": SCHEMA_VERSION})
     first = (prev or {}).get("first_written") or utc_now()
     b.ensure_group(f"{layout.view_path(scene, view)}/cubes")
+    if b.atomic_rename:
+        discard_dead_staging(st, final)
     wpath, wid = b.new_write_path(final)
     state = {"complete": False, "write_id": wid, "target": final, "shape": list(shape),
              "first_written": first, "started": utc_now(), "pid": os.getpid(), "host": socket.gethostname()}

@@ -78,6 +78,7 @@ def test_writer_killed_mid_write_leaves_valid_store_and_rerun_completes(tmp_path
     assert rep["ok"] and rep["notes"], rep  # valid store; the interrupted write is a note
     if mode == "rename":
         assert [w["target"] for w in st.pending_writes()] == ["scenes/s/v/cubes/g"]
+        assert CubeStore.open(path).cleanup(older_than_s=3600) == 0  # too young to be called stale
         assert not (path / "scenes/s/v/cubes/g").exists()  # absent, not half-visible
     else:
         assert st.pending_writes() == []  # in place, marked incomplete
@@ -87,8 +88,9 @@ def test_writer_killed_mid_write_leaves_valid_store_and_rerun_completes(tmp_path
     st = CubeStore.open(path, mode="a", atomic_rename=(mode == "rename"))
     assert st.is_complete("s", "v", "g") and st.groups("s", "v") == ["g"]
     assert np.array_equal(st.read_cube("s", "v", "g"), _pattern())  # small integers: exact in float16
-    assert st.cleanup(older_than_s=0) == (1 if mode == "rename" else 0)
+    # the rerun discarded the dead writer's staged copy (same host, pid gone): nothing left behind
     assert st.pending_writes() == [] and verify(st) == {**verify(st), "ok": True, "notes": []}
+    assert not any((path / "_staging").glob("*/data"))
 
 
 @pytest.mark.parametrize("mode", ["rename", "marker"])

@@ -213,3 +213,20 @@ def test_fsspec_url_backend_with_completion_marker():
     from store.report import verify
 
     assert verify(ro)["ok"]
+
+
+def test_cleanup_removes_stale_staging(tmp_path, monkeypatch):
+    st = new_store(tmp_path / "st")
+    add_view(st)
+    monkeypatch.setattr(st.backend, "discard", lambda key: None)  # as if the writer died uncleanly
+
+    def boom(done, total):
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError):
+        st.write_cube("s", "v", "g", cube(), meta(), progress=boom)
+    monkeypatch.undo()
+    assert len(st.pending_writes()) == 1 and st.groups("s", "v", include_incomplete=True) == ["g"]
+    assert st.cleanup(older_than_s=3600) == 0
+    assert st.cleanup(older_than_s=0) == 1
+    assert st.pending_writes() == [] and st.groups("s", "v", include_incomplete=True) == []
