@@ -22,14 +22,10 @@ app = typer.Typer(
 
 
 def _register() -> None:
-    from illumix import cmd_serve, cmd_spectra
+    from illumix import cmd_demo, cmd_render, cmd_serve, cmd_spectra, cmd_store, cmd_validate
 
-    cmd_spectra.register(app)
-    from illumix import cmd_store; cmd_store.register(app)
-    cmd_serve.register(app)
-    from illumix import cmd_render, cmd_validate
-    cmd_render.register(app)
-    cmd_validate.register(app)
+    for module in (cmd_spectra, cmd_store, cmd_render, cmd_validate, cmd_serve, cmd_demo):
+        module.register(app)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -50,10 +46,10 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         print("illumix: interrupted", file=sys.stderr)
         sys.exit(130)
-    except Exception as exc:  # click usage errors and the like
-        import click
-
-        if isinstance(exc, click.ClickException):
+    except Exception as exc:
+        # Usage errors (missing option, unknown command): typer ships its own copy of click, so
+        # recognise them by what they can do rather than by class.
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
             print(f"illumix: error: {exc.format_message()}", file=sys.stderr)
             sys.exit(2)
         raise

@@ -72,7 +72,13 @@ def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: 
     if ({"ccm", "srgb"} & want) and ccms is None:
         raise SpectralError("compose: CCMs are needed for the ccm and srgb outputs")
     illuminants = np.atleast_2d(illuminants)
-    wps = gt.white_points(sensor.weights(), illuminants)
+    intensities = np.asarray(intensities, dtype=np.float64).reshape(-1)
+    # A switched-off group gets no weight anywhere, so its white point is never used: don't let an
+    # illuminant the sensor cannot see refuse a request that does not light it.
+    lit = intensities > 0
+    wps = np.ones((len(illuminants), 3))
+    if lit.any():
+        wps[lit] = gt.white_points(sensor.weights(), illuminants[lit])
     scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
     group_raw = project_groups(cubes, raw_weights(scales, sensor.weights()))
     if resize is not None:
@@ -91,7 +97,7 @@ def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: 
         out.raw = raw
     if not ({"gain", "ccm", "srgb", "weights", "mask"} & want):
         return out
-    weights, mask = gt.illuminant_weights(group_raw[..., 1])
+    weights, mask = gt.illuminant_weights(group_raw[..., 1], prior=intensities)
     del group_raw
     out.weights = weights if "weights" in want else None
     out.mask = mask if "mask" in want else None

@@ -53,11 +53,13 @@ def white_points(sensor_weights: np.ndarray, spds: np.ndarray) -> np.ndarray:
     return np.stack([white_point(sensor_weights, s, what=f"illuminant #{g}") for g, s in enumerate(spds)])
 
 
-def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS,
+                       prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Illuminant weights ω (eq. 3.3) and validity mask from per-group green raw.
 
     group_green : ``(G, H, W)`` ``R_{g,G}`` (negative noise is clipped to 0).
+    prior : ``(G,)`` fallback weights when the whole frame is dark (default: equal); callers pass
+    the groups' intensities so a switched-off group never gets weight.
     Returns ``(weights (H, W, G) float32 summing to 1, mask (H, W) bool)``.
     """
     g = np.clip(np.asarray(group_green, dtype=np.float64), 0.0, None)
@@ -67,6 +69,8 @@ def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS
     n = g.shape[0]
     if mask.any():
         fallback = g[:, mask].sum(axis=1) / total[mask].sum()
+    elif prior is not None and np.sum(prior) > 0:
+        fallback = np.asarray(prior, dtype=np.float64) / np.sum(prior)
     else:
         fallback = np.full(n, 1.0 / n)
     safe = np.where(mask, total, 1.0)

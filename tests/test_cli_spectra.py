@@ -198,9 +198,6 @@ def test_bad_sensor_file_is_one_line(capsys, tmp_path):
     assert "negative sensitivity at 500 nm" in line
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "illumix/cli.py catches click.ClickException, but typer 0.29 vendors click as typer._click, so "
-    "usage errors (missing option, unknown command) escape as a traceback with exit 1"))
 @pytest.mark.parametrize("args", [("whitepoint", "--sensor", "XYZ"), ("frobnicate",)])
 def test_usage_errors_are_one_line_exit_2(capsys, args):
     assert_one_line_error(*run_main(capsys, *args))
