@@ -53,6 +53,8 @@ class Plan:
     jobs: list[Job]
     skipped: list[Job] = field(default_factory=list)
     conflicts: list[str] = field(default_factory=list)
+    #: stored views to delete before rendering (overwrite of a view whose camera/resolution changed)
+    replace_views: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def cube_jobs(self) -> list[Job]:
@@ -161,19 +163,26 @@ def plan(scenes: Iterable[Scene], store_path: str | None, *, views: list[str] | 
             if views and v.name not in views:
                 continue
             vm = _stored_view(st, s.name, v.name) if (st is not None and s.name in stored_scenes) else None
+            view_changed = False
             if vm is not None and (vm.width, vm.height) != (v.width, v.height):
+                view_changed = True
                 out.conflicts.append(f"{s.name}/{v.name}: the store holds it at {vm.width}x{vm.height}, "
                                      f"this run renders {v.width}x{v.height}")
-            if vm is not None and getattr(vm, "view_hash", None) not in (None, s.view_hash(v.name)):
+            elif vm is not None and getattr(vm, "view_hash", None) not in (None, s.view_hash(v.name)):
+                view_changed = True
                 out.conflicts.append(f"{s.name}/{v.name}: the store holds this view rendered from a "
                                      "different scene description or camera")
+            if view_changed and overwrite:
+                # The store cannot change a view's resolution in place: the view (with every cube
+                # of it) is deleted and re-rendered whole, whatever the group filter.
+                out.replace_views.append((s.name, v.name))
             view_job = Job(s.name, v.name, None)
             if vm is None or overwrite:
                 out.jobs.append(view_job)
             else:
                 out.skipped.append(view_job)
             for g in s.group_names:
-                if groups and g not in groups:
+                if groups and g not in groups and (s.name, v.name) not in out.replace_views:
                     continue
                 job = Job(s.name, v.name, g)
                 done = vm is not None and st.is_complete(s.name, v.name, g)
@@ -342,6 +351,10 @@ def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", 
     cb = on_done or (lambda job, r, exc: None)
     if not plan_.jobs:
         return []
+    if plan_.replace_views:
+        st = _open_store(store_path, mode="a")
+        for scene, view in plan_.replace_views:
+            st.delete(scene, view)
     if executor == "ray":
         return _run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)
     return _run_local(plan_, store_path, settings_dict, workers, cb, overwrite)

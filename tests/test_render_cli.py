@@ -93,6 +93,17 @@ def test_resume_renders_only_missing_cubes(tmp_path, capsys):
     # same description at another resolution: refused (one line, exit 2), nothing rendered
     code, out, err = run_cli(capsys, "render", cfg, "--store", store, "--resolution", "30x20")
     assert code == 2 and err.count("\n") == 1 and "30x20" in err and "--overwrite" in err
+    # --overwrite replaces the view whole (every group, whatever --groups says)
+    code, out, err = run_cli(capsys, "render", cfg, "--store", store, "--resolution", "30x20", "--views", "a",
+                             "--groups", "bulb", "--overwrite", "--spp", "16", "--json")
+    assert code == 0, err
+    assert sorted(json.loads(out.strip().splitlines()[-1])["rendered"]) == [
+        "mini/a/[view+aovs]", "mini/a/bulb", "mini/a/lamp"]
+    from store import CubeStore
+
+    st = CubeStore.open(store, mode="r")
+    assert st.read_cube("mini", "a", "lamp").shape == (20, 30, 63)
+    assert st.read_cube("mini", "b", "lamp").shape == (14, 20, 63)
 
 
 def test_changed_description_is_a_conflict(tmp_path, capsys):
