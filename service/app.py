@@ -27,6 +27,7 @@ from service.library import Library, check_upload_name, parse_illuminant, parse_
 from service.limits import Limits
 from service.sampling import Context, NotFound, build_sample
 from service.spec import SampleSpec
+from store import StoreError, StoreKeyError
 
 
 class BatchRequest(BaseModel):
@@ -64,6 +65,15 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     @app.exception_handler(NotFound)
     async def _not_found(request: Request, exc: Exception):
         return JSONResponse({"detail": str(exc)}, status_code=404)
+
+    @app.exception_handler(StoreKeyError)
+    async def _store_missing(request: Request, exc: StoreKeyError):
+        return JSONResponse({"detail": str(exc)}, status_code=404)
+
+    @app.exception_handler(StoreError)
+    async def _store_broken(request: Request, exc: StoreError):
+        # Not the client's fault: the store itself is damaged or unreachable.
+        return JSONResponse({"detail": f"store problem: {exc}; run `illumix store verify`"}, status_code=503)
 
     @app.exception_handler(SpectralError)
     async def _bad_input(request: Request, exc: SpectralError):
@@ -191,8 +201,6 @@ async def _read_upload(file: UploadFile, limits: Limits) -> bytes:
 
 
 def _put(registry, name: str, data: bytes, fmt: str, overwrite: bool) -> None:
-    from store import StoreError
-
     if name in registry.names() and not overwrite:
         raise HTTPException(409, f"{name!r} exists; send overwrite=true to replace it")
     try:
