@@ -283,10 +283,46 @@ def shape_area(scene: Scene, s) -> float:
     return _shape_area(json.dumps(d, sort_keys=True, default=float))
 
 
+def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds ``(lo (3,), hi (3,))`` of the scene's geometry in metres (portals excluded).
+
+    Computed from the description (Mitsuba may merge shapes, and a merged mesh reports no bounds
+    before the scene is built); meshes are loaded one by one for theirs.
+    """
+    pts: list[np.ndarray] = []
+    canon = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    for sh in scene.shapes:
+        if scene.is_portal(sh):
+            continue
+        m = sh.transform.to_matrix() if sh.transform is not None else np.eye(4)
+        if isinstance(sh, (Rectangle, Cube, Disk)):
+            local = canon.copy()
+            if not isinstance(sh, Cube):
+                local[:, 2] = 0.0
+            pts.append((local @ m.T)[:, :3])
+        elif isinstance(sh, Sphere):
+            c, r = np.asarray(sh.center), sh.radius
+            pts.append(((np.c_[c + r * canon[:, :3], np.ones(8)]) @ m.T)[:, :3])
+        elif isinstance(sh, Cylinder):
+            ends = np.array([sh.p0, sh.p1])
+            local = np.concatenate([e + sh.radius * canon[:, :3] for e in ends])
+            pts.append((np.c_[local, np.ones(len(local))] @ m.T)[:, :3])
+        else:
+            mi, _ = _mi()
+            d = _shape_dict(mi, scene, sh)
+            d.pop("bsdf", None)
+            bb = mi.load_dict(d).bbox()
+            pts.append(np.array([[float(bb.min[i]) for i in range(3)], [float(bb.max[i]) for i in range(3)]]))
+    if not pts:
+        return np.zeros(3), np.zeros(3)
+    allp = np.concatenate(pts)
+    return allp.min(axis=0), allp.max(axis=0)
+
+
 def scene_radius(scene: Scene) -> float:
-    """Radius of a sphere around the scene's geometry (for the power of distant lights)."""
-    mi, _ = _mi()
-    return float(_load(scene, view=scene.views[0].name, groups=[])[0].bbox().bounding_sphere().radius)
+    """Radius of a sphere around the scene's geometry (for the power of distant lights); ≥ 1e-3 m."""
+    lo, hi = scene_bounds(scene)
+    return max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
 
 
 def emitter_power(scene: Scene, e, radius: float) -> float:

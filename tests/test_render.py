@@ -191,3 +191,56 @@ def test_narrowband_emission_and_low_spp_refused():
     assert np.all(r.cube[..., lit].mean(axis=(0, 1)) > 0)
     with pytest.raises(SceneError, match="spp >= 16"):
         mb.render_cube(s, "cam", "bulb", mb.RenderSettings(spp=8))
+
+
+def test_envmap_sky_renders_with_mitsuba_d65_emission(tmp_path):
+    """An RGB envmap emits Mitsuba's D65 × its (upsampled) colour: the group's recorded emission is
+    that D65, so a grey map of value v at strength s is seen as s·v per unit emission."""
+    import mitsuba as mi
+
+    mi.Bitmap(np.full((16, 32, 3), 0.5, dtype=np.float32)).write(str(tmp_path / "sky.exr"))
+    d = {"name": "env", "materials": {"g": {"kind": "diffuse", "reflectance": {"value": 0.5}}},
+         "shapes": [{"name": "floor", "type": "rectangle", "material": "g",
+                     "transform": {"rotate": [{"axis": [1, 0, 0], "angle": -90}]}}],
+         "lights": [{"name": "sky", "type": "envmap", "group": "sky", "filename": "sky.exr", "strength": 2.0}],
+         "views": [{"name": "v", "origin": [0, 1, 3], "target": [0, 0, 0], "resolution": [32, 24]}]}
+    s = scene_from_dict(d, base=tmp_path)
+    r = mb.render_cube(s, "v", "sky", mb.RenderSettings(spp=16))
+    a = mb.render_aovs(s, "v")
+    assert r.emission_name == "mitsuba-d65" and 0.5 < r.emission[0] < r.emission[30]
+    seen = r.cube[~a["mask"]].mean(axis=0) / r.emission   # sky seen directly: 2 × 0.5
+    np.testing.assert_allclose(seen, 1.0, rtol=0.02)
+    d["light_groups"] = [{"name": "sky", "emission": "D65"}]
+    with pytest.raises(SceneError, match="envmap"):
+        mb.render_cube(scene_from_dict(d, base=tmp_path), "v", "sky", mb.RenderSettings(spp=16))
+
+
+def test_window_portal_equals_constant_sky_and_lets_the_sun_in():
+    """A room open on one side: sun + constant sky, or sun + a portal of the sky's radiance filling
+    the opening — the same light enters (exact for a uniform sky), so the cubes agree within noise;
+    and the portal does not shadow the sun (it renders in its own pass)."""
+    def room(portal: bool) -> dict:
+        walls = [((0, 0, 0), (0, 1, 0), (0, 0, -1)), ((0, 2, 0), (0, -1, 0), (0, 0, -1)),
+                 ((0, 1, -1), (0, 0, 1), (0, 1, 0)), ((1, 1, 0), (-1, 0, 0), (0, 1, 0)),
+                 ((0, 1, 1), (0, 0, -1), (0, 1, 0))]
+        shapes = [{"name": f"w{i}", "type": "rectangle", "material": "white",
+                   "transform": {"matrix": demo.frame_matrix(c, n, u, (2, 2))}} for i, (c, n, u) in enumerate(walls)]
+        lights = [{"name": "sun", "type": "directional", "group": "day", "direction": (0.8, -0.6, 0.0), "strength": 6.0}]
+        if portal:  # the open side x = -1, emitting into the room (+x)
+            shapes.append({"name": "opening", "type": "rectangle",
+                           "emitter": {"group": "day", "strength": 0.5, "portal": True},
+                           "transform": {"matrix": demo.frame_matrix((-1, 1, 0), (1, 0, 0), (0, 1, 0), (2, 2))}})
+        else:
+            lights.append({"name": "sky", "type": "constant", "group": "day", "strength": 0.5})
+        return {"name": "room", "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.6}}},
+                "shapes": shapes, "lights": lights,
+                "views": [{"name": "in", "origin": (0.8, 1.2, 0.8), "target": (-1, 0.6, -0.6), "fov": 80,
+                           "resolution": RES}], "max_depth": 5}
+
+    sky = mb.render_cube(scene_from_dict(room(False)), "in", "day", mb.RenderSettings(spp=32, seed=1))
+    portal = mb.render_cube(scene_from_dict(room(True)), "in", "day", mb.RenderSettings(spp=32, seed=2))
+    assert portal.renderer["settings"]["passes"] == ["without", "only"]
+    assert_same_within_noise(sky.cube, portal.cube)
+    # the sunlit floor patch is there in both: direct sun alone gives 0.6·6·0.6/π = 0.69 there, while
+    # nothing lit by the sky alone exceeds the sky's own radiance 0.5
+    assert portal.cube.max() > 0.8 and sky.cube.max() > 0.8
