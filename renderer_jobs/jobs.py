@@ -319,11 +319,12 @@ def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | N
         raise JobError("the ray executor needs Ray: pip install 'illumix[ray]'") from None
     if not ray.is_initialized():
         ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+    # One CPU per task and a one-thread Dr.Jit pool in it: Ray packs as many tasks as a node has cores.
     remote = ray.remote(num_cpus=1)(run_job)
     payloads = {n: ray.put(_scene_payload(s)) for n, s in plan_.scenes.items()}
     results: list[dict] = []
     for phase in (plan_.view_jobs, plan_.cube_jobs):
-        refs = {remote.remote(payloads[j.scene], j, store_path, settings_dict, None, overwrite): j
+        refs = {remote.remote(payloads[j.scene], j, store_path, settings_dict, 1, overwrite): j
                 for j in phase}
         while refs:
             done, _ = ray.wait(list(refs), num_returns=1)

@@ -185,3 +185,12 @@ def test_chart_patch_layout_in_chart_order():
     assert len(c) == 24
     assert c[0][0] < c[5][0] and c[0][1] > c[18][1]      # 1 top-left, 6 top-right, 19 bottom-left
     assert math.isclose(c[1][0] - c[0][0], 0.12) and math.isclose(c[0][1] - c[6][1], 0.12)
+
+
+def test_example_scene_loads():
+    from pathlib import Path
+
+    import renderer_jobs
+
+    (s,) = load_scenes(Path(renderer_jobs.__file__).parent / "examples" / "two_lamps.yaml")
+    assert s.group_names == ["ceiling", "lamp", "ambient"] and len(s.views) == 2
