@@ -15,7 +15,11 @@ spectral radiance reaching pixel ``x`` (box pixel filter) when only ``g``'s emit
 emitting ``strength × Ē_g(λ)`` with ``Ē_g`` the group's emission (flat, value 1, by default) held
 constant over each band; every other group's emitters are removed (their geometry and materials
 stay). Path tracing (Mitsuba's ``path`` integrator, unidirectional with next-event estimation,
-emitter selection weighted by power), no denoiser, no clamping.
+emitter selection weighted by approximate power via ``sampling_weight``), no denoiser, no clamping,
+emitters visible. Portal emitters (``emitter.portal``, e.g. the sky filling a window) are not
+geometry: they are traced in a second pass with the same schedule and added (linearity), so they
+never shadow the group's other emitters. Non-finite samples (none seen so far) are dropped and
+counted in the cube's stats.
 
 Wavelength sampling (issue 4, see ``bench/render.py`` for the measurements)
 -------------------------------------------------------------------------
@@ -246,12 +250,8 @@ def _shape_dict(mi, scene: Scene, s) -> dict:
     else:  # pragma: no cover — the scene schema is closed
         raise SceneError(f"shapes ({s.name}): unsupported type {s.type!r}")
     if s.transform is not None:
-        m = s.transform.to_matrix()
-        if isinstance(s, (Sphere, Cylinder)):
-            # Their own parameters place them; an extra transform applies on top.
-            d["to_world"] = _transform(mi, m)
-        else:
-            d["to_world"] = _transform(mi, m)
+        # Spheres and cylinders are placed by their own parameters; a transform applies on top.
+        d["to_world"] = _transform(mi, s.transform.to_matrix())
     if s.material is not None:
         d["bsdf"] = _bsdf(scene, s.material)
     else:
