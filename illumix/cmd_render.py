@@ -21,6 +21,22 @@ from illumix.errors import UserError
 console = Console(stderr=True)
 
 
+RENDER_EXTRA_HINT = "pip install 'illumix[render]'"
+
+
+def require_renderer() -> None:
+    """Stop with one line when Mitsuba (the optional extra ``render``) is not installed.
+
+    A service-only install (``pip install illumix``, ``docker/Dockerfile.service``) has no renderer;
+    ``scripts/install.sh`` and ``docker/Dockerfile.render`` install it.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("mitsuba") is None:
+        raise UserError(f"rendering needs Mitsuba 3, which this install lacks: {RENDER_EXTRA_HINT} "
+                        "(or bash scripts/install.sh; on Debian also apt-get install libllvm19)")
+
+
 def _split(text: str | None) -> list[str] | None:
     if not text:
         return None
@@ -100,6 +116,8 @@ def render(
         if as_json:
             print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
         return
+    if executor == "local":
+        require_renderer()  # ray: the workers render (their image has Mitsuba); the driver needs none
     t0 = time.perf_counter()
     done: list[dict] = []
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),

@@ -37,6 +37,9 @@ def validate(
 
     if wavelengths not in WAVELENGTH_MODES:
         raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")
+    from illumix.cmd_render import require_renderer
+
+    require_renderer()
     names = [s.strip() for s in illuminants.split(",") if s.strip()]
     if not names:
         raise UserError("--illuminants is empty; give e.g. D65,A")

@@ -4,8 +4,10 @@
 # back to the much slower scalar_spectral variant). Usage: bash scripts/install.sh [--test]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-extras=""
-[ "${1:-}" = "--test" ] && extras="[test]"
+# The renderer (Mitsuba) is the optional extra "render" of the package (a service-only install,
+# e.g. docker/Dockerfile.service, leaves it out); this script always installs it.
+extras="render"
+[ "${1:-}" = "--test" ] && extras="render,test"
 if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* >/dev/null 2>&1; then
   if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "install: adding libllvm19 (Mitsuba LLVM backend)" >&2
@@ -16,10 +18,10 @@ if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* 
          "rendering will use scalar_spectral. On Debian: apt-get install libllvm19" >&2
   fi
 fi
-python3 -m pip install -q -e ".${extras}"
+python3 -m pip install -q -e ".[${extras}]"
 # The Python client is its own package (numpy + httpx only); install it beside the server.
 python3 -m pip install -q -e clients/python
-if [ -n "$extras" ]; then
+if [ "${1:-}" = "--test" ]; then
   # The client's PyTorch dataset tests want torch. Pin the CPU build so pip takes the local CPU
   # wheel and never pulls the multi-GB CUDA one; without it those tests skip with a reason.
   python3 -m pip install -q "torch==2.13.0+cpu" \
