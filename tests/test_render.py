@@ -11,9 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer_jobs import demo
-from renderer_jobs import mitsuba_backend as mb
-from renderer_jobs.scene import SceneError, scene_from_dict
+pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
+
+from renderer_jobs import demo  # noqa: E402
+from renderer_jobs import mitsuba_backend as mb  # noqa: E402
+from renderer_jobs.scene import SceneError, scene_from_dict  # noqa: E402
 
 RES = (40, 30)
 

@@ -15,6 +15,8 @@ from renderer_jobs.demo import demo_room_dict
 from renderer_jobs.scene import scene_from_dict
 
 TINY = ["--resolution", "24x16", "--spp", "16"]
+needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,
+                                   reason="rendering needs the optional extra illumix[render]")
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
@@ -51,6 +53,7 @@ def tiny_scene_file(tmp_path, name="mini") -> str:
     return str(p)
 
 
+@needs_mitsuba
 def test_render_demo_then_nothing_to_do(tmp_path, capsys):
     from store import CubeStore
 
@@ -79,6 +82,7 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
     assert "nothing to do" in err
 
 
+@needs_mitsuba
 def test_resume_renders_only_missing_cubes(tmp_path, capsys):
     cfg = tiny_scene_file(tmp_path)
     store = str(tmp_path / "st")
@@ -106,6 +110,7 @@ def test_resume_renders_only_missing_cubes(tmp_path, capsys):
     assert st.read_cube("mini", "b", "lamp").shape == (14, 20, 63)
 
 
+@needs_mitsuba
 def test_changed_description_is_a_conflict(tmp_path, capsys):
     cfg = tiny_scene_file(tmp_path)
     store = str(tmp_path / "st")
@@ -159,6 +164,7 @@ def test_plan_lists_jobs_views_first(tmp_path):
     assert all(v.resolution == (8, 6) for v in small.views) and small.scene_hash == scene.scene_hash
 
 
+@needs_mitsuba
 def test_validate_cli_writes_validation_json(tmp_path, capsys):
     out_dir = tmp_path / "val"
     code, out, err = run_cli(capsys, "validate", "--out", str(out_dir), "--illuminants", "D65,A",
@@ -175,6 +181,7 @@ def test_validate_cli_writes_validation_json(tmp_path, capsys):
     assert code == 2 and "higher resolution" in err
 
 
+@needs_mitsuba
 def test_local_process_pool(tmp_path):
     """Two spawned worker processes render the tiny scene into one store."""
     from renderer_jobs.mitsuba_backend import RenderSettings
@@ -189,6 +196,7 @@ def test_local_process_pool(tmp_path):
     assert all(st.is_complete("mini", v, g) for v in ("a", "b") for g in ("lamp", "bulb"))
 
 
+@needs_mitsuba
 def test_ray_executor_on_local_instance(tmp_path):
     """A local Ray instance (127.0.0.1 only, started here) renders the jobs; the cubes equal the
     in-process render of the same seed."""
