@@ -26,13 +26,21 @@ ILLUMINANT_HELP = "Illuminant name (see `illumix illuminants list`), blackbody:K
 @illuminants_app.command("list")
 def illuminants_list(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """List the built-in illuminants and the parametric forms."""
-    names = ill.builtin_names()
+    names, unusable = [], {}
+    for name in ill.builtin_names():
+        try:
+            ill.illuminant_spd(name)
+            names.append(name)
+        except SpectralError as exc:  # e.g. ISO 7589 weighting functions stop at 690 nm
+            unusable[name] = str(exc)
     parametric = {k: {"min_kelvin": lo, "max_kelvin": hi} for k, (lo, hi) in ill.PARAMETRIC.items()}
     if as_json:
-        print(json.dumps({"illuminants": names, "parametric": parametric}))
+        print(json.dumps({"illuminants": names, "parametric": parametric, "not_on_grid": unusable}))
         return
     console.print(f"[bold]{len(names)} tabulated illuminants[/] (colour-science SDS_ILLUMINANTS):")
     console.print(", ".join(names))
+    if unusable:
+        console.print(f"[dim]not usable on the default grid (data does not cover it): {', '.join(unusable)}[/]")
     for k, v in parametric.items():
         console.print(f"[bold]{k}:<K>[/]  {v['min_kelvin']:g}–{v['max_kelvin']:g} K")
     console.print("or a CSV file wavelength,value")

@@ -140,7 +140,10 @@ def test_illuminants_list_json(capsys):
     assert code == 0
     doc = json.loads(out)
     assert {"A", "D65", "FL11", "LED-B1"} <= set(doc["illuminants"])
-    assert set(doc["illuminants"]) == set(colour.SDS_ILLUMINANTS.keys())
+    # Every colour-science illuminant is listed: usable ones, or with the reason it is not.
+    assert set(doc["illuminants"]) | set(doc["not_on_grid"]) == set(colour.SDS_ILLUMINANTS.keys())
+    assert all("392.5-707.5 nm" in why for why in doc["not_on_grid"].values())
+    assert not any(n.startswith(("D", "FL", "LED")) for n in doc["not_on_grid"])
     assert doc["parametric"]["blackbody"]["min_kelvin"] == 500.0
     assert doc["parametric"]["daylight"]["max_kelvin"] == 25000.0
 
