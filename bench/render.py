@@ -86,10 +86,11 @@ def main(argv: list[str] | None = None) -> dict:
     args = ap.parse_args(argv)
 
     from renderer_jobs import demo
-    from renderer_jobs import mitsuba_backend as mb
+    from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.mitsuba_variant import select_variant
     from retarget import illuminants, sensors
 
-    variant = mb.select_variant()
+    variant = select_variant()
     sensor = sensors.get_sensor(args.sensor)
     w_raw = sensor.weights() * illuminants.illuminant_spd("D65")[:, None]
     sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",")]
@@ -99,18 +100,18 @@ def main(argv: list[str] | None = None) -> dict:
     rows = []
     for size in sizes:
         scene = demo.demo_room(args.seed, resolution=size)
-        aovs = mb.render_aovs(scene, args.view, mb.RenderSettings())
+        aovs = mr.render_aovs(scene, args.view, mr.RenderSettings())
         mask = flat_mask(aovs)
         for group in groups:
             for mode in modes:
                 # Warm-up: compile this scene/group's kernels so timings are of rendering only.
-                mb.render_cube(scene, args.view, group, mb.RenderSettings(spp=16, seed=99, wavelengths=mode,
+                mr.render_cube(scene, args.view, group, mr.RenderSettings(spp=16, seed=99, wavelengths=mode,
                                                                            resolution=(8, 8)))
                 for spp in spps:
                     t0 = time.perf_counter()
-                    a = mb.render_cube(scene, args.view, group, mb.RenderSettings(spp=spp, seed=1, wavelengths=mode))
+                    a = mr.render_cube(scene, args.view, group, mr.RenderSettings(spp=spp, seed=1, wavelengths=mode))
                     t = time.perf_counter() - t0
-                    b = mb.render_cube(scene, args.view, group, mb.RenderSettings(spp=spp, seed=2, wavelengths=mode))
+                    b = mr.render_cube(scene, args.view, group, mr.RenderSettings(spp=spp, seed=2, wavelengths=mode))
                     st = noise_stats(a.cube, b.cube, mask, w_raw)
                     row = {"size": f"{size[0]}x{size[1]}", "group": group, "mode": mode, "spp": spp,
                            "seconds": round(t, 3), "trace_seconds": a.stats["trace_s"], **st}

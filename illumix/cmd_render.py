@@ -64,8 +64,9 @@ def render(
 ) -> None:
     """Render spectral transport cubes (one per view and light group) into a cube store."""
     from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_backend import WAVELENGTH_MODES, RenderSettings
-    from renderer_jobs.scene import SceneError, load_scenes
+    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES, RenderSettings
+    from renderer_jobs.scene_load import load_scenes
+    from renderer_jobs.scene_schema import SceneError
 
     try:
         if demo == (config is not None):

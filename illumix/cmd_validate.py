@@ -30,10 +30,10 @@ def validate(
 ) -> None:
     """Render a Lambertian ColorChecker under a distant light and compare it with closed form."""
     from renderer_jobs.jobs import parse_resolution
-    from renderer_jobs.scene import SceneError
+    from renderer_jobs.scene_schema import SceneError
     from renderer_jobs.validate import run_validation
 
-    from renderer_jobs.mitsuba_backend import WAVELENGTH_MODES
+    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES
 
     if wavelengths not in WAVELENGTH_MODES:
         raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")

@@ -24,7 +24,8 @@ import math
 
 import numpy as np
 
-from renderer_jobs.scene import Scene, scene_from_dict
+from renderer_jobs.scene_load import scene_from_dict
+from renderer_jobs.scene_model import Scene
 
 CHART_SET = "ColorChecker N Ohta"
 CHART_ROWS, CHART_COLS = 4, 6

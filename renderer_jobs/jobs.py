@@ -25,7 +25,9 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from renderer_jobs.scene import Scene, SceneError, scene_from_dict
+from renderer_jobs.scene_load import scene_from_dict
+from renderer_jobs.scene_model import Scene
+from renderer_jobs.scene_schema import SceneError
 
 EXECUTORS = ("local", "ray")
 
@@ -222,14 +224,15 @@ def _scene_from_payload(payload: tuple[dict, str | None]) -> Scene:
 def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, settings_dict: dict,
             threads: int | None = None, overwrite: bool = False) -> dict:
     """Render one job and write it into the store. Returns a small summary dict."""
-    from renderer_jobs import mitsuba_backend as mb
+    from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.mitsuba_variant import select_variant
 
     if threads:
         os.environ.setdefault("DRJIT_NUM_THREADS", str(threads))
     scene = _scene_from_payload(payload)
-    settings = mb.RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v)
+    settings = mr.RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v)
                                     for k, v in settings_dict.items()})
-    mb.select_variant()
+    select_variant()
     if threads:
         import drjit as dr
 
@@ -240,12 +243,12 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
     t0 = time.perf_counter()
     st = _open_store(store_path, mode="a")
     if job.group is None:
-        aovs = mb.render_aovs(scene, job.view, settings)
+        aovs = mr.render_aovs(scene, job.view, settings)
         st.write_view(scene.name, job.view, _view_meta(scene, job.view), aovs)
         return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view"}
     from store import CubeMeta
 
-    result = mb.render_cube(scene, job.view, job.group, settings)
+    result = mr.render_cube(scene, job.view, job.group, settings)
     meta = CubeMeta(grid=scene.spectral_grid.to_dict(), emission=result.emission.tolist(),
                     emission_name=result.emission_name, renderer=result.renderer, spp=settings.spp,
                     seed=settings.seed, scene_hash=scene.scene_hash, view_hash=scene.view_hash(job.view),

@@ -27,7 +27,7 @@ import colour
 import numpy as np
 
 from renderer_jobs import demo
-from renderer_jobs.scene import Scene
+from renderer_jobs.scene_model import Scene
 
 DEFAULT_ILLUMINANTS = ("D65", "A", "FL2", "FL11", "FL12", "blackbody:2300")
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"
@@ -133,7 +133,7 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
                    resolution: tuple[int, int] = (192, 128), incidence_deg: float = 30.0,
                    interior: float = 0.6, wavelengths: str = "stratified") -> ValidationResult:
     """Render the validation chart once and compare it with closed form under every illuminant."""
-    from renderer_jobs import mitsuba_backend as mb
+    from renderer_jobs import mitsuba_render as mr
     from retarget.illuminants import illuminant_spd
     from retarget.sensors import get_sensor
 
@@ -142,7 +142,7 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
     for name in illuminants:  # fail on a bad name before rendering
         illuminant_spd(name, scene.spectral_grid)
     masks = patch_masks(scene, interior)
-    res = mb.render_cube(scene, VIEW, GROUP, mb.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths))
+    res = mr.render_cube(scene, VIEW, GROUP, mr.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths))
     cube = res.cube.astype(np.float64)
     radiance = np.stack([cube[m].mean(axis=0) for m in masks])
     patches: list[dict] = []

@@ -14,8 +14,11 @@ import pytest
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
 from renderer_jobs import demo  # noqa: E402
-from renderer_jobs import mitsuba_backend as mb  # noqa: E402
-from renderer_jobs.scene import SceneError, scene_from_dict  # noqa: E402
+from renderer_jobs import mitsuba_render as mr  # noqa: E402
+from renderer_jobs import mitsuba_scene as ms  # noqa: E402
+from renderer_jobs import mitsuba_variant as mv  # noqa: E402
+from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from renderer_jobs.scene_schema import SceneError  # noqa: E402
 
 RES = (40, 30)
 
@@ -68,29 +71,29 @@ def assert_same_within_noise(a: np.ndarray, b: np.ndarray, k: float = 5.0) -> No
 def test_find_libllvm_refuses_old_versions(tmp_path):
     for name in ("libLLVM-14.so.1", "libLLVM-15.so", "libLLVM.so.19.1", "libLLVM-17.so", "libLLVMCore.a"):
         (tmp_path / name).write_bytes(b"")
-    path, version = mb.find_libllvm(dirs=(str(tmp_path),))
+    path, version = mv.find_libllvm(dirs=(str(tmp_path),))
     assert version[0] == 19 and path.endswith("libLLVM.so.19.1")
     (tmp_path / "libLLVM.so.19.1").unlink()
     (tmp_path / "libLLVM-17.so").unlink()
-    assert mb.find_libllvm(dirs=(str(tmp_path),)) is None  # 14 and 15 only: refused
-    assert mb._llvm_version("/usr/lib/llvm-19/lib/libLLVM.so") == (19,)
-    assert mb._llvm_version("/usr/lib/x86_64-linux-gnu/libLLVM-14.0.6.so.1") == (14, 0, 6)
+    assert mv.find_libllvm(dirs=(str(tmp_path),)) is None  # 14 and 15 only: refused
+    assert mv.llvm_version("/usr/lib/llvm-19/lib/libLLVM.so") == (19,)
+    assert mv.llvm_version("/usr/lib/x86_64-linux-gnu/libLLVM-14.0.6.so.1") == (14, 0, 6)
 
 
 def test_variant_selected_and_llvm_path_set():
     import os
 
-    v = mb.select_variant()
-    assert v in mb.VARIANTS
+    v = mv.select_variant()
+    assert v in mv.VARIANTS
     if v == "llvm_ad_spectral":
         lib = os.environ["DRJIT_LIBLLVM_PATH"]
-        assert mb._llvm_version(lib)[0] >= mb.MIN_LLVM
+        assert mv.llvm_version(lib)[0] >= mv.MIN_LLVM
 
 
 def test_step_spectrum_never_all_zero_irregular(box):
-    assert mb.step_spectrum(np.zeros(63), box) == {"type": "uniform", "value": 0.0}
-    assert mb.step_spectrum(np.full(63, 2.0), box) == {"type": "uniform", "value": 2.0}
-    d = mb.step_spectrum(np.r_[np.zeros(62), 1.0], box)
+    assert ms.step_spectrum(np.zeros(63), box) == {"type": "uniform", "value": 0.0}
+    assert ms.step_spectrum(np.full(63, 2.0), box) == {"type": "uniform", "value": 2.0}
+    d = ms.step_spectrum(np.r_[np.zeros(62), 1.0], box)
     assert d["type"] == "irregular" and len(d["values"].split(",")) == 126
 
 
@@ -116,8 +119,8 @@ def test_stratified_wavelengths_remove_band_count_noise():
     scene = demo.validation_chart(resolution=(48, 32))
     out = {}
     for mode in ("stratified", "random"):
-        a = mb.render_cube(scene, "head-on", "light", mb.RenderSettings(spp=16, seed=1, wavelengths=mode)).cube
-        b = mb.render_cube(scene, "head-on", "light", mb.RenderSettings(spp=16, seed=2, wavelengths=mode)).cube
+        a = mr.render_cube(scene, "head-on", "light", mr.RenderSettings(spp=16, seed=1, wavelengths=mode)).cube
+        b = mr.render_cube(scene, "head-on", "light", mr.RenderSettings(spp=16, seed=2, wavelengths=mode)).cube
         lit = binary_erosion(a.mean(-1) > 0.01)
         out[mode] = np.median(np.std(a[lit] - b[lit], axis=0) / np.sqrt(2) / a[lit].mean(axis=0))
     assert out["stratified"] < 1e-5
@@ -125,10 +128,10 @@ def test_stratified_wavelengths_remove_band_count_noise():
 
 
 def test_same_seed_same_cube_other_seed_differs(box):
-    s = mb.RenderSettings(spp=16, seed=7)
-    a = mb.render_cube(box, "cam", "lamp", s)
-    b = mb.render_cube(box, "cam", "lamp", s)
-    c = mb.render_cube(box, "cam", "lamp", mb.RenderSettings(spp=16, seed=8))
+    s = mr.RenderSettings(spp=16, seed=7)
+    a = mr.render_cube(box, "cam", "lamp", s)
+    b = mr.render_cube(box, "cam", "lamp", s)
+    c = mr.render_cube(box, "cam", "lamp", mr.RenderSettings(spp=16, seed=8))
     assert a.cube.shape == (RES[1], RES[0], 63) and a.cube.dtype == np.float32
     assert np.array_equal(a.cube, b.cube)
     assert not np.array_equal(a.cube, c.cube)
@@ -146,12 +149,12 @@ def test_relight_flat_by_fl11_equals_fl11_emission():
     flat = scene_from_dict(box_scene())
     fl11 = scene_from_dict(box_scene(lamp="FL11"))
     e = illuminant_spd("FL11")
-    t_flat = mb.render_cube(flat, "cam", "lamp", mb.RenderSettings(spp=32, seed=1))
-    t_fl11 = mb.render_cube(fl11, "cam", "lamp", mb.RenderSettings(spp=32, seed=1))
+    t_flat = mr.render_cube(flat, "cam", "lamp", mr.RenderSettings(spp=32, seed=1))
+    t_fl11 = mr.render_cube(fl11, "cam", "lamp", mr.RenderSettings(spp=32, seed=1))
     np.testing.assert_allclose(t_fl11.emission, e)
     relit = relight([t_flat.cube], band_scales(e[None], t_flat.emission[None], np.ones(1)))
     np.testing.assert_allclose(t_fl11.cube, relit, rtol=2e-5, atol=1e-7 * relit.max())
-    other = mb.render_cube(fl11, "cam", "lamp", mb.RenderSettings(spp=32, seed=2))
+    other = mr.render_cube(fl11, "cam", "lamp", mr.RenderSettings(spp=32, seed=2))
     assert_same_within_noise(other.cube, relit)
     # And FL11's spikes survive: the 545 nm band is far brighter than its neighbours.
     i = int(np.argmin(np.abs(flat.spectral_grid.wavelengths - 545)))
@@ -159,16 +162,16 @@ def test_relight_flat_by_fl11_equals_fl11_emission():
 
 
 def test_groups_add_up_to_all_on(box):
-    parts = [mb.render_cube(box, "cam", g, mb.RenderSettings(spp=32, seed=3)).cube for g in box.group_names]
+    parts = [mr.render_cube(box, "cam", g, mr.RenderSettings(spp=32, seed=3)).cube for g in box.group_names]
     total = sum(parts)
-    all_on = mb.render_cube(box, "cam", None, mb.RenderSettings(spp=32, seed=4)).cube
+    all_on = mr.render_cube(box, "cam", None, mr.RenderSettings(spp=32, seed=4)).cube
     assert_same_within_noise(total, all_on)
     # every group contributes (a group missing from the all-on render would fail the test above)
     assert all(p.mean() > 0.02 * total.mean() for p in parts)
 
 
 def test_aovs(box):
-    a = mb.render_aovs(box, "cam", mb.RenderSettings(aov_spp=2))
+    a = mr.render_aovs(box, "cam", mr.RenderSettings(aov_spp=2))
     h, w = RES[1], RES[0]
     assert a["albedo"].shape == (h, w, 3) and a["normal"].shape == (h, w, 3)
     assert a["depth"].shape == (h, w) and a["mask"].shape == (h, w) and a["mask"].dtype == bool
@@ -186,13 +189,13 @@ def test_narrowband_emission_and_low_spp_refused():
     d["light_groups"][1]["emission"] = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780],
                                         "values": [0, 0, 1, 1, 0, 0]}
     s = scene_from_dict(d)
-    r = mb.render_cube(s, "cam", "bulb", mb.RenderSettings(spp=16, seed=1))
+    r = mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=16, seed=1))
     wl = s.spectral_grid.wavelengths
     lit = (wl >= 545) & (wl <= 555)
     assert np.all(r.cube[..., ~((wl >= 537.5) & (wl <= 562.5))] == 0)
     assert np.all(r.cube[..., lit].mean(axis=(0, 1)) > 0)
     with pytest.raises(SceneError, match="spp >= 16"):
-        mb.render_cube(s, "cam", "bulb", mb.RenderSettings(spp=8))
+        mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=8))
 
 
 def test_envmap_sky_renders_with_mitsuba_d65_emission(tmp_path):
@@ -207,14 +210,14 @@ def test_envmap_sky_renders_with_mitsuba_d65_emission(tmp_path):
          "lights": [{"name": "sky", "type": "envmap", "group": "sky", "filename": "sky.exr", "strength": 2.0}],
          "views": [{"name": "v", "origin": [0, 1, 3], "target": [0, 0, 0], "resolution": [32, 24]}]}
     s = scene_from_dict(d, base=tmp_path)
-    r = mb.render_cube(s, "v", "sky", mb.RenderSettings(spp=16))
-    a = mb.render_aovs(s, "v")
+    r = mr.render_cube(s, "v", "sky", mr.RenderSettings(spp=16))
+    a = mr.render_aovs(s, "v")
     assert r.emission_name == "mitsuba-d65" and 0.5 < r.emission[0] < r.emission[30]
     seen = r.cube[~a["mask"]].mean(axis=0) / r.emission   # sky seen directly: 2 × 0.5
     np.testing.assert_allclose(seen, 1.0, rtol=0.02)
     d["light_groups"] = [{"name": "sky", "emission": "D65"}]
     with pytest.raises(SceneError, match="envmap"):
-        mb.render_cube(scene_from_dict(d, base=tmp_path), "v", "sky", mb.RenderSettings(spp=16))
+        mr.render_cube(scene_from_dict(d, base=tmp_path), "v", "sky", mr.RenderSettings(spp=16))
 
 
 def test_window_portal_equals_constant_sky_and_lets_the_sun_in():
@@ -239,8 +242,8 @@ def test_window_portal_equals_constant_sky_and_lets_the_sun_in():
                 "views": [{"name": "in", "origin": (0.8, 1.2, 0.8), "target": (-1, 0.6, -0.6), "fov": 80,
                            "resolution": RES}], "max_depth": 5}
 
-    sky = mb.render_cube(scene_from_dict(room(False)), "in", "day", mb.RenderSettings(spp=32, seed=1))
-    portal = mb.render_cube(scene_from_dict(room(True)), "in", "day", mb.RenderSettings(spp=32, seed=2))
+    sky = mr.render_cube(scene_from_dict(room(False)), "in", "day", mr.RenderSettings(spp=32, seed=1))
+    portal = mr.render_cube(scene_from_dict(room(True)), "in", "day", mr.RenderSettings(spp=32, seed=2))
     assert portal.renderer["settings"]["passes"] == ["without", "only"]
     assert_same_within_noise(sky.cube, portal.cube)
     # the sunlit floor patch is there in both: direct sun alone gives 0.6·6·0.6/π = 0.69 there, while

@@ -12,7 +12,7 @@ import yaml
 from illumix.cli import main
 from renderer_jobs import jobs
 from renderer_jobs.demo import demo_room_dict
-from renderer_jobs.scene import scene_from_dict
+from renderer_jobs.scene_load import scene_from_dict
 
 TINY = ["--resolution", "24x16", "--spp", "16"]
 needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,
@@ -184,7 +184,7 @@ def test_validate_cli_writes_validation_json(tmp_path, capsys):
 @needs_mitsuba
 def test_local_process_pool(tmp_path):
     """Two spawned worker processes render the tiny scene into one store."""
-    from renderer_jobs.mitsuba_backend import RenderSettings
+    from renderer_jobs.mitsuba_render import RenderSettings
     from store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
@@ -201,7 +201,7 @@ def test_ray_executor_on_local_instance(tmp_path):
     """A local Ray instance (127.0.0.1 only, started here) renders the jobs; the cubes equal the
     in-process render of the same seed."""
     ray = pytest.importorskip("ray")
-    from renderer_jobs.mitsuba_backend import RenderSettings, render_cube
+    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
     from store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))), base=tmp_path)

@@ -1,4 +1,4 @@
-"""Scene description (renderer_jobs.scene) and procedural scenes (renderer_jobs.demo): no rendering."""
+"""Scene description (renderer_jobs.scene_schema, scene_model, scene_load) and procedural scenes (renderer_jobs.demo): no rendering."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from renderer_jobs import demo
-from renderer_jobs.scene import SceneError, Transform, dump_scene, load_scenes, rotation_matrix, scene_from_dict
+from renderer_jobs.scene_load import dump_scene, load_scenes, scene_from_dict
+from renderer_jobs.scene_schema import SceneError, Transform, rotation_matrix
 
 BASE = {
     "name": "t1",

@@ -1,0 +1,385 @@
+"""Scene description, part 1: the pieces of a scene — spectra, materials, transforms, shapes,
+lights, light groups and views — as strict pydantic v2 models.
+
+The whole scene (:class:`renderer_jobs.scene_model.Scene`) is assembled from these and loaded from
+YAML/JSON by :mod:`renderer_jobs.scene_load`. This is the renderer-independent description: the
+Mitsuba backend (:mod:`renderer_jobs.mitsuba_scene`) turns it into a Mitsuba scene; nothing here
+imports Mitsuba.
+
+Conventions
+-----------
+- Right-handed world coordinates in metres, +y up.
+- Spectra (reflectances, emission) enter the renderer as **band averages on the scene's spectral
+  grid** (default 395–705 nm / 5 nm, DESIGN.md), i.e. piecewise-constant over each band. A cube
+  band is then exactly ``Ē_g · T`` and relighting by ``Φ̄_g / Ē_g`` (DESIGN.md "The key idea") is exact
+  by construction.
+- Emitter strengths are *geometric*: they scale a light group's emission spectrum ``E_g`` (flat, value
+  1, unless the group names another spectrum). Units: ``area`` and ``constant`` sky — radiance;
+  ``point`` and ``spot`` — intensity (per steradian); ``directional`` sun — irradiance on a plane
+  perpendicular to the light; ``envmap`` — a multiplier on the map's luminance.
+- Shapes follow Mitsuba's canonical forms: ``rectangle`` is ``[-1, 1]²`` in the z = 0 plane with normal
+  +z; ``disk`` the unit disk at z = 0 with normal +z; ``cube`` ``[-1, 1]³``; ``sphere`` and ``cylinder`` are
+  given by centre/radius and end points/radius; ``obj``/``ply`` meshes by file (paths relative to the
+  scene file). Each shape may carry a ``transform`` (scale → rotate → translate, or a 4×4 matrix).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
+
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"  # the cube store's name rules (no "..", see below)
+SCHEMA_VERSION = 1
+
+
+class SceneError(ValueError):
+    """A bad scene description: one line naming the file, the object and the field."""
+
+
+Vec3 = tuple[float, float, float]
+
+
+def _no_dotdot(v: str) -> str:
+    if ".." in v:
+        raise ValueError(f"name {v!r} must not contain '..'")
+    return v
+
+
+Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=100), AfterValidator(_no_dotdot)]
+
+
+class StrictModel(BaseModel):
+    """Base of every scene model: unknown fields are errors, instances are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Spectra
+
+
+class LibrarySpectrum(StrictModel):
+    """A reflectance from a :mod:`retarget.reflectances` set: by 0-based ``index`` or ``sample`` name."""
+
+    library: str
+    index: int | None = Field(default=None, ge=0)
+    sample: str | None = None
+
+    @model_validator(mode="after")
+    def _one_key(self) -> LibrarySpectrum:
+        if (self.index is None) == (self.sample is None):
+            raise ValueError("give exactly one of 'index' (0-based) or 'sample' (name)")
+        return self
+
+
+class FileSpectrum(StrictModel):
+    """A CSV file ``wavelength,value[,value…]``; ``column`` picks a value column (0-based)."""
+
+    file: str
+    column: int = Field(default=0, ge=0)
+
+
+class TableSpectrum(StrictModel):
+    """An inline table of ``wavelengths`` (nm) and ``values``."""
+
+    wavelengths: list[float] = Field(min_length=2)
+    values: list[float] = Field(min_length=2)
+
+    @model_validator(mode="after")
+    def _same_length(self) -> TableSpectrum:
+        if len(self.wavelengths) != len(self.values):
+            raise ValueError(f"{len(self.wavelengths)} wavelengths but {len(self.values)} values")
+        return self
+
+
+class ConstantSpectrum(StrictModel):
+    """The same value at every wavelength."""
+
+    value: float = Field(ge=0)
+
+
+SpectrumSpec = Union[LibrarySpectrum, FileSpectrum, TableSpectrum, ConstantSpectrum]
+
+
+# ---------------------------------------------------------------------------------------------
+# Materials
+
+
+class _Material(StrictModel):
+    two_sided: bool = True
+
+
+class Diffuse(_Material):
+    kind: Literal["diffuse"]
+    reflectance: SpectrumSpec
+
+
+class RoughPlastic(_Material):
+    kind: Literal["roughplastic"]
+    reflectance: SpectrumSpec
+    alpha: float = Field(default=0.1, gt=0, le=1)
+    int_ior: float = Field(default=1.49, gt=1, le=4)
+    ext_ior: float = Field(default=1.000277, ge=1, le=4)
+
+
+class RoughConductor(_Material):
+    kind: Literal["roughconductor"]
+    conductor: str = "Al"
+    alpha: float = Field(default=0.1, gt=0, le=1)
+    specular_reflectance: SpectrumSpec | None = None
+
+
+class Dielectric(StrictModel):
+    kind: Literal["dielectric"]
+    int_ior: float = Field(default=1.5046, gt=1, le=4)
+    ext_ior: float = Field(default=1.000277, ge=1, le=4)
+
+
+Material = Annotated[Union[Diffuse, RoughPlastic, RoughConductor, Dielectric], Field(discriminator="kind")]
+# Conductor tables built into Mitsuba 3 (its ``roughconductor`` ``material`` parameter).
+CONDUCTORS = ("a-C", "Ag", "Al", "AlAs", "AlSb", "Au", "Be", "Cr", "CsI", "Cu", "Cu2O", "CuO", "d-C",
+              "Hg", "HgTe", "Ir", "K", "Li", "MgO", "Mo", "Na_palik", "Nb", "Ni_palik", "Rh", "Se",
+              "SiC", "SnTe", "Ta", "Te", "ThF4", "TiC", "TiN", "TiO2", "VC", "V_palik", "VN", "W",
+              "none")
+
+
+# ---------------------------------------------------------------------------------------------
+# Transforms
+
+
+class Rotation(StrictModel):
+    axis: Vec3
+    angle: float  # degrees
+
+    @field_validator("axis")
+    @classmethod
+    def _nonzero(cls, v: Vec3) -> Vec3:
+        if math.hypot(*v) == 0:
+            raise ValueError("rotation axis must not be the zero vector")
+        return v
+
+
+class Transform(StrictModel):
+    """``matrix`` (4×4, row-major) or ``scale`` → ``rotate`` (in list order) → ``translate``."""
+
+    matrix: list[list[float]] | None = None
+    scale: float | Vec3 | None = None
+    rotate: list[Rotation] = Field(default_factory=list)
+    translate: Vec3 | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> Transform:
+        if self.matrix is not None:
+            if self.scale is not None or self.rotate or self.translate is not None:
+                raise ValueError("give either 'matrix' or scale/rotate/translate, not both")
+            m = np.asarray(self.matrix, dtype=float)
+            if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+                raise ValueError("matrix must be 4x4 finite numbers")
+            if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+                raise ValueError("matrix is singular")
+        if self.scale is not None:
+            s = np.broadcast_to(np.asarray(self.scale, dtype=float), (3,))
+            if np.any(s == 0) or not np.all(np.isfinite(s)):
+                raise ValueError("scale must be finite and non-zero")
+        return self
+
+    def to_matrix(self) -> np.ndarray:
+        """The 4×4 float64 matrix mapping object to world coordinates."""
+        if self.matrix is not None:
+            return np.asarray(self.matrix, dtype=np.float64)
+        m = np.eye(4)
+        if self.scale is not None:
+            m = np.diag([*np.broadcast_to(np.asarray(self.scale, dtype=float), (3,)), 1.0]) @ m
+        for r in self.rotate:
+            m = rotation_matrix(r.axis, r.angle) @ m
+        if self.translate is not None:
+            t = np.eye(4)
+            t[:3, 3] = self.translate
+            m = t @ m
+        return m
+
+
+def rotation_matrix(axis: Vec3, angle_deg: float) -> np.ndarray:
+    """4×4 rotation by ``angle_deg`` degrees about ``axis`` (Rodrigues; right-handed)."""
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    th = math.radians(angle_deg)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    r = np.eye(3) + math.sin(th) * k + (1 - math.cos(th)) * (k @ k)
+    m = np.eye(4)
+    m[:3, :3] = r
+    return m
+
+
+# ---------------------------------------------------------------------------------------------
+# Shapes and emitters
+
+
+class AreaEmission(StrictModel):
+    """Makes a shape an area light of ``group`` with radiance ``strength`` × the group's spectrum.
+
+    ``portal``: the shape is an emitting *opening*, not geometry — e.g. a window pane standing in for
+    the constant sky seen through it (for a uniform sky, a Lambertian emitter of the sky's radiance
+    filling the opening gives exactly the light that enters through it, and next-event estimation
+    then samples the window instead of the whole sphere). A portal occludes nothing: it is rendered
+    in a pass of its own and added (linearity), so it does not block e.g. the sun through the same
+    window. A portal has no material, and nothing outside it is seen through it.
+    """
+
+    group: Name
+    strength: float = Field(gt=0)
+    portal: bool = False
+
+
+class _Shape(StrictModel):
+    name: Name
+    material: Name | None = None
+    transform: Transform | None = None
+    emitter: AreaEmission | None = None
+
+    @model_validator(mode="after")
+    def _needs_material_or_emitter(self) -> _Shape:
+        if self.material is None and self.emitter is None:
+            raise ValueError("a shape needs a 'material', an 'emitter', or both")
+        return self
+
+
+class Rectangle(_Shape):
+    type: Literal["rectangle"]
+
+
+class Cube(_Shape):
+    type: Literal["cube"]
+
+
+class Disk(_Shape):
+    type: Literal["disk"]
+
+
+class Sphere(_Shape):
+    type: Literal["sphere"]
+    center: Vec3 = (0.0, 0.0, 0.0)
+    radius: float = Field(default=1.0, gt=0)
+
+
+class Cylinder(_Shape):
+    type: Literal["cylinder"]
+    p0: Vec3 = (0.0, 0.0, 0.0)
+    p1: Vec3 = (0.0, 0.0, 1.0)
+    radius: float = Field(default=1.0, gt=0)
+
+    @model_validator(mode="after")
+    def _distinct(self) -> Cylinder:
+        if np.allclose(self.p0, self.p1):
+            raise ValueError("p0 and p1 must differ")
+        return self
+
+
+class MeshFile(_Shape):
+    type: Literal["obj", "ply"]
+    filename: str
+    face_normals: bool = False
+
+
+Shape = Annotated[Union[Rectangle, Cube, Disk, Sphere, Cylinder, MeshFile], Field(discriminator="type")]
+
+
+class _Light(StrictModel):
+    name: Name
+    group: Name
+    strength: float = Field(gt=0)
+
+
+class PointLight(_Light):
+    type: Literal["point"]
+    position: Vec3
+
+
+class SpotLight(_Light):
+    type: Literal["spot"]
+    position: Vec3
+    target: Vec3
+    cutoff_angle: float = Field(default=20.0, gt=0, lt=90)
+    beam_width: float | None = Field(default=None, gt=0, lt=90)
+
+    @model_validator(mode="after")
+    def _check(self) -> SpotLight:
+        if np.allclose(self.position, self.target):
+            raise ValueError("position and target must differ")
+        if self.beam_width is not None and self.beam_width > self.cutoff_angle:
+            raise ValueError("beam_width must not exceed cutoff_angle")
+        return self
+
+
+class DirectionalLight(_Light):
+    """A distant light (the sun): ``direction`` is where the light travels *to*."""
+
+    type: Literal["directional"]
+    direction: Vec3
+
+    @field_validator("direction")
+    @classmethod
+    def _nonzero(cls, v: Vec3) -> Vec3:
+        if math.hypot(*v) == 0:
+            raise ValueError("direction must not be the zero vector")
+        return v
+
+
+class ConstantSky(_Light):
+    """Uniform radiance from every direction not blocked by geometry."""
+
+    type: Literal["constant"]
+
+
+class EnvMapSky(_Light):
+    """An environment map (lat-long image); its luminance shapes the sky, the group sets the colour."""
+
+    type: Literal["envmap"]
+    filename: str
+    transform: Transform | None = None
+
+
+Light = Annotated[Union[PointLight, SpotLight, DirectionalLight, ConstantSky, EnvMapSky],
+                  Field(discriminator="type")]
+
+
+class LightGroup(StrictModel):
+    """A set of emitters that share one illuminant. ``emission`` is the spectrum ``E_g`` the cube is
+    rendered with: ``"flat"`` (unit, the default), an illuminant name, or a spectrum."""
+
+    name: Name
+    emission: str | TableSpectrum | FileSpectrum = "flat"
+    description: str = ""
+
+
+# ---------------------------------------------------------------------------------------------
+# Views
+
+
+class View(StrictModel):
+    name: Name
+    origin: Vec3
+    target: Vec3
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov: float = Field(default=60.0, gt=0, lt=180)  # horizontal, degrees
+    resolution: tuple[Annotated[int, Field(ge=1, le=16384)], Annotated[int, Field(ge=1, le=16384)]] = (320, 240)
+
+    @model_validator(mode="after")
+    def _check(self) -> View:
+        d = np.subtract(self.target, self.origin)
+        if np.linalg.norm(d) == 0:
+            raise ValueError("origin and target must differ")
+        if np.linalg.norm(np.cross(d, self.up)) < 1e-9 * np.linalg.norm(d) * max(np.linalg.norm(self.up), 1e-30):
+            raise ValueError("up must not be parallel to the viewing direction")
+        return self
+
+    @property
+    def width(self) -> int:
+        return self.resolution[0]
+
+    @property
+    def height(self) -> int:
+        return self.resolution[1]
