@@ -18,7 +18,8 @@ from retarget import groundtruth as gt
 from retarget.ccm import fit_ccm
 from retarget.errors import SpectralError
 from retarget.isp import apply_ccm, render_srgb
-from retarget.relight import band_scales, project_groups, raw_weights
+from retarget.basis import BasisCube, project_groups_any
+from retarget.relight import band_scales, raw_weights
 from retarget.sensors import Sensor
 
 OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask")
@@ -50,20 +51,24 @@ def group_ccms(sensor: Sensor, illuminants: np.ndarray, reflectances: np.ndarray
     return np.stack([fit_ccm(sensor.weights(), spd, reflectances, sensor.grid).matrix for spd in illuminants])
 
 
-def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: np.ndarray,
+def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, illuminants: np.ndarray,
             intensities: np.ndarray, sensor: Sensor, ccms: np.ndarray | None = None,
             outputs: Iterable[str] = OUTPUTS, exposure: float | str | None = None,
             group_names: Sequence[str] | None = None,
-            resize: Callable[[np.ndarray], np.ndarray] | None = None) -> Composition:
+            resize: Callable[[np.ndarray], np.ndarray] | None = None,
+            skip_bands: bool = True) -> Composition:
     """Compose one sample from per-group transport cubes.
 
-    cubes : G arrays ``(H, W, n_bands)``; emissions, illuminants : ``(G, n_bands)``;
+    cubes : G arrays ``(H, W, n_bands)`` or :class:`retarget.basis.BasisCube` (spectrally compressed,
+    projected in their K-dim subspace); emissions, illuminants : ``(G, n_bands)``;
     intensities : ``(G,)``; ccms : ``(G, 3, 3)`` (needed for ``ccm``/``srgb``).
     exposure : ``None`` leaves raw in relative units (sRGB then gets its own constant-M_min AEC),
     a number multiplies raw, ``"constant"``/``"adaptive"`` is the thesis AEC (eq. 4.2) on raw.
     resize : optional map of per-group raw ``(G, H, W, 3)`` → ``(G, H', W', 3)``. Projection is linear
     per pixel, so a linear (area/bilinear) resize of per-group raw equals resizing the cubes first,
     and the ground truth is then computed at the output resolution, consistent with its raw.
+    skip_bands : leave out bands whose weights are zero for a group (exact; see
+    :func:`retarget.relight.project_groups`).
     """
     want = set(outputs)
     unknown = want - set(OUTPUTS)
@@ -80,7 +85,7 @@ def compose(cubes: Sequence[np.ndarray], *, emissions: np.ndarray, illuminants: 
     if lit.any():
         wps[lit] = gt.white_points(sensor.weights(), illuminants[lit])
     scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
-    group_raw = project_groups(cubes, raw_weights(scales, sensor.weights()))
+    group_raw = project_groups_any(cubes, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
     if resize is not None:
         group_raw = np.ascontiguousarray(resize(group_raw), dtype=np.float32)
     raw = group_raw.sum(axis=0)
