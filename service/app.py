@@ -48,6 +48,7 @@ def _spec(params: dict) -> SampleSpec:
 def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits: Limits | None = None) -> FastAPI:
     """The service over an open :class:`store.CubeStore`."""
     limits = limits or Limits()
+    token = token or None  # an empty token would accept an empty Bearer header: treat as none
     ctx = Context(store=store, library=Library(store), cache=ArrayCache(cache_mb * 2**20), limits=limits)
     app = FastAPI(title="illumix", version="0.1.0",
                   description="Mixed-illuminant colour-constancy samples with exact ground truth.")

@@ -233,6 +233,16 @@ def test_sensor_upload_token_and_delete(client):
     assert client.delete("/sensors/nope", headers=auth).status_code == 404
 
 
+def test_empty_token_means_no_token_not_an_empty_password(store_path):
+    """An empty token (e.g. ILLUMIX_TOKEN= in an env file) means no token, consistently: writes
+    are open, as documented for a service started without one — not a secret equal to ''."""
+    app = create_app(CubeStore.open(str(store_path), mode="a"), token="")
+    with TestClient(app) as c:
+        csv = "wavelength,value\n380,1\n780,1\n"
+        r = c.post("/illuminants", data={"name": "flatE"}, files={"file": ("e.csv", csv)})
+        assert r.status_code == 201, r.text
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
