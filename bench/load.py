@@ -7,8 +7,13 @@ on 127.0.0.1 twice in a subprocess:
 1. ``--cache-mb 0`` for ``--baseline-seconds``: every request reads and decodes its cubes; the
    RSS growth of this phase is the server's *transient* footprint (requests in flight, allocator
    slack) without a cache — the baseline measured in the same run;
-2. ``--cache-mb M`` for ``--seconds``: the cube cache fills up to M MiB and then churns (the cubes
-   of all views together are several times M).
+2. ``--cache-mb M`` for ``--seconds`` (the same duration by default: glibc's allocator keeps
+   freed memory in per-thread arenas and its heap, so RSS creeps for minutes before it levels off,
+   and both phases must creep for as long): the cube cache fills up to M MiB and then churns (the
+   cubes of all views together are several times M).
+
+Environment variables of this process reach the server, so allocator or BLAS settings can be
+compared: ``MALLOC_MMAP_THRESHOLD_=1048576 python bench/load.py`` (recorded in ``server_env``).
 
 In each phase ``--clients`` threads send requests back to back until the time or the request cap
 (``--max-requests``) is reached: random view, illuminant pair (spiky ones included), sensor, full
@@ -24,7 +29,10 @@ happen to be in flight together varies); ``rss_plateau``: the median RSS of the 
 phase 2 exceeds that of its second quarter by less than 10 % of that bound (no trend; a short run
 cannot rule out a very slow leak — run longer with ``--seconds``).
 
-Usage: python bench/load.py [--clients 8 --seconds 50 --baseline-seconds 25 --cache-mb 64];
+``--leak-check N`` adds an in-process check that requests leave nothing allocated behind
+(tracemalloc, numpy buffers included): RSS alone cannot tell a leak from allocator retention.
+
+Usage: python bench/load.py [--clients 8 --seconds 40 --baseline-seconds 40 --cache-mb 64] [--leak-check 600];
 progress on stderr; JSON last on stdout.
 """
 
@@ -221,16 +229,56 @@ def phase(store: str, views, h: int, w: int, cache_mb: int, clients: int, second
             "rss_series_mb": [[round(t, 1), round(v, 1)] for t, v in series[:: max(1, len(series) // 60)]]}
 
 
+def leak_check(store: str, views, h: int, w: int, n: int, cache_mb: int, seed: int) -> dict:
+    """In-process: ``n`` random requests through ``build_sample`` under tracemalloc (numpy reports
+    its buffers to it). Memory still allocated afterwards minus the cache's bytes is what requests
+    leave behind — independent of how the C allocator keeps freed memory (which is what RSS sees)."""
+    import gc
+    import tracemalloc
+
+    from service.app import create_app
+    from service.sampling import build_sample
+    from service.spec import SampleSpec
+    from store import CubeStore
+
+    ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=cache_mb).state.ctx
+    rng = random.Random(seed)
+
+    def one() -> None:
+        p = random_request(rng, views, h, w)
+        p.pop("format", None)
+        build_sample(SampleSpec(**p | {"outputs": p.get("outputs", "srgb").split(",")}), ctx)
+
+    for _ in range(min(50, n)):  # warm: CCM fits, imports, lazily built tables
+        one()
+    ctx.cache.clear()  # cached arrays allocated before tracing would be counted as negative
+    gc.collect()
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    trace = []
+    for i in range(1, n + 1):
+        one()
+        if i % max(1, n // 6) == 0 or i == n:
+            gc.collect()
+            cur = tracemalloc.get_traced_memory()[0]
+            trace.append([i, round((cur - base - ctx.cache.nbytes) / 2**20, 2)])
+    tracemalloc.stop()
+    return {"requests": n, "retained_minus_cache_mib": trace, "leak_free": abs(trace[-1][1]) < 1.0}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--clients", type=int, default=8)
-    ap.add_argument("--seconds", type=float, default=50.0, help="duration of the cached phase")
-    ap.add_argument("--baseline-seconds", type=float, default=25.0, help="duration of the cache-less phase")
+    ap.add_argument("--seconds", type=float, default=40.0, help="duration of the cached phase")
+    ap.add_argument("--baseline-seconds", type=float, default=40.0,
+                    help="duration of the cache-less phase (keep it equal: allocator retention grows with time)")
     ap.add_argument("--max-requests", type=int, default=5000, help="request cap per phase")
     ap.add_argument("--cache-mb", type=int, default=64)
     ap.add_argument("--height", type=int, default=240)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--leak-check", type=int, default=0, metavar="N",
+                    help="also run N requests in-process under tracemalloc (see leak_check)")
     ap.add_argument("--blas-threads", type=int, default=None,
                     help="OPENBLAS/OMP/MKL_NUM_THREADS for the server (default: the library's own)")
     args = ap.parse_args()
@@ -253,6 +301,11 @@ def main() -> None:
                       args.max_requests, args.seed + 1, args.blas_threads)
         log(f"  {main_['requests']} requests, {main_['errors']} errors, p50 {main_['p50_ms']} ms, "
             f"RSS {main_['rss_start_mb']} → peak {main_['rss_peak_mb']} MiB")
+        leak = None
+        if args.leak_check:
+            log(f"leak check: {args.leak_check} requests in-process under tracemalloc")
+            leak = leak_check(store, views, args.height, args.width, args.leak_check, args.cache_mb, args.seed)
+            log(f"  retained minus cache: {leak['retained_minus_cache_mib']} MiB")
     transient = base["rss_growth_mb"]
     bound = args.cache_mb + 1.25 * transient + 16
     result = {
@@ -266,7 +319,10 @@ def main() -> None:
         "rss_bound_mb": round(bound, 1), "rss_growth_within_cache_bound": main_["rss_growth_mb"] <= bound,
         "rss_plateau": main_["rss_median_q4_mb"] - main_["rss_median_q2_mb"] <= 0.1 * bound,
         "blas_threads": args.blas_threads,
+        "server_env": {k: os.environ[k] for k in ("OPENBLAS_NUM_THREADS", "MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_")
+                       if k in os.environ},
         "cache_bytes_within_limit": main_["cache_bytes_end"] <= args.cache_mb * 2**20,
+        "leak_check": leak,
         "phases": {"no_cache": base, "cached": main_},
     }
     print(json.dumps(result))

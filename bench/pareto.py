@@ -29,7 +29,7 @@ of the fastest time (run-to-run noise on a shared machine) count as tied and the
 smaller cache footprint, then the smaller store (bytes on disk or object storage), then the faster
 cold read wins (``tied_within_5pct`` lists them).
 
-Usage: ``python bench/pareto.py [--height 480 --width 640 --repeats 3]``; progress on stderr,
+Usage: ``[OPENBLAS_NUM_THREADS=1] python bench/pareto.py [--height 480 --width 640 --repeats 5]``; progress on stderr,
 plot in ``bench/out/pareto.png``, JSON last on stdout.
 """
 
