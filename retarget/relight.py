@@ -86,7 +86,7 @@ def _matmul_f32(cube: np.ndarray, m: np.ndarray, bands: np.ndarray | None) -> np
 
     float32 input with a band subset multiplies the contiguous *span* of the live bands (dead
     bands inside it get zero weight): a column slice is a strided view BLAS reads in place, while
-    gathering the live columns copies them first — measured 2–10× slower than not skipping at all
+    gathering the live columns copies them first — measured 1.1–8× slower than not skipping at all
     on a 480×640×63 float32 cube, where the span is as fast as or faster than no skipping
     (``python bench/pareto.py``, ``band_skip.projection_sweep_min_ms``).
     """
