@@ -171,9 +171,14 @@ class Backend:
             raise StoreError(f"store {self.url} is opened read-only; open it with mode='a' to write")
 
     def ensure_group(self, key: str) -> None:
-        """Create the zarr group ``key`` (and its parents) if missing; never touches existing attrs."""
+        """Create the zarr group ``key`` (and its parents) if missing; never touches existing attrs.
+        Safe against concurrent writers creating the same group (the loser finds it there)."""
         if not self.exists(f"{key}/zarr.json"):
-            zarr.open_group(self.zstore, path=key, mode="a")
+            try:
+                zarr.open_group(self.zstore, path=key, mode="a")
+            except zarr.errors.ContainsGroupError:
+                if not self.exists(f"{key}/zarr.json"):
+                    raise
 
     def new_write_path(self, final: str) -> tuple[str, str]:
         """(path to write the node at, write id). A staging path when publishing by rename."""
