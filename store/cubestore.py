@@ -16,6 +16,7 @@ follow :mod:`store.layout`.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -88,12 +89,21 @@ class CubeStore:
                 raise StoreError(f"no illumix store at {b.url}: it {what}; give the store directory "
                                  "or create one with `illumix render --store PATH`")
             if b.local and b.root.exists() and any(b.root.iterdir()):
-                raise StoreError(f"{b.url} exists, is not empty and is not an illumix store; "
-                                 "choose a new or empty directory")
-            from store.nodes import write_group
+                # Another process may be creating this store right now (its temp file is there,
+                # zarr.json not yet renamed into place): give it a moment before refusing.
+                for _ in range(40):
+                    time.sleep(0.05)
+                    attrs = node_attrs(b, "")
+                    if attrs is not None:
+                        break
+                else:
+                    raise StoreError(f"{b.url} exists, is not empty and is not an illumix store; "
+                                     "choose a new or empty directory")
+            if attrs is None:
+                from store.nodes import write_group
 
-            write_group(b, "", {ROOT_ATTR: {"schema_version": SCHEMA_VERSION, "created": utc_now()}})
-        else:
+                write_group(b, "", {ROOT_ATTR: {"schema_version": SCHEMA_VERSION, "created": utc_now()}})
+        if attrs is not None:
             root = attrs.get(ROOT_ATTR)
             if not isinstance(root, dict):
                 raise StoreError(f"{b.url} is a zarr group but not an illumix store (no {ROOT_ATTR!r} "
