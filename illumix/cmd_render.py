@@ -58,6 +58,13 @@ def render(
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
     executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
     address: str | None = typer.Option(None, "--address", help="Ray cluster address (ray executor)."),
+    skip_dark: bool = typer.Option(True, "--skip-dark/--no-skip-dark",
+                                   help="Probe each view/group first (<= 1/16 of its paths) and record a group "
+                                        "that sends no light into the view as empty instead of rendering it."),
+    adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive",
+                                  help="Spread the spp budget over the pixels by a 16-spp pilot's variance "
+                                       "(same total paths, lower RMS and worst-pixel noise); --no-adaptive: "
+                                       "the same spp in every pixel."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -89,7 +96,8 @@ def render(
             if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified":
                 raise UserError(f"--spp {spp} is too low: stratified sampling of {s.spectral_grid.n_bands} "
                                 f"bands needs spp >= {-(-s.spectral_grid.n_bands // 4)}")
-        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths)
+        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
+                                  adaptive=adaptive)
         p = jobs.plan(scenes, store, views=_split(views), groups=_split(groups), overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
@@ -105,7 +113,8 @@ def render(
     n_cubes = len(p.cube_jobs)
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
-               "spp": spp, "seed": seed, "wavelengths": wavelengths, "executor": executor}
+               "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
+               "adaptive": adaptive, "executor": executor}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")
@@ -142,10 +151,13 @@ def render(
             raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
                             "and are kept; run again to resume)") from None
     elapsed = time.perf_counter() - t0
+    empty = [d["job"] for d in done if d.get("empty")]
     console.print(f"rendered {len([d for d in done if d['kind'] == 'cube'])} cube(s) and "
-                  f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s")
+                  f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s"
+                  + (f"; {len(empty)} group(s) light nothing in their view, recorded as empty" if empty else ""))
     if as_json:
-        print(json.dumps({**summary, "rendered": [d["job"] for d in done], "seconds": round(elapsed, 3)}))
+        print(json.dumps({**summary, "rendered": [d["job"] for d in done], "empty": empty,
+                          "seconds": round(elapsed, 3)}))
 
 
 def register(app: typer.Typer) -> None:

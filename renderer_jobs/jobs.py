@@ -9,7 +9,10 @@ until the whole plan is known to be valid), then executed by an executor:
   location must be reachable from the workers (shared filesystem or an fsspec URL).
 
 Jobs write straight into the store: first, per view, the view metadata and geometry AOVs; then one
-cube per (view, group). The store's writes are complete-or-invisible, so an interrupted run leaves
+cube per (view, group). With ``settings.skip_dark`` (the default) a cube job first probes whether
+the group sends any light into the view (:mod:`renderer_jobs.light_probe`, ~1/16 of the cube's paths
+at most); a dark group is recorded as empty (reads give zeros) without being rendered. A rendered
+cube that comes out all zero is recorded as empty too. The store's writes are complete-or-invisible, so an interrupted run leaves
 only whole cubes, and the next run renders what is missing (resume).
 
 A cube already complete but rendered from a different scene description (another ``scene_hash``)
@@ -24,6 +27,8 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from renderer_jobs.scene_load import scene_from_dict
 from renderer_jobs.scene_model import Scene
@@ -248,19 +253,38 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
         return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view"}
     from store import CubeMeta
 
+    def cube_meta(emission, emission_name: str, renderer: dict, stats: dict) -> CubeMeta:
+        return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
+                        renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
+                        view_hash=scene.view_hash(job.view), render_stats=stats,
+                        units="radiance per unit emission (band averages)", denoiser="none")
+
+    if settings.skip_dark:
+        from renderer_jobs.light_probe import probe_group
+        from renderer_jobs.mitsuba_scene import group_emission
+
+        probe = probe_group(scene, job.view, job.group, settings)
+        if not probe.lit:
+            # No pilot path carried light into the view: record the cube as empty, render nothing.
+            emission, name = group_emission(scene, job.group)
+            renderer = mr.renderer_info(scene, settings, mr.emitter_passes(scene, [job.group]))
+            meta = cube_meta(np.asarray(emission, dtype=float).tolist(), name, renderer,
+                             {"skipped": "dark", "probe": probe.to_dict()})
+            st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
+            return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube", "empty": True,
+                    "probe_s": probe.seconds}
     result = mr.render_cube(scene, job.view, job.group, settings)
-    meta = CubeMeta(grid=scene.spectral_grid.to_dict(), emission=result.emission.tolist(),
-                    emission_name=result.emission_name, renderer=result.renderer, spp=settings.spp,
-                    seed=settings.seed, scene_hash=scene.scene_hash, view_hash=scene.view_hash(job.view),
-                    render_stats=result.stats, units="radiance per unit emission (band averages)",
-                    denoiser="none")
+    stats = dict(result.stats)
+    if settings.skip_dark:
+        stats["probe"] = probe.to_dict()
+    meta = cube_meta(result.emission.tolist(), result.emission_name, result.renderer, stats)
     if not (result.cube.max() > 0):
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
     else:
         st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite)
     return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
-            "trace_s": result.stats.get("trace_s")}
+            "empty": not (result.cube.max() > 0), "trace_s": result.stats.get("trace_s")}
 
 
 # ---------------------------------------------------------------------------------------------

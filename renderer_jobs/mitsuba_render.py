@@ -35,6 +35,13 @@ chooses every wavelength:
   span with Mitsuba's shifted stratification (``sample_shifted``), each band estimated as
   ``Σ L / E[count]`` exactly as the ``specfilm`` does.
 
+Adaptive spp (default, ``RenderSettings.adaptive``)
+-------------------------------------------------
+The cube's ``spp · pixels`` paths are not spread evenly: every pixel first gets the pilot (16 paths:
+every band sampled once), then the rest goes where the pilot's neighbourhood saw the most relative
+variance (:mod:`renderer_jobs.adaptive_spp`). The stratified schedule simply runs longer in those
+pixels, so band counts stay exact. Measured at equal paths and CPU time: see ``bench/RENDER_PERF.md``.
+
 Per-band sums are accumulated in float64 by ``numpy.bincount`` (no atomics), so the same seed gives
 the same cube bit for bit.
 """
@@ -47,11 +54,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from renderer_jobs import adaptive_spp
 from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
+from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 WAVELENGTH_MODES = ("stratified", "random")
 LANE_STRIDE = 16  # band offset between a path's 4 wavelengths in "stratified" mode
@@ -61,14 +70,25 @@ LANE_STRIDE = 16  # band offset between a path's 4 wavelengths in "stratified" m
 class RenderSettings:
     """spp: paths per pixel (each carries 4 wavelengths); seed: RNG seed of the cube;
     wavelengths: ``"stratified"`` or ``"random"`` (module docstring); max_lanes: paths traced per pass
-    (bounds memory: ~1 kB per lane on the LLVM backend); aov_spp: samples per pixel of the AOV pass."""
+    (bounds memory: ~1 kB per lane on the LLVM backend); aov_spp: samples per pixel of the AOV pass;
+    resolution: ``(width, height)`` overriding the view's; adaptive: spread the spp budget over the
+    pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`; spp ≥ 2 × pilot, else uniform);
+    skip_background: trace no paths in pixels that cannot see geometry when the groups have no sky
+    (they are exactly zero; :mod:`renderer_jobs.view_coverage`).
+    For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first and record a group that sends no light into the view
+    as empty instead of rendering it (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's
+    budget is 1/probe_ratio of the cube's paths."""
 
     spp: int = 64
     seed: int = 0
     wavelengths: str = "stratified"
     max_lanes: int = 1 << 20
     aov_spp: int = 4
-    resolution: tuple[int, int] | None = None  # (width, height) overriding the view's
+    resolution: tuple[int, int] | None = None
+    skip_dark: bool = True
+    probe_ratio: int = 16
+    adaptive: bool = True
+    skip_background: bool = True
 
     def __post_init__(self) -> None:
         if self.spp < 1:
@@ -77,11 +97,15 @@ class RenderSettings:
             raise SceneError(f"wavelength sampling {self.wavelengths!r} unknown; use one of {', '.join(WAVELENGTH_MODES)}")
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
+        if self.probe_ratio < 1:
+            raise SceneError("probe_ratio must be >= 1")
 
     def to_dict(self) -> dict:
         return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths,
                 "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
-                "resolution": list(self.resolution) if self.resolution else None}
+                "resolution": list(self.resolution) if self.resolution else None,
+                "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
+                "skip_background": self.skip_background}
 
 
 @dataclass
@@ -95,7 +119,7 @@ class CubeResult:
     stats: dict = field(default_factory=dict)
 
 
-def _hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
+def hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
     """A 32-bit integer hash (lowbias32) of ``x`` with ``salt``; vectorised, uint64 → uint64 < 2³²."""
     x = (x.astype(np.uint64) ^ np.uint64(salt & 0xFFFFFFFF)) & np.uint64(0xFFFFFFFF)
     x ^= x >> np.uint64(16)
@@ -106,14 +130,15 @@ def _hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
     return x
 
 
-def band_counts(n_pixels: int, n_bands: int, spp: int, seed: int) -> np.ndarray:
-    """Exact samples per (pixel, band) of the ``"stratified"`` schedule: ``(n_pixels, n_bands)`` int."""
-    off = (_hash_u32(np.arange(n_pixels), seed ^ 0x5BD1E995) % np.uint64(n_bands)).astype(np.int64)
-    q, r = divmod(spp, n_bands)
+def band_counts(n_pixels: int, n_bands: int, spp: int | np.ndarray, seed: int) -> np.ndarray:
+    """Exact samples per (pixel, band) of the ``"stratified"`` schedule: ``(n_pixels, n_bands)`` int.
+    ``spp``: paths per pixel, one number or ``(n_pixels,)`` (adaptive sampling)."""
+    off = (hash_u32(np.arange(n_pixels), seed ^ 0x5BD1E995) % np.uint64(n_bands)).astype(np.int64)
+    q, r = np.divmod(np.broadcast_to(np.asarray(spp, dtype=np.int64), (n_pixels,)), n_bands)
     b = np.arange(n_bands)
     counts = np.zeros((n_pixels, n_bands), dtype=np.int64)
     for i in range(4):
-        counts += q + (((b[None, :] - off[:, None] - LANE_STRIDE * i) % n_bands) < r)
+        counts += q[:, None] + (((b[None, :] - off[:, None] - LANE_STRIDE * i) % n_bands) < r[:, None])
     return counts
 
 
@@ -125,88 +150,144 @@ def _pass_sizes(spp: int, n_pixels: int, max_lanes: int) -> list[int]:
     return sizes
 
 
+def group_list(scene: Scene, group: str | list[str] | None) -> list[str]:
+    """``group`` as a list of checked group names (``None``: every group of the scene)."""
+    groups = [group] if isinstance(group, str) else (scene.group_names if group is None else list(group))
+    for g in groups:
+        scene.group(g)
+    return groups
+
+
+def emitter_passes(scene: Scene, groups: list[str]) -> list[str]:
+    """The passes a cube of ``groups`` needs: ``"without"`` (every emitter but portals) when the groups
+    have non-portal emitters, ``"only"`` (portals alone) when they have portals. Portals render in a
+    pass of their own (they occlude nothing); the cube is the passes' sum."""
+    emitters = [e for g in groups for e in scene.emitters_of(g)]
+    return [p for p, present in (("without", any(not scene.is_portal(e) for e in emitters)),
+                                 ("only", any(scene.is_portal(e) for e in emitters))) if present]
+
+
+def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> dict:
+    """The cube metadata's ``renderer`` record: Mitsuba version, variant and every setting that matters."""
+    mi, _ = import_mitsuba()
+    return {"name": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
+            "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
+                         "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
+                         "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
+                         "adaptive_spp": settings.adaptive, "skip_background": settings.skip_background,
+                         "passes": passes, "libllvm": libllvm_path()}}
+
+
+class _PathBlocks:
+    """Traces blocks of paths ``(pixel, sample index)`` of one cube and accumulates per-band sums."""
+
+    def __init__(self, tracers: list[Tracer], settings: RenderSettings, emission: np.ndarray) -> None:
+        self.tracers, self.settings = tracers, settings
+        grid = tracers[0].grid
+        self.nb, self.lo, self.step = grid.n_bands, grid.edges[0], grid.step
+        self.guard = min(EDGE_GUARD_NM, self.step / 10)
+        self.npix = tracers[0].width * tracers[0].height
+        self.off = (hash_u32(np.arange(self.npix), settings.seed ^ 0x5BD1E995) % np.uint64(self.nb)).astype(np.int64)
+        self.acc = np.zeros(self.npix * self.nb, dtype=np.float64)
+        self.inv_emission = np.where(emission > 0, 1.0 / np.where(emission > 0, emission, 1.0), 0.0)
+        self.n_bad, self.t_trace = 0, 0.0
+
+    def trace(self, pix: np.ndarray, s: np.ndarray, key: int, salt: int = 0x1C0) -> np.ndarray:
+        """Trace path ``s[i]`` of pixel ``pix[i]``; add to the band sums. Returns each path's
+        spectral sum per unit emission ``Y = Σ_j L_j / Ē(λ_j)`` ``(n,)`` (for adaptive sampling)."""
+        st, nb = self.settings, self.nb
+        rng = np.random.default_rng([st.seed & 0xFFFFFFFF, key, salt])
+        jitter = rng.random((len(pix), 2), dtype=np.float32)
+        u = rng.random((len(pix), 4))
+        if st.wavelengths == "stratified":
+            bands = ((s + self.off[pix]) % nb)[:, None] + LANE_STRIDE * np.arange(4)[None, :]
+            bands %= nb
+            lam = self.lo + self.step * bands + self.guard + (self.step - 2 * self.guard) * u
+        else:
+            # Mitsuba's default: one uniform sample over the span, shifted by 1/4 for the others.
+            frac = (u[:, :1] + np.arange(4)[None, :] / 4.0) % 1.0
+            lam = self.lo + nb * self.step * frac
+            bands = np.minimum((frac * nb).astype(np.int64), nb - 1)
+        idx = (pix[:, None] * nb + bands).ravel()
+        total = np.zeros((len(pix), 4), dtype=np.float64)
+        for j, tracer in enumerate(self.tracers):
+            t1 = time.perf_counter()
+            L = tracer.trace(pix, jitter, lam.astype(np.float32),
+                             seed=int(hash_u32(np.array([key * 8 + j]), st.seed ^ (salt - 0x1C0))[0]))
+            self.t_trace += time.perf_counter() - t1
+            bad = ~np.isfinite(L)
+            if bad.any():
+                self.n_bad += int(bad.sum())
+                L = np.where(bad, 0.0, L)
+            self.acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=self.npix * nb)
+            total += L
+        return (total * self.inv_emission[bands]).sum(axis=1)
+
+
 def render_cube(scene: Scene, view: str, group: str | list[str] | None,
                 settings: RenderSettings = RenderSettings()) -> CubeResult:
     """Render the transport cube of ``view`` lit by ``group`` (see module docstring).
 
     ``group`` may be a list of groups (rendered together, all with their own emission) or ``None``
     for every group at once (the "all-on" render used to check additivity). Returns float32 band
-    averages ``(H, W, n_bands)`` of radiance per unit emission spectrum.
+    averages ``(H, W, n_bands)`` of radiance per unit emission spectrum. With ``settings.adaptive``
+    (and spp ≥ twice the pilot) the same total of paths is spread by :mod:`renderer_jobs.adaptive_spp`.
     """
-    groups = [group] if isinstance(group, str) else (scene.group_names if group is None else list(group))
-    for g in groups:
-        scene.group(g)
+    groups = group_list(scene, group)
     t0 = time.perf_counter()
-    # Portals render in a pass of their own (they occlude nothing); the cube is the passes' sum.
-    passes = [p for p, present in (
-        ("without", any(not scene.is_portal(e) for g in groups for e in scene.emitters_of(g))),
-        ("only", any(scene.is_portal(e) for g in groups for e in scene.emitters_of(g)))) if present]
+    passes = emitter_passes(scene, groups)
     tracers = [Tracer(scene, view, groups, settings.resolution, portals=p) for p in passes]
     t_load = time.perf_counter() - t0
-    grid = tracers[0].grid
-    nb = grid.n_bands
+    nb = tracers[0].grid.n_bands
     w, h = tracers[0].width, tracers[0].height
     npix = w * h
     if settings.wavelengths == "stratified" and 4 * settings.spp < nb:
         raise SceneError(f"spp {settings.spp} is too low for stratified wavelengths: every band of the "
                          f"{nb}-band grid needs a sample, so spp >= {math.ceil(nb / 4)}")
-    acc = np.zeros(npix * nb, dtype=np.float64)
-    lo = grid.edges[0]
-    step = grid.step
-    guard = min(EDGE_GUARD_NM, step / 10)
-    off = (_hash_u32(np.arange(npix), settings.seed ^ 0x5BD1E995) % np.uint64(nb)).astype(np.int64)
+    emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
+    blocks = _PathBlocks(tracers, settings, np.asarray(emission, dtype=np.float64))
+    active = np.arange(npix, dtype=np.int64)  # pixels that get paths (the others are exactly zero)
+    if settings.skip_background and not group_sees_sky(scene, groups):
+        cov = covered_pixels(scene, view, (w, h))
+        active = active if cov is None else np.flatnonzero(cov.ravel())
+    pilot = adaptive_spp.pilot_spp(nb)
+    adaptive = settings.adaptive and settings.spp >= 2 * pilot
+    first = pilot if adaptive else settings.spp
     s0 = 0
-    n_bad = 0
-    t_trace = 0.0
-    for k, spp_pass in enumerate(_pass_sizes(settings.spp, npix, settings.max_lanes)):
-        rng = np.random.default_rng([settings.seed & 0xFFFFFFFF, k, 0x1C0])
-        pix = np.repeat(np.arange(npix, dtype=np.int64), spp_pass)
-        s = s0 + np.tile(np.arange(spp_pass, dtype=np.int64), npix)
-        jitter = rng.random((len(pix), 2), dtype=np.float32)
-        u = rng.random((len(pix), 4))
-        if settings.wavelengths == "stratified":
-            base = (s + off[pix]) % nb
-            bands = (base[:, None] + LANE_STRIDE * np.arange(4)[None, :]) % nb
-            lam = lo + step * bands + guard + (step - 2 * guard) * u
-        else:
-            # Mitsuba's default: one uniform sample over the span, shifted by 1/4 for the others.
-            span = nb * step
-            u0 = u[:, :1]
-            frac = (u0 + np.arange(4)[None, :] / 4.0) % 1.0
-            lam = lo + span * frac
-            bands = np.minimum((frac * nb).astype(np.int64), nb - 1)
-        idx = (pix[:, None] * nb + bands).ravel()
-        for j, tracer in enumerate(tracers):
-            t1 = time.perf_counter()
-            L = tracer.trace(pix, jitter, lam.astype(np.float32),
-                             seed=int(_hash_u32(np.array([k * 8 + j]), settings.seed)[0]))
-            t_trace += time.perf_counter() - t1
-            bad = ~np.isfinite(L)
-            if bad.any():
-                n_bad += int(bad.sum())
-                L = np.where(bad, 0.0, L)
-            acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=npix * nb)
+    ysum, ysq = np.zeros(npix), np.zeros(npix)
+    for k, spp_pass in enumerate(_pass_sizes(first, active.size, settings.max_lanes) if active.size else []):
+        pix = np.repeat(active, spp_pass)
+        y = blocks.trace(pix, s0 + np.tile(np.arange(spp_pass, dtype=np.int64), active.size), k)
+        if adaptive:
+            ysum += np.bincount(pix, weights=y, minlength=npix)
+            ysq += np.bincount(pix, weights=y * y, minlength=npix)
         s0 += spp_pass
-    acc = acc.reshape(npix, nb)
+    spp_map = np.zeros(npix, dtype=np.int64)
+    spp_map[active] = settings.spp
+    if adaptive and active.size:
+        v = adaptive_spp.relative_variance(ysum.reshape(h, w), ysq.reshape(h, w), pilot).ravel()
+        spp_map[active] = adaptive_spp.allocate(v[active], settings.spp, pilot)
+        more = spp_map[active] - pilot
+        pix = np.repeat(active, more)
+        s = pilot + np.arange(len(pix), dtype=np.int64) - np.repeat(np.cumsum(more) - more, more)
+        for c, a in enumerate(range(0, len(pix), settings.max_lanes)):
+            blocks.trace(pix[a:a + settings.max_lanes], s[a:a + settings.max_lanes], c, salt=0xADA)
+    acc = blocks.acc.reshape(npix, nb)
     if settings.wavelengths == "stratified":
-        cube = acc / band_counts(npix, nb, settings.spp, settings.seed)
+        counts = band_counts(npix, nb, spp_map, settings.seed).astype(np.float64)
     else:
-        cube = acc / (4.0 * settings.spp / nb)
+        counts = np.broadcast_to(4.0 * spp_map[:, None] / nb, acc.shape)
+    cube = np.divide(acc, counts, out=np.zeros_like(acc), where=counts > 0)
     cube = cube.reshape(h, w, nb).astype(np.float32)
-    emission = np.ones(nb)
-    name = "flat"
-    if len(groups) == 1:
-        emission, name = group_emission(scene, groups[0])
-    mi, _ = import_mitsuba()
-    renderer = {"name": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
-                "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
-                             "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
-                             "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
-                             "passes": passes,
-                             "libllvm": libllvm_path()}}
-    stats = {"load_s": round(t_load, 4), "trace_s": round(t_trace, 4),
-             "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": n_bad,
-             "mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())}
+    renderer = renderer_info(scene, settings, passes)
+    stats = {"load_s": round(t_load, 4), "trace_s": round(blocks.t_trace, 4),
+             "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": blocks.n_bad,
+             "mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min()),
+             "background_pixels_skipped": int(npix - active.size)}
+    if adaptive and active.size:
+        traced = spp_map[active]
+        stats["spp_per_pixel"] = {"min": int(traced.min()), "median": float(np.median(traced)),
+                                  "max": int(traced.max()), "pilot": pilot}
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
                       renderer=renderer, stats=stats)
 

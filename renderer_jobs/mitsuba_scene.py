@@ -113,36 +113,40 @@ def shape_area(scene: Scene, s) -> float:
     return _shape_area(json.dumps(d, sort_keys=True, default=float))
 
 
+_CANON = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+
+
+def shape_hull_points(scene: Scene, sh) -> np.ndarray:
+    """World-space points ``(k, 3)`` (metres) whose convex hull contains the shape: its canonical
+    box (or, for meshes, its bounding box) corners through its transform."""
+    m = sh.transform.to_matrix() if sh.transform is not None else np.eye(4)
+    if isinstance(sh, (Rectangle, Cube, Disk)):
+        local = _CANON.copy()
+        if not isinstance(sh, Cube):
+            local[:, 2] = 0.0
+        return (local @ m.T)[:, :3]
+    if isinstance(sh, Sphere):
+        c, r = np.asarray(sh.center), sh.radius
+        return ((np.c_[c + r * _CANON[:, :3], np.ones(8)]) @ m.T)[:, :3]
+    if isinstance(sh, Cylinder):
+        local = np.concatenate([np.asarray(e) + sh.radius * _CANON[:, :3] for e in (sh.p0, sh.p1)])
+        return (np.c_[local, np.ones(len(local))] @ m.T)[:, :3]
+    mi, _ = import_mitsuba()
+    d = _shape_dict(mi, scene, sh)
+    d.pop("bsdf", None)
+    bb = mi.load_dict(d).bbox()
+    lo = np.array([float(bb.min[i]) for i in range(3)])
+    hi = np.array([float(bb.max[i]) for i in range(3)])
+    return lo + (hi - lo) * (_CANON[:, :3] + 1) / 2
+
+
 def scene_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """Axis-aligned bounds ``(lo (3,), hi (3,))`` of the scene's geometry in metres (portals excluded).
 
     Computed from the description (Mitsuba may merge shapes, and a merged mesh reports no bounds
     before the scene is built); meshes are loaded one by one for theirs.
     """
-    pts: list[np.ndarray] = []
-    canon = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-    for sh in scene.shapes:
-        if scene.is_portal(sh):
-            continue
-        m = sh.transform.to_matrix() if sh.transform is not None else np.eye(4)
-        if isinstance(sh, (Rectangle, Cube, Disk)):
-            local = canon.copy()
-            if not isinstance(sh, Cube):
-                local[:, 2] = 0.0
-            pts.append((local @ m.T)[:, :3])
-        elif isinstance(sh, Sphere):
-            c, r = np.asarray(sh.center), sh.radius
-            pts.append(((np.c_[c + r * canon[:, :3], np.ones(8)]) @ m.T)[:, :3])
-        elif isinstance(sh, Cylinder):
-            ends = np.array([sh.p0, sh.p1])
-            local = np.concatenate([e + sh.radius * canon[:, :3] for e in ends])
-            pts.append((np.c_[local, np.ones(len(local))] @ m.T)[:, :3])
-        else:
-            mi, _ = import_mitsuba()
-            d = _shape_dict(mi, scene, sh)
-            d.pop("bsdf", None)
-            bb = mi.load_dict(d).bbox()
-            pts.append(np.array([[float(bb.min[i]) for i in range(3)], [float(bb.max[i]) for i in range(3)]]))
+    pts = [shape_hull_points(scene, sh) for sh in scene.shapes if not scene.is_portal(sh)]
     if not pts:
         return np.zeros(3), np.zeros(3)
     allp = np.concatenate(pts)

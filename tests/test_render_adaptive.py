@@ -1,0 +1,78 @@
+"""Adaptive sampling (renderer_jobs.adaptive_spp): the allocation itself (pure numpy) and, rendered,
+that it keeps the estimate unbiased and spends the same number of paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer_jobs import adaptive_spp
+
+
+def test_allocation_spends_exactly_the_budget_and_follows_sqrt_v():
+    rng = np.random.default_rng(0)
+    v = rng.lognormal(0.0, 1.5, size=(30, 40))
+    n = adaptive_spp.allocate(v, spp=64, pilot=16)
+    assert n.shape == v.shape and n.dtype == np.int64
+    assert n.sum() == 64 * v.size and n.min() >= 16 and n.max() <= 8 * 64
+    extra = n - 16
+    # ∝ √v (v quantised to quarter octaves: within 2^(1/8) plus rounding)
+    ratio = extra / np.sqrt(v)
+    ok = extra > 20
+    assert np.percentile(ratio[ok], 95) / np.percentile(ratio[ok], 5) < 1.25
+
+
+def test_allocation_degenerate_cases():
+    assert np.all(adaptive_spp.allocate(np.zeros((4, 5)), 64, 16) == 64)  # no light seen: uniform
+    assert np.all(adaptive_spp.allocate(np.ones((4, 5)), 16, 16) == 16)   # no budget beyond the pilot
+    one = np.zeros((10, 10))
+    one[3, 3] = 1.0
+    n = adaptive_spp.allocate(one, 32, 16)                                # all to one pixel, capped
+    assert n.sum() == 32 * 100 and n[3, 3] <= 8 * 32 + 1
+
+
+def test_allocation_is_invariant_to_a_tiny_rescaling_of_v():
+    """Relit renders (another emission) see v perturbed by float rounding: same allocation."""
+    rng = np.random.default_rng(1)
+    v = rng.lognormal(0.0, 1.0, size=(24, 32))
+    a = adaptive_spp.allocate(v, 64, 16)
+    b = adaptive_spp.allocate(v * (1 + 1e-7 * rng.standard_normal(v.shape)), 64, 16)
+    assert np.array_equal(a, b)
+
+
+def test_relative_variance_excludes_the_pixel_itself():
+    """A pixel's own pilot does not change its v (so its sample count is independent of its samples)."""
+    rng = np.random.default_rng(2)
+    s1 = rng.uniform(1, 2, (9, 9)) * 16
+    s2 = s1 ** 2 / 16 * rng.uniform(1.1, 2.0, (9, 9))
+    v = adaptive_spp.relative_variance(s1, s2, 16)
+    s1b, s2b = s1.copy(), s2.copy()
+    s1b[4, 4] *= 10
+    s2b[4, 4] *= 1000
+    vb = adaptive_spp.relative_variance(s1b, s2b, 16)
+    assert vb[4, 4] == pytest.approx(v[4, 4], rel=1e-12)
+    assert not np.isclose(vb[4, 5], v[4, 5])  # its neighbours do see it
+    assert np.all(adaptive_spp.relative_variance(np.zeros((3, 3)), np.zeros((3, 3)), 16) == 0)
+
+
+@pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,
+                    reason="rendering needs the optional extra illumix[render]")
+def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
+    """Image means of adaptive and uniform renders agree within 5 standard errors (the error of a
+    difference of means over independent pixels); the adaptive cube reports its per-pixel spp."""
+    from renderer_jobs import demo
+    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
+
+    room = demo.demo_room(0, resolution=(48, 36))
+    a = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=1, adaptive=True))
+    u = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=2, adaptive=False))
+    sp = a.stats["spp_per_pixel"]
+    assert sp["pilot"] == 16 and sp["min"] >= 16 and sp["max"] > 64 and "spp_per_pixel" not in u.stats
+    assert a.renderer["settings"]["adaptive_spp"] is True
+    d = (a.cube.sum(-1) - u.cube.sum(-1)).ravel()
+    se = d.std() / np.sqrt(d.size)
+    assert abs(d.mean()) < 5 * se
+    # below twice the pilot there is nothing to distribute: uniform, bit for bit
+    lo = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=True))
+    lo_u = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=False))
+    assert np.array_equal(lo.cube, lo_u.cube)
