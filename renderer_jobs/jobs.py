@@ -12,8 +12,8 @@ Jobs write straight into the store: first, per view, the view metadata and geome
 cube per (view, group). With ``settings.skip_dark`` (the default) a cube job first probes whether
 the group sends any light into the view (:mod:`renderer_jobs.light_probe`, ~1/16 of the cube's paths
 at most); a dark group is recorded as empty (reads give zeros) without being rendered. A rendered
-cube that comes out all zero is recorded as empty too. The store's writes are complete-or-invisible, so an interrupted run leaves
-only whole cubes, and the next run renders what is missing (resume).
+cube that comes out all zero is recorded as empty too. The store's writes are complete-or-invisible,
+so an interrupted run leaves only whole cubes, and the next run renders what is missing (resume).
 
 A cube already complete but rendered from a different scene description (another ``scene_hash``)
 or at another resolution is a conflict: the run refuses to start unless ``overwrite`` is set.
@@ -207,10 +207,11 @@ def plan(scenes: Iterable[Scene], store_path: str | None, *, views: list[str] | 
 
 
 def _store_exists(path: str) -> bool:
-    if "://" in path and not path.startswith("file://"):
-        return True  # remote store: let the store decide
-    p = Path(path.removeprefix("file://"))
-    return p.exists()
+    """A store is already at ``path`` (a missing path, an empty directory or an fsspec URL with
+    nothing there yet is not one: the first job creates it)."""
+    from store import CubeStore
+
+    return CubeStore.exists(path)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -53,6 +53,26 @@ class CubeStore:
 
     # ---- opening -------------------------------------------------------------------------------
     @classmethod
+    def exists(cls, location: str | os.PathLike, *, storage_options: dict | None = None) -> bool:
+        """Whether an illumix store (a root ``zarr.json``) is at ``location``: False for a missing
+        path, an empty directory or an fsspec URL with nothing there yet (``open(mode="a")`` creates
+        one there). Reads only. Raises :class:`StoreError` for a location no store can be created
+        at (a file, a non-empty directory that is not a store) or one that cannot be read."""
+        loc = os.fspath(location)
+        if not loc:
+            raise StoreError("store path is empty; give a directory or an fsspec URL")
+        try:
+            b = Backend(loc, read_only=True, storage_options=storage_options)
+        except (ImportError, ValueError, OSError) as exc:
+            raise StoreError(f"cannot open store {loc}: {exc}") from None
+        if node_attrs(b, "") is not None:
+            return True
+        if b.local and b.root.exists() and (not b.root.is_dir() or any(b.root.iterdir())):
+            what = "is not a directory" if not b.root.is_dir() else "is not empty and is not an illumix store"
+            raise StoreError(f"{b.url} {what}; choose a new or empty directory")
+        return False
+
+    @classmethod
     def open(cls, location: str | os.PathLike, mode: str = "a", *, storage_options: dict | None = None,
              tile: int = layout.DEFAULT_TILE, codec: str = layout.DEFAULT_CODEC,
              dtype_policy: Policy = "auto", atomic_rename: bool | None = None) -> CubeStore:

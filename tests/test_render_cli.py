@@ -131,6 +131,7 @@ def test_changed_description_is_a_conflict(tmp_path, capsys):
     (["render", "--demo", "--groups", "nope"], "no light group 'nope'"),
     (["render", "--demo", "--views", "nope"], "no view 'nope'"),
     (["render", "--demo", "--executor", "slurm"], "executor"),
+    (["render", "--demo", "--noise-target", "5"], "--noise-target 5.0 must lie in (0, 1)"),
     (["render"], "either a scene file"),
 ])
 def test_bad_arguments_exit_2_and_write_nothing(tmp_path, capsys, argv, needle):
@@ -223,3 +224,32 @@ def test_ray_executor_on_local_instance(tmp_path):
 
 def test_demo_room_dict_serialises():
     json.dumps(demo_room_dict(1), default=list)
+
+
+@needs_mitsuba
+def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
+    """A store is created where none is yet: an empty directory, an fsspec URL with nothing there.
+    A directory holding something else is refused with one line, before anything is rendered."""
+    from renderer_jobs.mitsuba_render import RenderSettings
+    from store import CubeStore
+
+    scene_file = tiny_scene_file(tmp_path)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, out, err = run_cli(capsys, "render", scene_file, "--store", str(empty), *TINY)
+    assert code == 0, err
+    assert CubeStore.open(str(empty), mode="r").is_complete("mini", "a", "lamp")
+
+    url = f"memory://illumix-test-{tmp_path.name}"
+    assert not CubeStore.exists(url)
+    scene = scene_from_dict(yaml.safe_load(open(scene_file)))
+    p = jobs.plan([scene], url, views=["a"], groups=["lamp"])
+    jobs.execute(p, url, RenderSettings(spp=16), executor="local", workers=1)
+    assert CubeStore.exists(url) and CubeStore.open(url, mode="r").is_complete("mini", "a", "lamp")
+
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("not a store")
+    code, out, err = run_cli(capsys, "render", scene_file, "--store", str(other), *TINY)
+    assert code == 2 and err.count("\n") == 1 and "is not empty and is not an illumix store" in err
+    assert sorted(x.name for x in other.iterdir()) == ["notes.txt"]
