@@ -65,6 +65,10 @@ def render(
                                   help="Spread the spp budget over the pixels by a 16-spp pilot's variance "
                                        "(same total paths, lower RMS and worst-pixel noise); --no-adaptive: "
                                        "the same spp in every pixel."),
+    noise_target: float | None = typer.Option(
+        None, "--noise-target",
+        help="Render each pixel to this relative noise of its spectral sum as the pilot predicts it (e.g. "
+             "0.05 = 5 %); --spp becomes the per-pixel maximum, so a cube costs what its light needs."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -96,8 +100,11 @@ def render(
             if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified":
                 raise UserError(f"--spp {spp} is too low: stratified sampling of {s.spectral_grid.n_bands} "
                                 f"bands needs spp >= {-(-s.spectral_grid.n_bands // 4)}")
+        if noise_target is not None and not 0 < noise_target < 1:
+            raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
+                            "e.g. 0.05 for 5 %")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
-                                  adaptive=adaptive)
+                                  adaptive=adaptive, noise_target=noise_target)
         p = jobs.plan(scenes, store, views=_split(views), groups=_split(groups), overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
@@ -114,7 +121,8 @@ def render(
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
-               "adaptive": adaptive, "executor": executor}
+               "adaptive": adaptive, "noise_target": noise_target,
+               "executor": executor}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")

@@ -59,15 +59,39 @@ def relative_variance(s1: np.ndarray, s2: np.ndarray, n: int, window: int = WIND
     return np.where(v > V_FLOOR, v, 0.0)
 
 
+def quantised(v: np.ndarray) -> np.ndarray:
+    """``v`` rounded to quarter-octaves (0 stays 0), float64 of the same shape: float rounding
+    differences between a flat and a relit render do not change an allocation made from it."""
+    flat = np.asarray(v, dtype=np.float64)
+    out = np.zeros(flat.shape)
+    pos = flat > 0
+    out[pos] = np.exp2(np.round(np.log2(flat[pos]) * QUANT) / QUANT)
+    return out
+
+
+def to_target(v: np.ndarray, target: float, pilot: int, max_spp: int) -> np.ndarray:
+    """Paths per pixel (same shape as ``v``, int64) for a relative noise ``target`` of each pixel's
+    spectral sum: ``n = ⌈v / target²⌉`` (relative std with ``n`` paths is ``√(v/n)``), at least the
+    pilot, at most ``max_spp``. Pixels whose neighbourhood saw no light or no spread (``v = 0``)
+    keep the pilot."""
+    if not 0 < target < 1:
+        raise ValueError(f"noise target {target} must lie in (0, 1) (a relative standard deviation)")
+    need = np.ceil(quantised(v) / (target * target))
+    return np.clip(need, pilot, max(max_spp, pilot)).astype(np.int64)
+
+
+def predicted_noise(v: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Predicted relative std ``√(v/n)`` of each pixel's spectral sum with ``n`` paths (0 where v = 0)."""
+    return np.sqrt(quantised(v) / np.maximum(n, 1))
+
+
 def allocate(v: np.ndarray, spp: int, pilot: int, cap: float = CAP) -> np.ndarray:
     """Paths per pixel (same shape as ``v``, int64, each ≥ ``pilot``, ≤ ``cap · spp`` where possible),
     summing to exactly ``spp · v.size``: the pilot plus the rest ∝ √v (module docstring)."""
     flat = np.asarray(v, dtype=np.float64).ravel()
     npix = flat.size
     extra = (spp - pilot) * npix
-    w = np.zeros(npix)
-    pos = flat > 0
-    w[pos] = np.exp2(np.round(np.log2(flat[pos]) * QUANT) / QUANT / 2)  # √v, v quantised
+    w = np.sqrt(quantised(flat))
     if extra <= 0 or not np.any(w > 0):
         return np.full(v.shape, spp, dtype=np.int64)
     n = w / w.sum() * extra

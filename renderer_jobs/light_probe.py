@@ -51,8 +51,9 @@ PROBE_DOWNSAMPLE = 4  # pilot blocks are PROBE_DOWNSAMPLE × PROBE_DOWNSAMPLE fi
 class ProbeResult:
     """Outcome of :func:`probe_group`. ``lit``: some pilot path carried light into the view.
     ``paths``: pilot paths traced (of ``budget``); ``film``: the pilot's grid of pixel blocks
-    ``(w, h)``; ``seconds``: wall time; ``detect_region_px``: size in full-resolution pixels of the smallest measurable lit region
-    the pilot finds with ≥ 95 % probability (``3 · ratio``, module docstring)."""
+    ``(w, h)``; ``seconds``: wall time; ``detect_region_px``: size in full-resolution pixels of the
+    smallest measurable lit region the pilot finds with ≥ 95 % probability (``3 · ratio``, module
+    docstring)."""
 
     lit: bool
     paths: int

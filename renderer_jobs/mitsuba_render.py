@@ -41,6 +41,8 @@ The cube's ``spp · pixels`` paths are not spread evenly: every pixel first gets
 every band sampled once), then the rest goes where the pilot's neighbourhood saw the most relative
 variance (:mod:`renderer_jobs.adaptive_spp`). The stratified schedule simply runs longer in those
 pixels, so band counts stay exact. Measured at equal paths and CPU time: see ``bench/RENDER_PERF.md``.
+With ``RenderSettings.noise_target`` the total is not fixed: each pixel gets the paths the pilot
+predicts for that relative noise (``spp`` caps it), so a cube costs what its light needs.
 
 Per-band sums are accumulated in float64 by ``numpy.bincount`` (no atomics), so the same seed gives
 the same cube bit for bit.
@@ -74,10 +76,14 @@ class RenderSettings:
     resolution: ``(width, height)`` overriding the view's; adaptive: spread the spp budget over the
     pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`; spp ≥ 2 × pilot, else uniform);
     skip_background: trace no paths in pixels that cannot see geometry when the groups have no sky
-    (they are exactly zero; :mod:`renderer_jobs.view_coverage`).
-    For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first and record a group that sends no light into the view
-    as empty instead of rendering it (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's
-    budget is 1/probe_ratio of the cube's paths."""
+    (they are exactly zero; :mod:`renderer_jobs.view_coverage`); noise_target: instead of a fixed
+    budget, give each pixel the paths its pilot predicts for this relative noise of its spectral
+    sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
+    (:func:`renderer_jobs.adaptive_spp.to_target`).
+    For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first
+    and record a group that sends no light into the view as empty instead of rendering it
+    (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's budget is 1/probe_ratio of the
+    cube's paths."""
 
     spp: int = 64
     seed: int = 0
@@ -89,23 +95,28 @@ class RenderSettings:
     probe_ratio: int = 16
     adaptive: bool = True
     skip_background: bool = True
+    noise_target: float | None = None
 
     def __post_init__(self) -> None:
         if self.spp < 1:
             raise SceneError(f"spp must be >= 1, got {self.spp}")
         if self.wavelengths not in WAVELENGTH_MODES:
-            raise SceneError(f"wavelength sampling {self.wavelengths!r} unknown; use one of {', '.join(WAVELENGTH_MODES)}")
+            raise SceneError(f"wavelength sampling {self.wavelengths!r} unknown; "
+                             f"use one of {', '.join(WAVELENGTH_MODES)}")
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
         if self.probe_ratio < 1:
             raise SceneError("probe_ratio must be >= 1")
+        if self.noise_target is not None and not 0 < self.noise_target < 1:
+            raise SceneError(f"noise target {self.noise_target} must lie in (0, 1): a relative standard "
+                             "deviation, e.g. 0.05 for 5 %")
 
     def to_dict(self) -> dict:
         return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths,
                 "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
-                "skip_background": self.skip_background}
+                "skip_background": self.skip_background, "noise_target": self.noise_target}
 
 
 @dataclass
@@ -174,7 +185,8 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
             "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
-                         "adaptive_spp": settings.adaptive, "skip_background": settings.skip_background,
+                         "adaptive_spp": settings.adaptive, "noise_target": settings.noise_target,
+                         "skip_background": settings.skip_background,
                          "passes": passes, "libllvm": libllvm_path()}}
 
 
@@ -251,7 +263,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
         cov = covered_pixels(scene, view, (w, h))
         active = active if cov is None else np.flatnonzero(cov.ravel())
     pilot = adaptive_spp.pilot_spp(nb)
-    adaptive = settings.adaptive and settings.spp >= 2 * pilot
+    target = settings.noise_target
+    adaptive = (target is not None and settings.spp > pilot) or (settings.adaptive and settings.spp >= 2 * pilot)
     first = pilot if adaptive else settings.spp
     s0 = 0
     ysum, ysq = np.zeros(npix), np.zeros(npix)
@@ -266,7 +279,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     spp_map[active] = settings.spp
     if adaptive and active.size:
         v = adaptive_spp.relative_variance(ysum.reshape(h, w), ysq.reshape(h, w), pilot).ravel()
-        spp_map[active] = adaptive_spp.allocate(v[active], settings.spp, pilot)
+        spp_map[active] = (adaptive_spp.allocate(v[active], settings.spp, pilot) if target is None
+                           else adaptive_spp.to_target(v[active], target, pilot, settings.spp))
         more = spp_map[active] - pilot
         pix = np.repeat(active, more)
         s = pilot + np.arange(len(pix), dtype=np.int64) - np.repeat(np.cumsum(more) - more, more)
@@ -287,7 +301,14 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     if adaptive and active.size:
         traced = spp_map[active]
         stats["spp_per_pixel"] = {"min": int(traced.min()), "median": float(np.median(traced)),
-                                  "max": int(traced.max()), "pilot": pilot}
+                                  "mean": round(float(traced.mean()), 3), "max": int(traced.max()),
+                                  "pilot": pilot}
+        if target is not None:
+            pred = adaptive_spp.predicted_noise(v[active], traced)
+            stats["noise_target"] = {"target": target, "predicted_p50": round(float(np.median(pred)), 5),
+                                     "predicted_p99": round(float(np.percentile(pred, 99)), 5),
+                                     "pixels_at_max_spp": int(np.count_nonzero(traced >= settings.spp)),
+                                     "fraction_predicted_on_target": round(float(np.mean(pred <= target)), 4)}
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
                       renderer=renderer, stats=stats)
 
