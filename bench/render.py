@@ -1,6 +1,6 @@
 """Render benchmark: time against noise for transport cubes, and what skipping and adaptivity buy.
 
-Three parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
+Five parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
 
 ``curve`` — per image size, light group, sampling (``uniform`` spp or ``adaptive``, the default:
   ``renderer_jobs.adaptive_spp``), wavelength mode and spp: two cubes with different seeds, timed
@@ -23,14 +23,21 @@ Three parts (``--parts``, all by default), on the seeded demo room (``renderer_j
 ``adaptive`` — adaptive against uniform at the same spp (same paths): noise ratios, CPU-time ratio,
   and the equal-time speed-up ``(noise_uniform/noise_adaptive)² × cpu_uniform/cpu_adaptive``.
 
+``target`` — noise-target rendering (``RenderSettings.noise_target``, ``--targets``, per-pixel cap
+  ``--target-max-spp``): mean paths per pixel, CPU time, noise against the reference, the measured
+  noise of each pixel's band mean against the target (calibration), and the uniform spp and CPU time
+  that reach the same raw G RMS / worst-block p99 (power law fitted to the uniform curve).
+
 ``skip`` — light probes (``renderer_jobs.light_probe``): for every demo-room group and view, probe
   verdict and time against the cube's render time (the probe's overhead on lit groups); and for a
   dark group — a lamp inside a closed cupboard added to the room — probe time against the full
   render's, and that the full render is exactly zero (so recording it as empty changes nothing).
 
-``background`` — what skipping pixels that see no geometry could save (for a group without a sky
-  they are exactly zero): CPU time of tracing every pixel against only the pixels whose 16 AOV rays
-  hit something, in an open scene (~2/3 background) and in the demo room (closed: none).
+``background`` — skipping pixels that cannot see geometry (for a group without a sky they are
+  exactly zero; ``renderer_jobs.view_coverage``): render CPU time with and without the skip (uniform
+  spp, so every other pixel gets the same paths either way) in an
+  open scene (~2/3 background) and in the demo room (closed: nothing to skip), and that the full
+  render is exactly zero in every skipped pixel.
 
     python bench/render.py              # default: 160x120, ceiling, spp 16,32,64,128 (a few minutes, 2 cores)
     python bench/render.py --sizes 320x240,960x720 --spp 16,64,256 --groups ceiling,daylight,desk
@@ -43,117 +50,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
+
+from render_lib import flat_mask, flat_noise, machine, mean_of, ref_noise, slope, timed, warm_up  # noqa: E402
 
 THESIS_BAND_NOISE = 0.0067
-
-
-def flat_mask(aovs: dict[str, np.ndarray]) -> np.ndarray:
-    """Pixels whose 3×3 neighbourhood shares normal and albedo (and hits geometry)."""
-    n, al, m = aovs["normal"], aovs["albedo"], aovs["mask"].astype(bool)
-    ok = m.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            sn = np.roll(np.roll(n, dy, 0), dx, 1)
-            sa = np.roll(np.roll(al, dy, 0), dx, 1)
-            ok &= np.all(np.abs(sn - n) < 1e-3, axis=-1) & np.all(np.abs(sa - al) < 1e-3, axis=-1)
-            ok &= np.roll(np.roll(m, dy, 0), dx, 1)
-    ok[0, :] = ok[-1, :] = ok[:, 0] = ok[:, -1] = False
-    return ok
-
-
-def flat_noise(a: np.ndarray, b: np.ndarray, mask: np.ndarray, raw_weights: np.ndarray) -> dict:
-    """Relative noise between two renders of the same cube on flat regions (module docstring)."""
-    A = a[mask].astype(np.float64)
-    B = b[mask].astype(np.float64)
-    mean = np.mean((A + B) / 2, axis=0)
-    ok = mean > 0
-    d = (A - B) / np.sqrt(2)
-    band_std = np.std(d, axis=0)[ok] / mean[ok]
-    mad = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    ra, rb = A @ raw_weights, B @ raw_weights
-    rd = (ra - rb) / np.sqrt(2)
-    rmean = np.mean((ra + rb) / 2, axis=0)
-    return {"flat_band_rel_std_median": float(np.median(band_std)),
-            "flat_band_rel_mad_median": float(np.median(mad[ok] / mean[ok])),
-            "flat_raw_rel_std_rgb": [float(x) for x in np.std(rd, axis=0) / rmean],
-            "flat_pixels": int(mask.sum())}
-
-
-def ref_noise(a: np.ndarray, b: np.ndarray, ref: np.ndarray, raw_weights: np.ndarray) -> dict:
-    """All-pixel relative noise of a seed pair against a reference cube (module docstring)."""
-    from scipy.ndimage import uniform_filter
-
-    a, b, ref = (x.astype(np.float64) for x in (a, b, ref))
-    ra, rb, rr = a @ raw_weights, b @ raw_weights, ref @ raw_weights
-    lit = rr[..., 1] > 1e-6 * rr[..., 1].max()
-    eg = np.where(lit, ((ra - rb)[..., 1] / np.sqrt(2) / np.where(lit, rr[..., 1], 1)) ** 2, 0.0)
-    blk = np.sqrt(uniform_filter(eg, 4)[::4, ::4])
-    okb = ref > 1e-3 * ref.mean()
-    eb = np.where(okb, ((a - b) / np.sqrt(2) / np.where(okb, ref, 1)) ** 2, np.nan)
-    band_rms = np.sqrt(np.nanmean(eb.reshape(-1, eb.shape[-1]), axis=0))
-    return {"raw_G_rms": float(np.sqrt(eg[lit].mean())),
-            "raw_G_block_p50": float(np.percentile(blk, 50)), "raw_G_block_p90": float(np.percentile(blk, 90)),
-            "raw_G_block_p99": float(np.percentile(blk, 99)),
-            "band_rms_median": float(np.nanmedian(band_rms)),
-            "image_mean_rel": float(((ra + rb)[..., 1].mean() / 2) / rr[..., 1].mean() - 1)}
-
-
-def mean_of(dicts: list[dict]) -> dict:
-    """Noise statistics averaged over seed pairs (variances averaged, then the root taken)."""
-    out = {}
-    for k, v in dicts[0].items():
-        vals = np.asarray([d[k] for d in dicts], dtype=float)
-        if k.startswith(("raw_G", "flat_band_rel_std", "flat_raw_rel_std", "band_rms")):
-            out[k] = np.sqrt(np.mean(vals ** 2, axis=0)).tolist()
-        elif k == "flat_pixels":
-            out[k] = int(v)
-        else:
-            out[k] = np.mean(vals, axis=0).tolist()
-    return out
-
-
-def slope(xs, ys) -> float | None:
-    """Least-squares slope of log y against log x."""
-    xs, ys = np.asarray(xs, float), np.asarray(ys, float)
-    ok = (xs > 0) & (ys > 0)
-    return float(np.polyfit(np.log(xs[ok]), np.log(ys[ok]), 1)[0]) if ok.sum() >= 2 else None
-
-
-def timed(fn):
-    w0, c0 = time.perf_counter(), time.process_time()
-    out = fn()
-    return out, time.perf_counter() - w0, time.process_time() - c0
-
-
-def machine() -> dict:
-    cpu = "unknown"
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"machine": platform.machine(), "cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
-            "load_average_at_start": [round(x, 2) for x in os.getloadavg()]}
-
-
-def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
-    """Compile the Mitsuba kernels of (view, group) at the film size that is timed (kernels are
-    specific to the film size): a probe and a small render, so timings are of rendering only."""
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.light_probe import probe_group
-
-    probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
-    mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode, adaptive=True))
 
 
 def with_cupboard(scene_doc: dict, lo: np.ndarray, hi: np.ndarray) -> dict:
@@ -169,7 +76,7 @@ def with_cupboard(scene_doc: dict, lo: np.ndarray, hi: np.ndarray) -> dict:
     return doc
 
 
-def part_curve(args, scene, mr, w_raw, rows: list, log) -> None:
+def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
     aovs = mr.render_aovs(scene, args.view, mr.RenderSettings())
     mask = flat_mask(aovs)
     for group in args.groups:
@@ -181,16 +88,11 @@ def part_curve(args, scene, mr, w_raw, rows: list, log) -> None:
             log(f"  reference {group} {mode} {ref_spp} spp: {ref_cpu:.1f} s CPU")
             for sampling in args.sampling:
                 for spp in args.spp:
-                    walls, cpus, flat, vs_ref = [], [], [], []
-                    for pair in range(args.pairs):
-                        st = [mr.RenderSettings(spp=spp, seed=s, wavelengths=mode, adaptive=sampling == "adaptive")
-                              for s in (1 + 2 * pair, 2 + 2 * pair)]
-                        a, wall, cpu = timed(lambda: mr.render_cube(scene, args.view, group, st[0]))
-                        b, wall2, cpu2 = timed(lambda: mr.render_cube(scene, args.view, group, st[1]))
-                        walls += [wall, wall2]
-                        cpus += [cpu, cpu2]
-                        flat.append(flat_noise(a.cube, b.cube, mask, w_raw))
-                        vs_ref.append(ref_noise(a.cube, b.cube, ref, w_raw))
+                    pairs, walls, cpus = seed_pairs(args, scene, mr, group, spp=spp, wavelengths=mode,
+                                                    adaptive=sampling == "adaptive")
+                    flat = [flat_noise(a.cube, b.cube, mask, w_raw) for a, b in pairs]
+                    vs_ref = [ref_noise(a.cube, b.cube, ref, w_raw) for a, b in pairs]
+                    a = pairs[0][0]
                     wall, cpu = float(np.median(walls)), float(np.median(cpus))
                     row = {"size": f"{scene.views[0].width}x{scene.views[0].height}", "group": group,
                            "wavelengths": mode, "sampling": sampling, "spp": spp, "seconds": round(wall, 3),
@@ -204,6 +106,74 @@ def part_curve(args, scene, mr, w_raw, rows: list, log) -> None:
                         f"({cpu:6.2f} CPU)  flat band {row['flat_band_rel_std_median'] * 100:5.1f}%  "
                         f"raw G rms {row['raw_G_rms'] * 100:5.2f}%  p99 {row['raw_G_block_p99'] * 100:5.2f}%  "
                         f"band rms {row['band_rms_median'] * 100:5.1f}%")
+            for target in args.targets:
+                targets.append(measure_target(args, scene, mr, group, mode, target, ref, w_raw, log))
+
+
+def seed_pairs(args, scene, mr, group: str, **settings) -> tuple[list, list[float], list[float]]:
+    """``--pairs`` pairs of renders with seeds (1, 2), (3, 4), …: the pairs, wall and CPU seconds."""
+    pairs, walls, cpus = [], [], []
+    for pair in range(args.pairs):
+        ab = []
+        for seed in (1 + 2 * pair, 2 + 2 * pair):
+            st = mr.RenderSettings(seed=seed, **settings)
+            r, wall, cpu = timed(lambda: mr.render_cube(scene, args.view, group, st))
+            ab.append(r)
+            walls.append(wall)
+            cpus.append(cpu)
+        pairs.append(tuple(ab))
+    return pairs, walls, cpus
+
+
+def measure_target(args, scene, mr, group: str, mode: str, target: float, ref, w_raw, log) -> dict:
+    """Noise-target rendering (``RenderSettings.noise_target``, spp capped at ``--target-max-spp``):
+    paths spent, CPU time, noise against the reference, and the calibration of the target — the
+    measured relative noise of each pixel's band mean (what the pilot predicts), RMS over pixels."""
+    pairs, walls, cpus = seed_pairs(args, scene, mr, group, spp=args.target_max_spp, wavelengths=mode,
+                                    noise_target=target)
+    vs_ref, calib, stats = [], [], []
+    for a, b in pairs:
+        vs_ref.append(ref_noise(a.cube, b.cube, ref, w_raw))
+        ya, yb = (r.cube.astype(np.float64).mean(-1) for r in (a, b))
+        m = (ya + yb) / 2
+        lit = m > 0
+        calib.append(float(np.mean(((ya - yb)[lit] / np.sqrt(2) / m[lit]) ** 2)))
+        stats += [a.stats, b.stats]
+    row = {"size": f"{scene.views[0].width}x{scene.views[0].height}", "group": group, "wavelengths": mode,
+           "noise_target": target, "max_spp": args.target_max_spp,
+           "mean_spp": round(float(np.mean([s["spp_per_pixel"]["mean"] for s in stats])), 2),
+           "pixels_at_max_spp": float(np.mean([s["noise_target"]["pixels_at_max_spp"] for s in stats])),
+           "seconds": round(float(np.median(walls)), 3), "cpu_seconds": round(float(np.median(cpus)), 3),
+           "band_mean_rel_rms": round(float(np.sqrt(np.mean(calib))), 5), **mean_of(vs_ref)}
+    log(f"  target {target:5.3f} {group:9s} mean spp {row['mean_spp']:7.1f} ({row['pixels_at_max_spp']:.0f} px at "
+        f"max)  {row['cpu_seconds']:6.2f} s CPU  band-mean noise {row['band_mean_rel_rms'] * 100:5.2f}%  "
+        f"raw G rms {row['raw_G_rms'] * 100:5.2f}%  p99 {row['raw_G_block_p99'] * 100:5.2f}%")
+    return row
+
+
+def compare_target(rows: list, targets: list) -> list:
+    """Each noise-target row against uniform spp at the same noise: the uniform spp (and CPU time)
+    that reaches the same raw G RMS / worst-block p99, from the power law fitted to the uniform curve
+    (``extrapolated`` when outside its spp range)."""
+    out = []
+    for t in targets:
+        u = sorted((r for r in rows if r["sampling"] == "uniform" and all(
+            r[k] == t[k] for k in ("size", "group", "wavelengths"))), key=lambda r: r["spp"])
+        if len(u) < 2:
+            continue
+        sp = np.log([r["spp"] for r in u])
+        cpu_fit = np.polyfit(sp, np.log([r["cpu_seconds"] for r in u]), 1)
+        d = {k: t[k] for k in ("size", "group", "wavelengths", "noise_target", "mean_spp", "cpu_seconds")}
+        for stat in ("raw_G_rms", "raw_G_block_p99"):
+            fit = np.polyfit(sp, np.log([r[stat] for r in u]), 1)
+            log_spp = (np.log(t[stat]) - fit[1]) / fit[0]
+            spp_u = float(np.exp(log_spp))
+            d[f"uniform_spp_same_{stat}"] = round(spp_u, 1)
+            d[f"paths_saving_{stat}"] = round(spp_u / t["mean_spp"], 3)
+            d[f"equal_noise_speedup_{stat}"] = round(float(np.exp(np.polyval(cpu_fit, log_spp))) / t["cpu_seconds"], 3)
+            d[f"extrapolated_{stat}"] = bool(not u[0]["spp"] <= spp_u <= u[-1]["spp"])
+        out.append(d)
+    return out
 
 
 def summarise_curve(rows: list) -> list:
@@ -293,41 +263,43 @@ def open_scene_doc(res: tuple[int, int]) -> dict:
 
 
 def part_background(args, size, mr, log) -> list:
-    """CPU time of tracing every pixel against tracing only pixels whose camera rays hit geometry
-    (for a group without a sky the others are exactly zero): what a background skip could save."""
+    """Background-pixel skip (``renderer_jobs.view_coverage``): render time with and without it, the
+    pixels skipped, and that the full render is exactly zero in every skipped pixel."""
     from renderer_jobs import demo
-    from renderer_jobs.mitsuba_trace import Tracer
     from renderer_jobs.scene_load import scene_from_dict
+    from renderer_jobs.view_coverage import covered_pixels
 
     out = []
     for name, scene, view, group in (("open floor + wall", scene_from_dict(open_scene_doc(size)), "cam", "lamp"),
                                      ("demo room", demo.demo_room(args.seed, resolution=size), "front", "ceiling")):
-        hit = mr.render_aovs(scene, view, mr.RenderSettings(aov_spp=16))["mask"].ravel()
-        tracers = [Tracer(scene, view, [group], None)]
-        st = mr.RenderSettings(spp=args.skip_spp, seed=1, adaptive=False)
-        cpu = {}
-        for rep in range(2):  # the first round compiles
-            for label, pixels in (("all", np.arange(hit.size)), ("hit", np.flatnonzero(hit))):
-                blocks = mr._PathBlocks(tracers, st, np.ones(scene.spectral_grid.n_bands))
-                pix = np.repeat(pixels, st.spp)
-                s = np.tile(np.arange(st.spp), len(pixels))
-                c0 = time.process_time()
-                for a in range(0, len(pix), st.max_lanes):
-                    blocks.trace(pix[a:a + st.max_lanes], s[a:a + st.max_lanes], a)
-                cpu[label] = time.process_time() - c0
-        row = {"scene": name, "background_fraction": round(float(1 - hit.mean()), 3),
-               "cpu_seconds_all_pixels": round(cpu["all"], 3), "cpu_seconds_hit_pixels": round(cpu["hit"], 3),
-               "possible_saving": round(1 - cpu["hit"] / cpu["all"], 3)}
+        cov = covered_pixels(scene, view)
+        warm_up(scene, view, group)
+        cpus: dict[bool, list[float]] = {False: [], True: []}
+        full = None
+        for rep in range(3):  # median of three (CPU time of a ~1 s render jitters by ~20 %)
+            for on in (False, True):
+                r, _, c = timed(lambda: mr.render_cube(scene, view, group, mr.RenderSettings(
+                    spp=args.skip_spp, seed=1 + rep, skip_background=on, adaptive=False)))
+                cpus[on].append(c)
+                if not on:
+                    full = r
+        cpu_full, cpu_skip = float(np.median(cpus[False])), float(np.median(cpus[True]))
+        skipped = np.zeros(full.cube.shape[:2], bool) if cov is None else ~cov
+        row = {"scene": name, "skipped_fraction": round(float(skipped.mean()), 3),
+               "cpu_seconds_full": round(cpu_full, 3), "cpu_seconds_with_skip": round(cpu_skip, 3),
+               "saving": round(1 - cpu_skip / cpu_full, 3),
+               "full_render_zero_in_skipped_pixels": bool(np.all(full.cube[skipped] == 0))}
         out.append(row)
-        log(f"  background {name}: {row['background_fraction'] * 100:.0f} % of pixels see nothing; tracing "
-            f"them costs {row['possible_saving'] * 100:.0f} % of the render")
+        log(f"  background {name}: {row['skipped_fraction'] * 100:.0f} % of pixels skipped, CPU "
+            f"{cpu_full:.2f} s -> {cpu_skip:.2f} s ({row['saving'] * 100:.0f} % saved); full render zero there: "
+            f"{row['full_render_zero_in_skipped_pixels']}")
     return out
 
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="curve,adaptive,skip,background",
-                    help="curve, adaptive, skip, background")
+    ap.add_argument("--parts", default="curve,adaptive,target,skip,background",
+                    help="curve, adaptive, target, skip, background")
     ap.add_argument("--sizes", default="160x120", help="WIDTHxHEIGHT list (e.g. 320x240,960x720)")
     ap.add_argument("--spp", default="16,32,64,128", help="spp list")
     ap.add_argument("--groups", default="ceiling", help="light groups of the demo room")
@@ -336,6 +308,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--ref-factor", type=int, default=4, help="reference spp = this × the highest spp")
     ap.add_argument("--pairs", type=int, default=2, help="seed pairs per point (noise averaged over them)")
     ap.add_argument("--skip-spp", type=int, default=64, help="spp of the renders the probes are compared with")
+    ap.add_argument("--targets", default="0.1,0.05",
+                    help="noise targets to measure (part target; relative noise of a pixel's spectral sum)")
+    ap.add_argument("--target-max-spp", type=int, default=1024, help="per-pixel spp cap of the noise-target renders")
     ap.add_argument("--view", default="front")
     ap.add_argument("--sensor", default="Nikon 5100 (NPL)")
     ap.add_argument("--seed", type=int, default=0, help="demo room seed")
@@ -346,6 +321,7 @@ def main(argv: list[str] | None = None) -> dict:
     args.modes = [m for m in args.modes.split(",") if m]
     args.sampling = [s for s in args.sampling.split(",") if s]
     parts = {p for p in args.parts.split(",") if p}
+    args.targets = [float(t) for t in args.targets.split(",") if t] if "target" in parts else []
 
     from renderer_jobs import demo
     from renderer_jobs import mitsuba_render as mr
@@ -363,13 +339,17 @@ def main(argv: list[str] | None = None) -> dict:
     doc: dict = {"benchmark": "render", "variant": variant, **machine(),
                  "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": f"demo-room-{args.seed}",
                  "view": args.view, "sensor": args.sensor, "thesis_band_noise": THESIS_BAND_NOISE}
-    if parts & {"curve", "adaptive"}:
+    if parts & {"curve", "adaptive", "target"}:
+        targets: list = []
         for size in sizes:
-            part_curve(args, demo.demo_room(args.seed, resolution=size), mr, w_raw, rows, log)
+            part_curve(args, demo.demo_room(args.seed, resolution=size), mr, w_raw, rows, targets, log)
         doc["results"] = rows
         doc["curve"] = summarise_curve(rows)
         if "adaptive" in parts:
             doc["adaptive_vs_uniform"] = compare_adaptive(rows)
+        if targets:
+            doc["noise_target"] = targets
+            doc["noise_target_vs_uniform"] = compare_target(rows, targets)
     if "skip" in parts:
         doc["skip"] = part_skip(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
     if "background" in parts:

@@ -1,0 +1,110 @@
+"""Measurement helpers of ``bench/render.py``: noise statistics of seed pairs, timing, machine info."""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+
+import numpy as np
+
+
+def flat_mask(aovs: dict[str, np.ndarray]) -> np.ndarray:
+    """Pixels whose 3×3 neighbourhood shares normal and albedo (and hits geometry)."""
+    n, al, m = aovs["normal"], aovs["albedo"], aovs["mask"].astype(bool)
+    ok = m.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            sn = np.roll(np.roll(n, dy, 0), dx, 1)
+            sa = np.roll(np.roll(al, dy, 0), dx, 1)
+            ok &= np.all(np.abs(sn - n) < 1e-3, axis=-1) & np.all(np.abs(sa - al) < 1e-3, axis=-1)
+            ok &= np.roll(np.roll(m, dy, 0), dx, 1)
+    ok[0, :] = ok[-1, :] = ok[:, 0] = ok[:, -1] = False
+    return ok
+
+
+def flat_noise(a: np.ndarray, b: np.ndarray, mask: np.ndarray, raw_weights: np.ndarray) -> dict:
+    """Relative noise between two renders of the same cube on flat regions (module docstring)."""
+    A = a[mask].astype(np.float64)
+    B = b[mask].astype(np.float64)
+    mean = np.mean((A + B) / 2, axis=0)
+    ok = mean > 0
+    d = (A - B) / np.sqrt(2)
+    band_std = np.std(d, axis=0)[ok] / mean[ok]
+    mad = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    ra, rb = A @ raw_weights, B @ raw_weights
+    rd = (ra - rb) / np.sqrt(2)
+    rmean = np.mean((ra + rb) / 2, axis=0)
+    return {"flat_band_rel_std_median": float(np.median(band_std)),
+            "flat_band_rel_mad_median": float(np.median(mad[ok] / mean[ok])),
+            "flat_raw_rel_std_rgb": [float(x) for x in np.std(rd, axis=0) / rmean],
+            "flat_pixels": int(mask.sum())}
+
+
+def ref_noise(a: np.ndarray, b: np.ndarray, ref: np.ndarray, raw_weights: np.ndarray) -> dict:
+    """All-pixel relative noise of a seed pair against a reference cube (module docstring)."""
+    from scipy.ndimage import uniform_filter
+
+    a, b, ref = (x.astype(np.float64) for x in (a, b, ref))
+    ra, rb, rr = a @ raw_weights, b @ raw_weights, ref @ raw_weights
+    lit = rr[..., 1] > 1e-6 * rr[..., 1].max()
+    eg = np.where(lit, ((ra - rb)[..., 1] / np.sqrt(2) / np.where(lit, rr[..., 1], 1)) ** 2, 0.0)
+    blk = np.sqrt(uniform_filter(eg, 4)[::4, ::4])
+    okb = ref > 1e-3 * ref.mean()
+    eb = np.where(okb, ((a - b) / np.sqrt(2) / np.where(okb, ref, 1)) ** 2, np.nan)
+    band_rms = np.sqrt(np.nanmean(eb.reshape(-1, eb.shape[-1]), axis=0))
+    return {"raw_G_rms": float(np.sqrt(eg[lit].mean())),
+            "raw_G_block_p50": float(np.percentile(blk, 50)), "raw_G_block_p90": float(np.percentile(blk, 90)),
+            "raw_G_block_p99": float(np.percentile(blk, 99)),
+            "band_rms_median": float(np.nanmedian(band_rms)),
+            "image_mean_rel": float(((ra + rb)[..., 1].mean() / 2) / rr[..., 1].mean() - 1)}
+
+
+def mean_of(dicts: list[dict]) -> dict:
+    """Noise statistics averaged over seed pairs (variances averaged, then the root taken)."""
+    out = {}
+    for k, v in dicts[0].items():
+        vals = np.asarray([d[k] for d in dicts], dtype=float)
+        if k.startswith(("raw_G", "flat_band_rel_std", "flat_raw_rel_std", "band_rms")):
+            out[k] = np.sqrt(np.mean(vals ** 2, axis=0)).tolist()
+        elif k == "flat_pixels":
+            out[k] = int(v)
+        else:
+            out[k] = np.mean(vals, axis=0).tolist()
+    return out
+
+
+def slope(xs, ys) -> float | None:
+    """Least-squares slope of log y against log x."""
+    xs, ys = np.asarray(xs, float), np.asarray(ys, float)
+    ok = (xs > 0) & (ys > 0)
+    return float(np.polyfit(np.log(xs[ok]), np.log(ys[ok]), 1)[0]) if ok.sum() >= 2 else None
+
+
+def timed(fn):
+    w0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - w0, time.process_time() - c0
+
+
+def machine() -> dict:
+    cpu = "unknown"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"machine": platform.machine(), "cpu": cpu, "cpus": os.cpu_count(), "python": platform.python_version(),
+            "load_average_at_start": [round(x, 2) for x in os.getloadavg()]}
+
+
+def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
+    """Compile the Mitsuba kernels of (view, group) at the film size that is timed (kernels are
+    specific to the film size): a probe and a small render, so timings are of rendering only."""
+    from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.light_probe import probe_group
+
+    probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
+    mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode, adaptive=True))
