@@ -36,6 +36,7 @@ plot in ``bench/out/pareto.png``, JSON last on stdout.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import platform
@@ -243,6 +244,9 @@ def paths_phase(args, cubes, sts, f16, sc) -> dict:
 
 
 def main(argv: list[str] | None = None) -> dict:
+    if importlib.util.find_spec("matplotlib") is None:  # checked first: the plot comes after minutes of timing
+        raise SystemExit("bench/pareto.py: the plot needs matplotlib; pip install -e '.[bench]' "
+                         "(bash scripts/install.sh --test includes it)")
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--height", type=int, default=480)
     ap.add_argument("--width", type=int, default=640)

@@ -7,8 +7,8 @@ cd "$(dirname "$0")/.."
 # The renderer (Mitsuba) is the optional extra "render" of the package (a service-only install,
 # e.g. docker/Dockerfile.service, leaves it out); this script always installs it.
 extras="render"
-# Tests also exercise the Ray executor against a local Ray instance.
-[ "${1:-}" = "--test" ] && extras="render,ray,test"
+# Tests also exercise the Ray executor against a local Ray instance; "bench" adds the benchmarks' plots.
+[ "${1:-}" = "--test" ] && extras="render,ray,test,bench"
 if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* >/dev/null 2>&1; then
   if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "install: adding libllvm19 (Mitsuba LLVM backend)" >&2
