@@ -26,8 +26,9 @@ image any spatial range (a 1e6 emitter next to 1e-7 shadows is fine: they are di
 Fallback (``policy="auto"``, the default): if any non-zero value would fall below float16's normal
 range after scaling (a pixel whose spectrum spans more than 2²⁹ ≈ 5e8, or float32-subnormal input),
 the whole cube is stored as raw float32 instead (exact). ``policy="float16"`` forces float16 (those
-values then keep an absolute bound ``2⁻²⁵ · 2^(ε(x) − 15 + β_b)`` — below 2⁻⁴⁰ of the pixel's
-brightest band-normalised value — and are counted in ``underflow_values``); ``policy="float32"``
+values then keep an absolute bound ``2⁻²⁵ · 2^(ε(x) − 15 + β_b)`` — half of float16's subnormal
+spacing; the pixel's brightest band-normalised value is ≥ 2¹⁴ in the same units, so at most 2⁻³⁹ of
+it — and are counted in ``underflow_values``); ``policy="float32"``
 always stores raw float32. Inf/NaN can never come out of a decode of a complete cube.
 
 Measured (``python bench/store.py``: synthetic 720×960×63 render-like cube, ``store.synth``, with a
