@@ -1,6 +1,6 @@
 """Render benchmark: time against noise for transport cubes, and what skipping and adaptivity buy.
 
-Five parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
+Six parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
 
 ``curve`` — per image size, light group, sampling (``uniform`` spp or ``adaptive``, the default:
   ``renderer_jobs.adaptive_spp``), wavelength mode and spp: two cubes with different seeds, timed
@@ -38,6 +38,9 @@ Five parts (``--parts``, all by default), on the seeded demo room (``renderer_jo
   spp, so every other pixel gets the same paths either way) in an
   open scene (~2/3 background) and in the demo room (closed: nothing to skip), and that the full
   render is exactly zero in every skipped pixel.
+
+``narrowband`` — a group emitting in 5 of the 63 bands: the stratified schedule samples only those
+  (``mitsuba_render.live_bands``); lit-band noise and CPU time against the full 63-band schedule.
 
     python bench/render.py              # default: 160x120, ceiling, spp 16,32,64,128 (a few minutes, 2 cores)
     python bench/render.py --sizes 320x240,960x720 --spp 16,64,256 --groups ceiling,daylight,desk
@@ -246,6 +249,42 @@ def part_skip(args, scene_doc: dict, mr, log) -> list:
     return out
 
 
+NARROW_BAND = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780], "values": [0, 0, 1, 1, 0, 0]}
+
+
+def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
+    """The ceiling group given a 540–560 nm emission: the schedule samples only its 5 emitting bands.
+    Against the full 63-band schedule (the flat cube × the emission: the same cube in expectation,
+    and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
+    pixels, two seeds) and CPU time at the same spp."""
+    from renderer_jobs.scene_load import scene_from_dict
+
+    doc = json.loads(json.dumps(scene_doc, default=list))
+    flat_scene = scene_from_dict(doc)
+    next(g for g in doc["light_groups"] if g["name"] == "ceiling")["emission"] = NARROW_BAND
+    narrow_scene = scene_from_dict(doc)
+    out = {"group": "ceiling", "emission": "540-560 nm box", "spp": args.skip_spp}
+    for label, scene in (("emitting_bands_only", narrow_scene), ("all_63_bands", flat_scene)):
+        warm_up(scene, args.view, "ceiling")
+        (pair,), _, cpus = seed_pairs(argparse.Namespace(pairs=1, view=args.view), scene, mr, "ceiling",
+                                      spp=args.skip_spp)
+        e = mr.render_cube(narrow_scene, args.view, "ceiling", mr.RenderSettings(spp=16)).emission
+        live = mr.live_bands(e)
+        a, b = (r.cube[..., live].astype(np.float64) * (1.0 if label == "emitting_bands_only" else e[live])
+                for r in pair)
+        m = (a + b) / 2
+        rel = np.sqrt(np.mean(((a - b) / np.sqrt(2))[m > 0] ** 2 / m[m > 0] ** 2))
+        out[label] = {"band_rel_rms": round(float(rel), 4), "cpu_seconds": round(float(np.median(cpus)), 3)}
+    n, f = out["emitting_bands_only"], out["all_63_bands"]
+    out["noise_ratio"] = round(n["band_rel_rms"] / f["band_rel_rms"], 3)
+    out["equal_noise_speedup"] = round((f["band_rel_rms"] / n["band_rel_rms"]) ** 2 * f["cpu_seconds"]
+                                       / n["cpu_seconds"], 1)
+    log(f"  narrow-band ceiling: lit-band noise {f['band_rel_rms'] * 100:.1f} % (63-band schedule) -> "
+        f"{n['band_rel_rms'] * 100:.1f} % (emitting bands only), CPU {f['cpu_seconds']:.2f} -> "
+        f"{n['cpu_seconds']:.2f} s: {out['equal_noise_speedup']}x at equal noise")
+    return out
+
+
 def open_scene_doc(res: tuple[int, int]) -> dict:
     """A floor and a back wall under a ceiling panel, seen from above so that about 2/3 of the
     pixels see nothing: the case where skipping background pixels could pay."""
@@ -298,8 +337,8 @@ def part_background(args, size, mr, log) -> list:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="curve,adaptive,target,skip,background",
-                    help="curve, adaptive, target, skip, background")
+    ap.add_argument("--parts", default="curve,adaptive,target,skip,background,narrowband",
+                    help="curve, adaptive, target, skip, background, narrowband")
     ap.add_argument("--sizes", default="160x120", help="WIDTHxHEIGHT list (e.g. 320x240,960x720)")
     ap.add_argument("--spp", default="16,32,64,128", help="spp list")
     ap.add_argument("--groups", default="ceiling", help="light groups of the demo room")
@@ -354,6 +393,8 @@ def main(argv: list[str] | None = None) -> dict:
         doc["skip"] = part_skip(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
     if "background" in parts:
         doc["background"] = part_background(args, sizes[0], mr, log)
+    if "narrowband" in parts:
+        doc["narrowband"] = part_narrowband(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
     doc["total_seconds"] = round(time.perf_counter() - t0, 1)
     text = json.dumps(doc, indent=1)
     if args.out:

@@ -30,7 +30,10 @@ chooses every wavelength:
   path's noise does not pile up in one camera channel — each uniformly jittered inside its band.
   Every ``n`` consecutive paths put exactly 4 samples in every band, so a band's sample count is
   fixed (⌊4·spp/n⌋ or one more, known exactly) and its estimate is the plain mean of its samples.
-  ``o_p`` is a per-pixel hash that decorrelates neighbouring pixels when spp < n.
+  ``o_p`` is a per-pixel hash that decorrelates neighbouring pixels when spp < n. Here ``n`` counts
+  the bands where the cube's emission is non-zero (all 63 for the default flat emission): a band a
+  group does not emit is exactly zero in its cube, so the schedule skips it (``live_bands``) and
+  the other bands get its share; the stride is ``round(n/4)``.
 - ``"random"``: Mitsuba's default behaviour, for comparison — four wavelengths uniform over the grid
   span with Mitsuba's shifted stratification (``sample_shifted``), each band estimated as
   ``Σ L / E[count]`` exactly as the ``specfilm`` does.
@@ -65,7 +68,17 @@ from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 WAVELENGTH_MODES = ("stratified", "random")
-LANE_STRIDE = 16  # band offset between a path's 4 wavelengths in "stratified" mode
+def lane_stride(n_live: int) -> int:
+    """Band offset between a path's 4 wavelengths when ``n_live`` bands are sampled (16 for 63)."""
+    return max(1, round(n_live / 4))
+
+
+def live_bands(emission: np.ndarray) -> np.ndarray:
+    """Band indices the stratified schedule samples: where the cube's emission is non-zero (a band
+    the group does not emit is exactly zero in the cube, so its samples would be wasted); every band
+    if none is."""
+    live = np.flatnonzero(np.asarray(emission) > 0)
+    return live if live.size else np.arange(len(emission))
 
 
 @dataclass(frozen=True)
@@ -141,15 +154,21 @@ def hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
     return x
 
 
-def band_counts(n_pixels: int, n_bands: int, spp: int | np.ndarray, seed: int) -> np.ndarray:
+def band_counts(n_pixels: int, n_bands: int, spp: int | np.ndarray, seed: int,
+                live: np.ndarray | None = None) -> np.ndarray:
     """Exact samples per (pixel, band) of the ``"stratified"`` schedule: ``(n_pixels, n_bands)`` int.
-    ``spp``: paths per pixel, one number or ``(n_pixels,)`` (adaptive sampling)."""
-    off = (hash_u32(np.arange(n_pixels), seed ^ 0x5BD1E995) % np.uint64(n_bands)).astype(np.int64)
-    q, r = np.divmod(np.broadcast_to(np.asarray(spp, dtype=np.int64), (n_pixels,)), n_bands)
-    b = np.arange(n_bands)
-    counts = np.zeros((n_pixels, n_bands), dtype=np.int64)
+    ``spp``: paths per pixel, one number or ``(n_pixels,)`` (adaptive sampling); ``live``: the bands
+    sampled (:func:`live_bands`; default all), the others get none."""
+    live = np.arange(n_bands) if live is None else np.asarray(live)
+    m = live.size
+    off = (hash_u32(np.arange(n_pixels), seed ^ 0x5BD1E995) % np.uint64(m)).astype(np.int64)
+    q, r = np.divmod(np.broadcast_to(np.asarray(spp, dtype=np.int64), (n_pixels,)), m)
+    b = np.arange(m)
+    on = np.zeros((n_pixels, m), dtype=np.int64)
     for i in range(4):
-        counts += q[:, None] + (((b[None, :] - off[:, None] - LANE_STRIDE * i) % n_bands) < r[:, None])
+        on += q[:, None] + (((b[None, :] - off[:, None] - lane_stride(m) * i) % m) < r[:, None])
+    counts = np.zeros((n_pixels, n_bands), dtype=np.int64)
+    counts[:, live] = on
     return counts
 
 
@@ -199,7 +218,9 @@ class _PathBlocks:
         self.nb, self.lo, self.step = grid.n_bands, grid.edges[0], grid.step
         self.guard = min(EDGE_GUARD_NM, self.step / 10)
         self.npix = tracers[0].width * tracers[0].height
-        self.off = (hash_u32(np.arange(self.npix), settings.seed ^ 0x5BD1E995) % np.uint64(self.nb)).astype(np.int64)
+        self.live = live_bands(emission)
+        self.off = (hash_u32(np.arange(self.npix), settings.seed ^ 0x5BD1E995)
+                    % np.uint64(self.live.size)).astype(np.int64)
         self.acc = np.zeros(self.npix * self.nb, dtype=np.float64)
         self.inv_emission = np.where(emission > 0, 1.0 / np.where(emission > 0, emission, 1.0), 0.0)
         self.n_bad, self.t_trace = 0, 0.0
@@ -212,8 +233,8 @@ class _PathBlocks:
         jitter = rng.random((len(pix), 2), dtype=np.float32)
         u = rng.random((len(pix), 4))
         if st.wavelengths == "stratified":
-            bands = ((s + self.off[pix]) % nb)[:, None] + LANE_STRIDE * np.arange(4)[None, :]
-            bands %= nb
+            m = self.live.size
+            bands = self.live[(((s + self.off[pix]) % m)[:, None] + lane_stride(m) * np.arange(4)[None, :]) % m]
             lam = self.lo + self.step * bands + self.guard + (self.step - 2 * self.guard) * u
         else:
             # Mitsuba's default: one uniform sample over the span, shifted by 1/4 for the others.
@@ -253,16 +274,17 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     nb = tracers[0].grid.n_bands
     w, h = tracers[0].width, tracers[0].height
     npix = w * h
-    if settings.wavelengths == "stratified" and 4 * settings.spp < nb:
-        raise SceneError(f"spp {settings.spp} is too low for stratified wavelengths: every band of the "
-                         f"{nb}-band grid needs a sample, so spp >= {math.ceil(nb / 4)}")
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
+    n_live = live_bands(emission).size if settings.wavelengths == "stratified" else nb
+    if settings.wavelengths == "stratified" and 4 * settings.spp < n_live:
+        raise SceneError(f"spp {settings.spp} is too low for stratified wavelengths: every one of the "
+                         f"{n_live} emitting bands needs a sample, so spp >= {math.ceil(n_live / 4)}")
     blocks = _PathBlocks(tracers, settings, np.asarray(emission, dtype=np.float64))
     active = np.arange(npix, dtype=np.int64)  # pixels that get paths (the others are exactly zero)
     if settings.skip_background and not group_sees_sky(scene, groups):
         cov = covered_pixels(scene, view, (w, h))
         active = active if cov is None else np.flatnonzero(cov.ravel())
-    pilot = adaptive_spp.pilot_spp(nb)
+    pilot = adaptive_spp.pilot_spp(n_live)
     target = settings.noise_target
     adaptive = (target is not None and settings.spp > pilot) or (settings.adaptive and settings.spp >= 2 * pilot)
     first = pilot if adaptive else settings.spp
@@ -288,7 +310,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
             blocks.trace(pix[a:a + settings.max_lanes], s[a:a + settings.max_lanes], c, salt=0xADA)
     acc = blocks.acc.reshape(npix, nb)
     if settings.wavelengths == "stratified":
-        counts = band_counts(npix, nb, spp_map, settings.seed).astype(np.float64)
+        counts = band_counts(npix, nb, spp_map, settings.seed, blocks.live).astype(np.float64)
     else:
         counts = np.broadcast_to(4.0 * spp_map[:, None] / nb, acc.shape)
     cube = np.divide(acc, counts, out=np.zeros_like(acc), where=counts > 0)

@@ -184,18 +184,30 @@ def test_aovs(box):
     np.testing.assert_allclose(a["albedo"][h - 2, w // 2], 0.7, atol=1e-3)
 
 
-def test_narrowband_emission_and_low_spp_refused():
+def test_narrowband_emission_samples_only_its_bands_and_low_spp_refused():
+    """A group emitting 540–560 nm only: its cube is exactly zero elsewhere, the stratified schedule
+    spends every sample on the 5 emitting bands (counts exact, none elsewhere), and the lit bands
+    equal the flat cube × the emission within noise (per-band image means, 5 standard errors)."""
     d = box_scene()
     d["light_groups"][1]["emission"] = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780],
                                         "values": [0, 0, 1, 1, 0, 0]}
     s = scene_from_dict(d)
     r = mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=16, seed=1))
     wl = s.spectral_grid.wavelengths
-    lit = (wl >= 545) & (wl <= 555)
+    live = mr.live_bands(r.emission)
+    assert wl[live].tolist() == [540, 545, 550, 555, 560]
     assert np.all(r.cube[..., ~((wl >= 537.5) & (wl <= 562.5))] == 0)
-    assert np.all(r.cube[..., lit].mean(axis=(0, 1)) > 0)
-    with pytest.raises(SceneError, match="spp >= 16"):
-        mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=8))
+    counts = mr.band_counts(12, len(wl), 16, seed=1, live=live)
+    assert np.all(counts.sum(axis=1) == 64) and np.all(counts[:, live] >= 12) and counts.sum() == counts[:, live].sum()
+    flat = mr.render_cube(scene_from_dict(box_scene()), "cam", "bulb", mr.RenderSettings(spp=64, seed=2))
+    for b in live:
+        x, y = r.cube[..., b].ravel(), flat.cube[..., b].ravel() * r.emission[b]
+        se = np.sqrt(x.var() / x.size + y.var() / y.size)
+        assert abs(x.mean() - y.mean()) < 5 * se, (wl[b], x.mean(), y.mean(), se)
+    with pytest.raises(SceneError, match="spp >= 2"):      # 5 emitting bands: 4·spp must reach 5
+        mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=1))
+    with pytest.raises(SceneError, match="spp >= 16"):     # flat emission: all 63 bands
+        mr.render_cube(s, "cam", "lamp", mr.RenderSettings(spp=8))
 
 
 def test_envmap_sky_renders_with_mitsuba_d65_emission(tmp_path):
