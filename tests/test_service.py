@@ -301,3 +301,38 @@ def test_real_server_restart_keeps_uploads_and_parallel_equals_sequential(store_
                     assert ms == mp
                 else:
                     np.testing.assert_array_equal(zs[k], zp[k])
+
+
+def test_group_recorded_empty_composes_as_no_light(tmp_path):
+    """A light group the renderer recorded as empty for a view (dark: ``CubeStore.mark_empty``) is
+    served like a group that is lit nowhere: 200, finite outputs, raw equals the lit group's alone,
+    and the gain map is that group's white-point gain everywhere it lights (the core library's)."""
+    from store import CubeMeta, ViewMeta
+    from retarget.grid import DEFAULT_GRID
+
+    path = tmp_path / "store"
+    synth.build(path, extras=False)
+    st = CubeStore.open(str(path), mode="a")
+    refl = synth.reflectance_image()
+    fw, _ = synth.falloffs()
+    common = dict(grid=DEFAULT_GRID.to_dict(), renderer={"name": "synthetic", "version": "1"}, spp=0, seed=0,
+                  scene_hash="synthetic", emission=[1.0] * DEFAULT_GRID.n_bands, emission_name="flat")
+    st.write_view("synth", "dark", ViewMeta(width=synth.W, height=synth.H, fov=45.0))
+    st.write_cube("synth", "dark", "window", refl * (fw / np.float32(np.pi))[..., None], CubeMeta(**common))
+    st.mark_empty("synth", "dark", "lamp", CubeMeta(**common))
+    app = create_app(CubeStore.open(str(path), mode="r"), token=TOKEN, cache_mb=16)
+    with TestClient(app) as c:
+        z = load(c.get("/sample", params={"scene": "synth", "view": "dark", "sensor": "XYZ", "pair": "A,D65",
+                                          "outputs": "raw,gain,weights,mask,srgb"}))
+    for k in ("raw", "gain", "weights", "srgb"):
+        assert np.all(np.isfinite(z[k])), k
+    sensor = get_sensor("XYZ")
+    lit = (refl * (fw / np.pi)[..., None] * illuminant_spd("A")) @ sensor.weights()
+    u = max(st.cube_meta("synth", "dark", "window").storage.rel_error_bound, 1e-6)
+    np.testing.assert_allclose(z["raw"], lit, rtol=u + 1e-6, atol=1e-7)
+    m = z["mask"]
+    assert m[:-synth.DARK_ROWS].all() and not m[-synth.DARK_ROWS:].any()
+    np.testing.assert_allclose(z["weights"][m], [[1.0, 0.0]] * int(m.sum()), atol=1e-6)
+    wp = white_point(sensor.weights(), illuminant_spd("A"))
+    expected = gain_map(wp[None, None, :] * np.ones((synth.H, synth.W, 1)))
+    np.testing.assert_allclose(z["gain"][m], expected[m], rtol=4 * u + 1e-6)
