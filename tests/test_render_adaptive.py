@@ -52,6 +52,12 @@ def test_relative_variance_excludes_the_pixel_itself():
     vb = adaptive_spp.relative_variance(s1b, s2b, 16)
     assert vb[4, 4] == pytest.approx(v[4, 4], rel=1e-12)
     assert not np.isclose(vb[4, 5], v[4, 5])  # its neighbours do see it
+    for y, x in ((0, 0), (0, 4), (8, 8)):     # border and corner pixels too (no edge replication)
+        s1c, s2c = s1.copy(), s2.copy()
+        s1c[y, x] *= 10
+        s2c[y, x] *= 1000
+        assert adaptive_spp.relative_variance(s1c, s2c, 16)[y, x] == pytest.approx(v[y, x], rel=1e-12)
+    assert adaptive_spp.relative_variance(s1[:1, :1], s2[:1, :1], 16)[0, 0] == 0  # 1×1: no neighbours
     assert np.all(adaptive_spp.relative_variance(np.zeros((3, 3)), np.zeros((3, 3)), 16) == 0)
 
 
