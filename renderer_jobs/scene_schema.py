@@ -264,6 +264,18 @@ class Sphere(_Shape):
     center: Vec3 = (0.0, 0.0, 0.0)
     radius: float = Field(default=1.0, gt=0)
 
+    @model_validator(mode="after")
+    def _similarity_only(self) -> Sphere:
+        # Mitsuba's sphere stays round under any transform (it takes the radius from one axis and
+        # only warns), so a non-uniform scale or shear would render something other than described.
+        if self.transform is not None:
+            a = self.transform.to_matrix()[:3, :3]
+            g = a.T @ a
+            if not np.allclose(g, g[0, 0] * np.eye(3), rtol=1e-6, atol=1e-12 * abs(g[0, 0])):
+                raise ValueError("a sphere's transform must scale uniformly (rotation, translation and one "
+                                 "scale factor); for an ellipsoid use a mesh (type: obj or ply)")
+        return self
+
 
 class Cylinder(_Shape):
     type: Literal["cylinder"]

@@ -92,6 +92,10 @@ def test_errors_name_object_and_field():
     assert "'..'" in err(doc(name="a..b"))
     m = err(doc(shapes__2__emitter={"group": "lamp", "strength": 1, "portal": True}, shapes__2__material="grey"))
     assert "shapes[2] (lamp): material: a portal is not geometry" in m
+    # Mitsuba keeps spheres round under any transform: a non-uniform scale would render another shape
+    assert "shapes[1] (ball): a sphere's transform must scale uniformly" in err(
+        doc(shapes__1__transform={"scale": [3, 0.3, 1]}))
+    scene_from_dict(doc(shapes__1__transform={"scale": 2, "rotate": [{"axis": [1, 0, 0], "angle": 30}]}))
 
 
 def test_missing_files_and_zero_emission(tmp_path):
