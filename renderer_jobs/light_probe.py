@@ -120,12 +120,15 @@ def probe_group(scene: Scene, view: str, group: str | list[str] | None,
         jitter = (rng.random((len(pix), 2)) * extent[block]).astype(np.float32)
         band = bands[rng.integers(0, bands.size, size=(len(pix), 4))]
         lam = (grid.edges[0] + grid.step * band + guard + (grid.step - 2 * guard) * rng.random((len(pix), 4)))
-        paths += len(pix)
-        for j, tracer in enumerate(tracers):
-            L = tracer.trace(pix, jitter, lam.astype(np.float32),
-                             seed=int(hash_u32(np.array([k * 8 + j]), settings.seed ^ 0x9B0E)[0]))
-            if np.any(np.isfinite(L) & (L > 0)):
-                return result(True, paths)
+        lam = lam.astype(np.float32)
+        for c, a in enumerate(range(0, len(pix), settings.max_lanes)):  # films wider than max_lanes
+            part = slice(a, a + settings.max_lanes)
+            paths += len(pix[part])
+            for j, tracer in enumerate(tracers):
+                L = tracer.trace(pix[part], jitter[part], lam[part],
+                                 seed=int(hash_u32(np.array([k * 8 + j]), settings.seed ^ 0x9B0E ^ (c << 16))[0]))
+                if np.any(np.isfinite(L) & (L > 0)):
+                    return result(True, paths)
         done += spp_k
         chunk *= 2
         k += 1

@@ -290,12 +290,17 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     first = pilot if adaptive else settings.spp
     s0 = 0
     ysum, ysq = np.zeros(npix), np.zeros(npix)
-    for k, spp_pass in enumerate(_pass_sizes(first, active.size, settings.max_lanes) if active.size else []):
+    sizes = _pass_sizes(first, active.size, settings.max_lanes) if active.size else []
+    for k, spp_pass in enumerate(sizes):
         pix = np.repeat(active, spp_pass)
-        y = blocks.trace(pix, s0 + np.tile(np.arange(spp_pass, dtype=np.int64), active.size), k)
-        if adaptive:
-            ysum += np.bincount(pix, weights=y, minlength=npix)
-            ysq += np.bincount(pix, weights=y * y, minlength=npix)
+        s = s0 + np.tile(np.arange(spp_pass, dtype=np.int64), active.size)
+        # A pass holds at least one path per pixel: split it when the film exceeds max_lanes.
+        for c, a in enumerate(range(0, len(pix), settings.max_lanes)):
+            part = slice(a, a + settings.max_lanes)
+            y = blocks.trace(pix[part], s[part], k + c * len(sizes))
+            if adaptive:
+                ysum += np.bincount(pix[part], weights=y, minlength=npix)
+                ysq += np.bincount(pix[part], weights=y * y, minlength=npix)
         s0 += spp_pass
     spp_map = np.zeros(npix, dtype=np.int64)
     spp_map[active] = settings.spp

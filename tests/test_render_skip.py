@@ -135,3 +135,27 @@ def test_background_pixels_are_skipped_only_where_exactly_zero():
     assert render_cube(scene, "high", "sky", RenderSettings(spp=16)).stats["background_pixels_skipped"] == 0
     # inside a room the walls surround the camera: every pixel may see geometry
     assert covered_pixels(demo.demo_room(0, resolution=(16, 12)), "front") is None
+
+
+def test_max_lanes_bounds_every_trace_call_even_below_the_film_size(scene, monkeypatch):
+    """``max_lanes`` (the memory bound) holds for the pilot, the adaptive rest and the probe when it is
+    smaller than the film (1200 px): no Mitsuba call traces more paths; verdicts and image means
+    (5 standard errors of the pixel differences) are those of the unsplit run."""
+    from renderer_jobs.mitsuba_trace import Tracer
+
+    sizes: list[int] = []
+    trace = Tracer.trace
+
+    def recording(self, pix, *args, **kwargs):
+        sizes.append(len(pix))
+        return trace(self, pix, *args, **kwargs)
+
+    monkeypatch.setattr(Tracer, "trace", recording)
+    tiny = RenderSettings(spp=64, seed=5, max_lanes=50)  # below the probe's 80 coarse pixels too
+    assert {g: probe_group(scene, "cam", g, tiny).lit for g in ("lamp", "boxed")} == {"lamp": True, "boxed": False}
+    assert sizes and max(sizes) <= 50
+    split = render_cube(scene, "cam", "lamp", RenderSettings(spp=64, seed=5, max_lanes=500))
+    assert max(sizes) <= 500
+    whole = render_cube(scene, "cam", "lamp", RenderSettings(spp=64, seed=6))
+    d = (split.cube.sum(-1) - whole.cube.sum(-1)).ravel()
+    assert abs(d.mean()) < 5 * d.std() / np.sqrt(d.size)
