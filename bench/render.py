@@ -61,22 +61,10 @@ import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
-from render_lib import flat_mask, flat_noise, machine, mean_of, ref_noise, slope, timed, warm_up  # noqa: E402
+from render_lib import (NARROW_BAND, flat_mask, flat_noise, machine, mean_of, open_scene_doc,  # noqa: E402
+                        ref_noise, slope, timed, warm_up, with_cupboard)
 
 THESIS_BAND_NOISE = 0.0067
-
-
-def with_cupboard(scene_doc: dict, lo: np.ndarray, hi: np.ndarray) -> dict:
-    """The demo room plus a closed cupboard in the back-left corner with a bulb inside (group ``cupboard``)."""
-    c = [float(lo[0]) + 0.35, 0.3, float(lo[2]) + 0.35]
-    doc = json.loads(json.dumps(scene_doc, default=list))
-    doc["materials"]["cupboard_wood"] = {"kind": "diffuse", "reflectance": {"value": 0.45}}
-    doc["shapes"].append({"name": "cupboard", "type": "cube", "material": "cupboard_wood",
-                          "transform": {"scale": [0.25, 0.3, 0.25], "translate": c}})
-    doc["lights"].append({"name": "cupboard_bulb", "type": "point", "group": "cupboard", "position": c,
-                          "strength": 5.0})
-    doc["light_groups"].append({"name": "cupboard", "description": "a bulb inside a closed cupboard"})
-    return doc
 
 
 def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
@@ -249,9 +237,6 @@ def part_skip(args, scene_doc: dict, mr, log) -> list:
     return out
 
 
-NARROW_BAND = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780], "values": [0, 0, 1, 1, 0, 0]}
-
-
 def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     """The ceiling group given a 540–560 nm emission: the schedule samples only its 5 emitting bands.
     Against the full 63-band schedule (the flat cube × the emission: the same cube in expectation,
@@ -283,22 +268,6 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
         f"{n['band_rel_rms'] * 100:.1f} % (emitting bands only), CPU {f['cpu_seconds']:.2f} -> "
         f"{n['cpu_seconds']:.2f} s: {out['equal_noise_speedup']}x at equal noise")
     return out
-
-
-def open_scene_doc(res: tuple[int, int]) -> dict:
-    """A floor and a back wall under a ceiling panel, seen from above so that about 2/3 of the
-    pixels see nothing: the case where skipping background pixels could pay."""
-    from renderer_jobs.demo import frame_matrix as fm
-
-    return {"name": "open", "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.7}}},
-            "shapes": [{"name": "floor", "type": "rectangle", "material": "white",
-                        "transform": {"matrix": fm((0, 0, 0), (0, 1, 0), (0, 0, -1), (2, 2))}},
-                       {"name": "back", "type": "rectangle", "material": "white",
-                        "transform": {"matrix": fm((0, 1, -1), (0, 0, 1), (0, 1, 0), (2, 2))}},
-                       {"name": "panel", "type": "rectangle", "emitter": {"group": "lamp", "strength": 3.0},
-                        "transform": {"matrix": fm((0, 1.9, -0.5), (0, -1, 0), (0, 0, -1), (0.4, 0.4))}}],
-            "views": [{"name": "cam", "origin": (0, 1.6, 2.5), "target": (0, 1.4, -1), "fov": 60,
-                       "resolution": list(res)}], "max_depth": 6}
 
 
 def part_background(args, size, mr, log) -> list:

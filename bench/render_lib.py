@@ -1,7 +1,9 @@
-"""Measurement helpers of ``bench/render.py``: noise statistics of seed pairs, timing, machine info."""
+"""Helpers of ``bench/render.py``: noise statistics of seed pairs, timing, machine info, and the
+benchmark's scene variants (the demo room with a closed cupboard, an open scene, a narrow-band group)."""
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import time
@@ -108,3 +110,35 @@ def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
 
     probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
     mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode, adaptive=True))
+
+
+def with_cupboard(scene_doc: dict, lo: np.ndarray, hi: np.ndarray) -> dict:
+    """The demo room plus a closed cupboard in the back-left corner with a bulb inside (group ``cupboard``)."""
+    c = [float(lo[0]) + 0.35, 0.3, float(lo[2]) + 0.35]
+    doc = json.loads(json.dumps(scene_doc, default=list))
+    doc["materials"]["cupboard_wood"] = {"kind": "diffuse", "reflectance": {"value": 0.45}}
+    doc["shapes"].append({"name": "cupboard", "type": "cube", "material": "cupboard_wood",
+                          "transform": {"scale": [0.25, 0.3, 0.25], "translate": c}})
+    doc["lights"].append({"name": "cupboard_bulb", "type": "point", "group": "cupboard", "position": c,
+                          "strength": 5.0})
+    doc["light_groups"].append({"name": "cupboard", "description": "a bulb inside a closed cupboard"})
+    return doc
+
+
+NARROW_BAND = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780], "values": [0, 0, 1, 1, 0, 0]}
+
+
+def open_scene_doc(res: tuple[int, int]) -> dict:
+    """A floor and a back wall under a ceiling panel, seen from above so that about 2/3 of the
+    pixels see nothing: the case where skipping background pixels could pay."""
+    from renderer_jobs.demo import frame_matrix as fm
+
+    return {"name": "open", "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.7}}},
+            "shapes": [{"name": "floor", "type": "rectangle", "material": "white",
+                        "transform": {"matrix": fm((0, 0, 0), (0, 1, 0), (0, 0, -1), (2, 2))}},
+                       {"name": "back", "type": "rectangle", "material": "white",
+                        "transform": {"matrix": fm((0, 1, -1), (0, 0, 1), (0, 1, 0), (2, 2))}},
+                       {"name": "panel", "type": "rectangle", "emitter": {"group": "lamp", "strength": 3.0},
+                        "transform": {"matrix": fm((0, 1.9, -0.5), (0, -1, 0), (0, 0, -1), (0.4, 0.4))}}],
+            "views": [{"name": "cam", "origin": (0, 1.6, 2.5), "target": (0, 1.4, -1), "fov": 60,
+                       "resolution": list(res)}], "max_depth": 6}
