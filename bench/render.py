@@ -45,7 +45,8 @@ Six parts (``--parts``, all by default), on the seeded demo room (``renderer_job
     python bench/render.py              # default: 160x120, ceiling, spp 16,32,64,128 (a few minutes, 2 cores)
     python bench/render.py --sizes 320x240,960x720 --spp 16,64,256 --groups ceiling,daylight,desk
 
-Prints progress lines, then the JSON document last.
+Prints progress lines, then the JSON document last; the curves are also plotted to ``--plot``
+(default ``bench/out/render_curve.png``).
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ import numpy as np
 sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
 from render_lib import (NARROW_BAND, flat_mask, flat_noise, machine, mean_of, open_scene_doc,  # noqa: E402
-                        ref_noise, slope, timed, warm_up, with_cupboard)
+                        plot_curves, ref_noise, slope, timed, warm_up, with_cupboard)
 
 THESIS_BAND_NOISE = 0.0067
 
@@ -323,6 +324,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--sensor", default="Nikon 5100 (NPL)")
     ap.add_argument("--seed", type=int, default=0, help="demo room seed")
     ap.add_argument("--out", default=None, help="also write the JSON here")
+    ap.add_argument("--plot", default="bench/out/render_curve.png", help="PNG of noise against spp and CPU time")
     args = ap.parse_args(argv)
     args.spp = [int(s) for s in args.spp.split(",")]
     args.groups = [g for g in args.groups.split(",") if g]
@@ -364,6 +366,10 @@ def main(argv: list[str] | None = None) -> dict:
         doc["background"] = part_background(args, sizes[0], mr, log)
     if "narrowband" in parts:
         doc["narrowband"] = part_narrowband(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
+    if rows:
+        png = plot_curves(doc, Path(args.plot))
+        doc["plot"] = str(png) if png else None
+        log(f"  plot: {png}" if png else "  plot skipped: matplotlib missing (pip install -e '.[bench]')")
     doc["total_seconds"] = round(time.perf_counter() - t0, 1)
     text = json.dumps(doc, indent=1)
     if args.out:

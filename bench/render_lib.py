@@ -7,6 +7,7 @@ import json
 import os
 import platform
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -142,3 +143,44 @@ def open_scene_doc(res: tuple[int, int]) -> dict:
                         "transform": {"matrix": fm((0, 1.9, -0.5), (0, -1, 0), (0, 0, -1), (0.4, 0.4))}}],
             "views": [{"name": "cam", "origin": (0, 1.6, 2.5), "target": (0, 1.4, -1), "fov": 60,
                        "resolution": list(res)}], "max_depth": 6}
+
+
+def plot_curves(doc: dict, path: Path) -> Path | None:
+    """Noise against spp and against CPU seconds (log-log), per light group: raw G RMS (solid) and
+    worst-block p99 (dashed) for uniform and adaptive spp, noise-target renders as points at their
+    mean spp. Returns the PNG's path, or None without matplotlib (the ``bench`` extra)."""
+    try:
+        import matplotlib
+    except ImportError:
+        return None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows, targets = doc.get("results", []), doc.get("noise_target", [])
+    groups = sorted({r["group"] for r in rows})
+    fig, axes = plt.subplots(len(groups), 2, figsize=(12, 4.5 * len(groups)), squeeze=False)
+    for gi, group in enumerate(groups):
+        for ax, x in zip(axes[gi], ("spp", "cpu_seconds")):
+            for sampling, colour in (("uniform", "tab:blue"), ("adaptive", "tab:orange")):
+                rs = sorted((r for r in rows if r["group"] == group and r["sampling"] == sampling),
+                            key=lambda r: r["spp"])
+                for stat, style in (("raw_G_rms", "-"), ("raw_G_block_p99", "--")):
+                    ax.plot([r[x] for r in rs], [100 * r[stat] for r in rs], style, marker="o", color=colour,
+                            label=f"{sampling} {stat}")
+            for t in (t for t in targets if t["group"] == group):
+                xv = t["mean_spp"] if x == "spp" else t["cpu_seconds"]
+                for stat, marker in (("raw_G_rms", "*"), ("raw_G_block_p99", "P")):
+                    ax.plot([xv], [100 * t[stat]], marker, color="tab:green", markersize=11,
+                            label=f"target {t['noise_target']:g} {stat}")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel("paths per pixel (mean)" if x == "spp" else "CPU seconds per cube")
+            ax.set_ylabel("relative raw G noise (%)")
+            ax.set_title(f"{group}, {rows[0]['size']}: noise against {'spp' if x == 'spp' else 'CPU time'}")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[gi][0].legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
