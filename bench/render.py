@@ -202,6 +202,7 @@ def compare_adaptive(rows: list) -> list:
                      "flat_band_rel_std_median"):
             d[f"{stat}_ratio"] = round(r[stat] / u[stat], 4)
         d["cpu_ratio"] = round(r["cpu_seconds"] / u["cpu_seconds"], 3)
+        d["paths_ratio"] = round(r.get("spp_per_pixel", {}).get("mean", r["spp"]) / r["spp"], 4)
         d["equal_time_speedup_raw_G_rms"] = round((u["raw_G_rms"] / r["raw_G_rms"]) ** 2 / d["cpu_ratio"], 3)
         d["equal_time_speedup_raw_G_block_p99"] = round(
             (u["raw_G_block_p99"] / r["raw_G_block_p99"]) ** 2 / d["cpu_ratio"], 3)

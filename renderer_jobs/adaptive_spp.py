@@ -12,12 +12,13 @@ samples and its estimate stays unbiased (including a pixel's own pilot biased th
 distributed ``∝ √v`` — the allocation that minimises the mean relative variance Σ v/n over the
 image — with no pixel above ``cap · spp``.
 
-One coupling is left in this fixed-budget mode: the normalisation Σ√v over the image includes the
-24 neighbours whose windows contain ``x``, so ``x``'s samples move its own share by O(24/N) of
-themselves. With a heavy-tailed synthetic tracer on a 6×5 film (N = 30) that biased pixels by
-−0.3 … −0.4 % (30 000 renders); the effect scales as 1/N, i.e. ~1e-5 at 160×120, far below the
-noise. :func:`to_target` (``noise_target``) is a per-pixel rule and has no such coupling
-(measured: |bias| < 0.1 % at z < 1 on the same film).
+The budget's normalisation ``Σ√v`` would still couple a pixel to itself through the 24 neighbours
+whose windows contain it; :func:`allocate` re-estimates those neighbours without the pixel, and
+rounds with a seed-only random number, so no count depends on its own pixel's samples. Measured
+with a heavy-tailed synthetic tracer on a 6×5 film (30 000 renders): a global normalisation biased
+pixels by −0.3 … −0.4 % (z = −5); this one by |bias| < 0.1 % (|z| ≤ 1), as :func:`to_target` (a
+per-pixel rule) does.
+
 ``v`` is quantised to quarter-octaves first (and ``v < 1e-6`` — e.g. a lamp seen directly — counts as
 0), so a cube rendered with another emission spectrum (a relit one) gets the same allocation as the
 flat one, path for path, up to a float-rounding coincidence.
@@ -59,17 +60,25 @@ def _window_sum(a: np.ndarray, window: int) -> np.ndarray:
     return out
 
 
-def relative_variance(s1: np.ndarray, s2: np.ndarray, n: int, window: int = WINDOW) -> np.ndarray:
-    """Per-pixel relative variance per path ``(H, W)`` from per-pixel pilot sums of ``Y`` and ``Y²``
-    ``(H, W)`` over ``n`` paths each, pooled over the neighbourhood without the pixel (module
-    docstring); 0 where the neighbourhood saw no light or a relative spread below ``V_FLOOR``."""
-    s1 = np.asarray(s1, dtype=np.float64)
-    N = n * _window_sum(np.ones_like(s1), window)  # pilot paths of the in-image neighbours
-    N = np.where(N > 0, N, np.inf)                 # a 1×1 film has none: v = 0
-    m = _window_sum(s1, window) / N
-    var = np.maximum(_window_sum(np.asarray(s2, dtype=np.float64), window) / N - m * m, 0.0)
+def _variance(S1: np.ndarray, S2: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Relative variance per path from pooled sums of ``Y``, ``Y²`` over ``N`` paths (elementwise);
+    0 where no path saw light or the relative spread is below ``V_FLOOR``."""
+    N = np.where(N > 0, N, np.inf)
+    m = S1 / N
+    var = np.maximum(S2 / N - m * m, 0.0)
     v = np.where(m > 0, var / np.where(m > 0, m * m, 1.0), 0.0)
     return np.where(v > V_FLOOR, v, 0.0)
+
+
+def relative_variance(s1: np.ndarray, s2: np.ndarray, n: int | np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """Per-pixel relative variance per path ``(H, W)`` from per-pixel pilot sums of ``Y`` and ``Y²``
+    ``(H, W)`` over ``n`` paths (one number, or ``(H, W)``: 0 for pixels that traced none), pooled
+    over the neighbourhood without the pixel (module docstring); 0 where the neighbourhood saw no
+    light or a relative spread below ``V_FLOOR``."""
+    s1 = np.asarray(s1, dtype=np.float64)
+    n_map = np.broadcast_to(np.asarray(n, dtype=np.float64), s1.shape)
+    return _variance(_window_sum(s1, window), _window_sum(np.asarray(s2, dtype=np.float64), window),
+                     _window_sum(np.ascontiguousarray(n_map), window))
 
 
 def quantised(v: np.ndarray) -> np.ndarray:
@@ -98,30 +107,51 @@ def predicted_noise(v: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.sqrt(quantised(v) / np.maximum(n, 1))
 
 
-def allocate(v: np.ndarray, spp: int, pilot: int, cap: float = CAP) -> np.ndarray:
-    """Paths per pixel (same shape as ``v``, int64, each ≥ ``pilot``, ≤ ``cap · spp`` where possible),
-    summing to exactly ``spp · v.size``: the pilot plus the rest ∝ √v (module docstring)."""
-    flat = np.asarray(v, dtype=np.float64).ravel()
-    npix = flat.size
-    extra = (spp - pilot) * npix
-    w = np.sqrt(quantised(flat))
+def _normalisation_without(s1: np.ndarray, s2: np.ndarray, n_map: np.ndarray, w: np.ndarray,
+                           act: np.ndarray) -> np.ndarray:
+    """``S(x)`` ``(H, W)``: ``Σ_y √v(y)`` over the active pixels with every ``v(y)`` whose window
+    contains ``x`` recomputed without ``x``'s pilot — the normalisation as it would be had ``x``
+    traced nothing, so that ``x``'s count cannot depend on ``x``'s own samples."""
+    r = WINDOW // 2
+    h, wd = s1.shape
+    S1, S2, N = (_window_sum(a, WINDOW) for a in (s1, s2, n_map))
+    pads = [np.pad(a, r, mode="constant") for a in (S1, S2, N, w, act.astype(np.float64))]
+    near_old = np.zeros_like(w)
+    near_new = np.zeros_like(w)
+    for dy in range(WINDOW):
+        for dx in range(WINDOW):
+            if dy == r and dx == r:
+                continue
+            S1y, S2y, Ny, wy, ay = (p[dy:dy + h, dx:dx + wd] for p in pads)  # neighbour y = x + (dy−r, dx−r)
+            near_old += wy
+            near_new += np.where(ay > 0, np.sqrt(quantised(_variance(S1y - s1, S2y - s2, Ny - n_map))), 0.0)
+    return w.sum() - near_old + near_new
+
+
+def allocate(s1: np.ndarray, s2: np.ndarray, n: int | np.ndarray, spp: int, pilot: int, cap: float = CAP, *,
+             seed: int = 0, active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Paths per pixel ``(H, W)`` int64, and the relative variance ``v`` ``(H, W)`` it came from,
+    for a fixed budget: from per-pixel pilot sums ``s1``, ``s2`` of ``Y``, ``Y²`` over ``n`` paths
+    (as :func:`relative_variance`), every active pixel gets the pilot plus
+    ``a(x) = extra · √v(x) / S(x)`` of the ``extra = (spp − pilot) · n_active`` remaining paths, at
+    most ``cap · spp``; inactive pixels (``active``, bool ``(H, W)``, default all) get 0.
+
+    ``S(x)`` is ``Σ√v`` with the neighbours that see ``x`` re-estimated without ``x``
+    (:func:`_normalisation_without`), and ``a(x)`` is rounded up or down with a probability drawn
+    from ``seed`` alone, so ``n(x)`` depends on no sample of ``x`` and ``E[n(x)] = pilot + a(x)``.
+    The total is the budget up to that rounding, ``x``'s own pull on ``S`` and the cap's excess
+    (which is not handed on): within 1 % in ``tests/test_render_adaptive.py``."""
+    s1 = np.asarray(s1, dtype=np.float64)
+    s2 = np.asarray(s2, dtype=np.float64)
+    n_map = np.ascontiguousarray(np.broadcast_to(np.asarray(n, dtype=np.float64), s1.shape))
+    v = relative_variance(s1, s2, n_map)
+    act = np.ones(s1.shape, dtype=bool) if active is None else np.asarray(active, dtype=bool)
+    extra = (spp - pilot) * int(act.sum())
+    w = np.where(act, np.sqrt(quantised(v)), 0.0)
     if extra <= 0 or not np.any(w > 0):
-        return np.full(v.shape, spp, dtype=np.int64)
-    n = w / w.sum() * extra
-    limit = max(cap * spp - pilot, 0)
-    for _ in range(16):  # clip at the cap, hand the excess to the others (∝ √v, else evenly)
-        over = n > limit
-        if not over.any():
-            break
-        excess = (n[over] - limit).sum()
-        n[over] = limit
-        free = n < limit
-        if not free.any():
-            break
-        wf = w[free]
-        n[free] += excess * (wf / wf.sum() if wf.sum() > 0 else 1.0 / free.sum())
-    ni = np.floor(n).astype(np.int64)
-    rem = int(extra - ni.sum())
-    if rem > 0:
-        ni[np.argsort(-(n - ni), kind="stable")[:rem]] += 1
-    return (pilot + ni).reshape(v.shape)
+        return np.where(act, spp, 0).astype(np.int64), v
+    norm = _normalisation_without(s1, s2, n_map, w, act)
+    a = np.divide(extra * w, norm, out=np.zeros_like(w), where=(w > 0) & (norm > 0))
+    a = np.minimum(a, max(cap * spp - pilot, 0))
+    u = np.random.default_rng([seed & 0xFFFFFFFF, 0xA110C]).random(s1.shape)
+    return np.where(act, pilot + np.floor(a + u).astype(np.int64), 0), v

@@ -305,9 +305,16 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     spp_map = np.zeros(npix, dtype=np.int64)
     spp_map[active] = settings.spp
     if adaptive and active.size:
-        v = adaptive_spp.relative_variance(ysum.reshape(h, w), ysq.reshape(h, w), pilot).ravel()
-        spp_map[active] = (adaptive_spp.allocate(v[active], settings.spp, pilot) if target is None
-                           else adaptive_spp.to_target(v[active], target, pilot, settings.spp))
+        on = np.zeros(npix, dtype=bool)
+        on[active] = True
+        pilot_map = np.where(on, pilot, 0).reshape(h, w)  # pilot paths per pixel (none in skipped ones)
+        if target is None:
+            n2, v2 = adaptive_spp.allocate(ysum.reshape(h, w), ysq.reshape(h, w), pilot_map, settings.spp, pilot,
+                                           seed=settings.seed, active=on.reshape(h, w))
+            spp_map, v = n2.ravel(), v2.ravel()
+        else:
+            v = adaptive_spp.relative_variance(ysum.reshape(h, w), ysq.reshape(h, w), pilot_map).ravel()
+            spp_map[active] = adaptive_spp.to_target(v[active], target, pilot, settings.spp)
         more = spp_map[active] - pilot
         pix = np.repeat(active, more)
         s = pilot + np.arange(len(pix), dtype=np.int64) - np.repeat(np.cumsum(more) - more, more)

@@ -9,34 +9,66 @@ import pytest
 from renderer_jobs import adaptive_spp
 
 
-def test_allocation_spends_exactly_the_budget_and_follows_sqrt_v():
+def pilot_sums(v: np.ndarray, n: int = 16, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel pilot sums of Y and Y² over n paths whose relative variance per path is ``v``
+    (mean 1 plus noise in the sums): what ``render_cube`` hands to the allocation."""
+    rng = np.random.default_rng(seed)
+    s1 = n * rng.uniform(0.9, 1.1, v.shape)
+    s2 = s1 ** 2 / n * (1 + v)
+    return s1, s2
+
+
+def test_allocation_spends_the_budget_and_follows_sqrt_v():
     rng = np.random.default_rng(0)
-    v = rng.lognormal(0.0, 1.5, size=(30, 40))
-    n = adaptive_spp.allocate(v, spp=64, pilot=16)
-    assert n.shape == v.shape and n.dtype == np.int64
-    assert n.sum() == 64 * v.size and n.min() >= 16 and n.max() <= 8 * 64
+    raw = rng.lognormal(0.0, 1.5, size=(30, 40))
+    s1, s2 = pilot_sums(raw)
+    n, v = adaptive_spp.allocate(s1, s2, 16, spp=64, pilot=16)
+    assert n.shape == v.shape == raw.shape and n.dtype == np.int64
+    assert np.array_equal(v, adaptive_spp.relative_variance(s1, s2, 16))
+    assert abs(n.sum() / (64 * v.size) - 1) < 0.01 and n.min() >= 16 and n.max() <= 8 * 64
     extra = n - 16
-    # ∝ √v (v quantised to quarter octaves: within 2^(1/8) plus rounding)
-    ratio = extra / np.sqrt(v)
+    ratio = extra / np.sqrt(v)     # ∝ √v: within quarter-octave quantisation, rounding and S(x)
     ok = extra > 20
     assert np.percentile(ratio[ok], 95) / np.percentile(ratio[ok], 5) < 1.25
+    on = np.zeros(v.shape, dtype=bool)
+    on[5:20, 10:30] = True
+    na, _ = adaptive_spp.allocate(s1, s2, np.where(on, 16, 0), 64, 16, active=on)
+    assert np.all(na[~on] == 0) and na[on].min() >= 16 and abs(na.sum() / (64 * on.sum()) - 1) < 0.01
+
+
+def test_allocation_does_not_depend_on_a_pixels_own_samples():
+    """Changing only one pixel's pilot sums leaves that pixel's count unchanged (so its estimate
+    stays unbiased), while its neighbours react."""
+    s1, s2 = pilot_sums(np.random.default_rng(3).lognormal(0.0, 1.0, (12, 14)), seed=3)
+    base, _ = adaptive_spp.allocate(s1, s2, 16, 64, 16, seed=4)
+    for y, x in ((0, 0), (5, 6), (11, 3)):
+        s1c, s2c = s1.copy(), s2.copy()
+        s1c[y, x] *= 3
+        s2c[y, x] *= 50
+        n, _ = adaptive_spp.allocate(s1c, s2c, 16, 64, 16, seed=4)
+        assert n[y, x] == base[y, x]
+        assert not np.array_equal(n, base)
 
 
 def test_allocation_degenerate_cases():
-    assert np.all(adaptive_spp.allocate(np.zeros((4, 5)), 64, 16) == 64)  # no light seen: uniform
-    assert np.all(adaptive_spp.allocate(np.ones((4, 5)), 16, 16) == 16)   # no budget beyond the pilot
-    one = np.zeros((10, 10))
-    one[3, 3] = 1.0
-    n = adaptive_spp.allocate(one, 32, 16)                                # all to one pixel, capped
-    assert n.sum() == 32 * 100 and n[3, 3] <= 8 * 32 + 1
+    z = np.zeros((4, 5))
+    assert np.all(adaptive_spp.allocate(z, z, 16, 64, 16)[0] == 64)           # no light seen: uniform
+    s1, s2 = pilot_sums(np.ones((4, 5)))
+    assert np.all(adaptive_spp.allocate(s1, s2, 16, 16, 16)[0] == 16)        # no budget beyond the pilot
+    s1, s2 = np.zeros((10, 10)), np.zeros((10, 10))
+    s1[3, 3], s2[3, 3] = 16.0, 16.0 * 5                                        # one lit pixel: its 24
+    n, v = adaptive_spp.allocate(s1, s2, 16, 32, 16)                          # neighbours share the rest
+    assert np.all(n[v == 0] == 16) and (v > 0).sum() == 24 and n.max() <= 8 * 32
+    assert abs(n.sum() / (32 * 100) - 1) < 0.03   # 24 of 100 pixels share it: x's pull on S is largest here
 
 
-def test_allocation_is_invariant_to_a_tiny_rescaling_of_v():
-    """Relit renders (another emission) see v perturbed by float rounding: same allocation."""
+def test_allocation_is_invariant_to_a_tiny_rescaling_of_the_sums():
+    """Relit renders (another emission) see the sums perturbed by float rounding: same allocation."""
     rng = np.random.default_rng(1)
-    v = rng.lognormal(0.0, 1.0, size=(24, 32))
-    a = adaptive_spp.allocate(v, 64, 16)
-    b = adaptive_spp.allocate(v * (1 + 1e-7 * rng.standard_normal(v.shape)), 64, 16)
+    s1, s2 = pilot_sums(rng.lognormal(0.0, 1.0, size=(24, 32)), seed=1)
+    a, _ = adaptive_spp.allocate(s1, s2, 16, 64, 16)
+    k = 1 + 1e-7 * rng.standard_normal(s1.shape)
+    b, _ = adaptive_spp.allocate(s1 * k, s2 * k * k, 16, 64, 16)
     assert np.array_equal(a, b)
 
 
