@@ -23,8 +23,8 @@ per-pixel rule) does.
 0), so a cube rendered with another emission spectrum (a relit one) gets the same allocation as the
 flat one, path for path, up to a float-rounding coincidence.
 
-Measured (``bench/render.py --parts curve,adaptive``, demo room, equal paths): 0–19 % lower RMS
-relative raw noise and 6–26 % lower noise in the worst 1 % regions, more under harder light; see
+Measured (``bench/render.py --parts curve,adaptive``, demo room, equal paths): 2–18 % lower RMS
+relative raw noise and 10–26 % lower noise in the worst 1 % regions, more under harder light; see
 ``bench/RENDER_PERF.md``.
 """
 
