@@ -17,8 +17,8 @@ import colour
 import numpy as np
 import pytest
 
+from cli_testutil import run_cli
 from independent import band_average_fine, fine_lattice, interp
-from illumix.cli import main
 
 D810 = "rawtoaces-data/data/camera/Nikon_D810_380_780_5.json"
 CAMERA_DIR = "rawtoaces-data/data/camera"
@@ -29,16 +29,6 @@ def illumix(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     cmd = [exe, *args] if exe else [sys.executable, "-m", "illumix.cli", *args]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120,
                           env={**os.environ, **(env or {})})
-
-
-def run_main(capsys, *args: str) -> tuple[int, str, str]:
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line_error(code: int, out: str, err: str) -> str:
@@ -81,7 +71,7 @@ def test_whitepoint_json_for_a_rawtoaces_file_end_to_end(shared_data):
 
 
 def test_whitepoint_human_output(capsys, shared_data):
-    code, out, err = run_main(capsys, "whitepoint", "--sensor", str(shared_data / D810), "--illuminant", "D65")
+    code, out, err = run_cli(capsys, "whitepoint", "--sensor", str(shared_data / D810), "--illuminant", "D65")
     assert code == 0 and err == ""
     ref = _d810_white_point(shared_data / D810, "D65")
     assert f"R/G = {ref[0]:.5f}" in out and f"B/G = {ref[2]:.5f}" in out
@@ -89,7 +79,7 @@ def test_whitepoint_human_output(capsys, shared_data):
 
 def test_whitepoint_by_folder_name(capsys, shared_data, monkeypatch):
     monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(shared_data / CAMERA_DIR))
-    code, out, _ = run_main(capsys, "whitepoint", "--sensor", "Nikon_D810", "--illuminant", "FL11", "--json")
+    code, out, _ = run_cli(capsys, "whitepoint", "--sensor", "Nikon_D810", "--illuminant", "FL11", "--json")
     assert code == 0
     np.testing.assert_allclose(json.loads(out)["rgb"], _d810_white_point(shared_data / D810, "FL11"), rtol=1e-9)
 
@@ -110,7 +100,7 @@ def test_ccm_json_end_to_end(shared_data):
 
 
 def test_ccm_xyz_sensor_is_nearly_exact(capsys):
-    code, out, _ = run_main(capsys, "ccm", "--sensor", "XYZ", "--illuminant", "D65", "--json")
+    code, out, _ = run_cli(capsys, "ccm", "--sensor", "XYZ", "--illuminant", "D65", "--json")
     assert code == 0
     doc = json.loads(out)
     # An exact linear map XYZ → sRGB exists; only the band approximation is left (see test_physics).
@@ -124,7 +114,7 @@ def test_ccm_xyz_sensor_is_nearly_exact(capsys):
 
 
 def test_ccm_options_and_human_output(capsys):
-    code, out, _ = run_main(capsys, "ccm", "--sensor", "XYZ", "--illuminant", "A", "--training",
+    code, out, _ = run_cli(capsys, "ccm", "--sensor", "XYZ", "--illuminant", "A", "--training",
                             "TCS CIE 1995", "--method", "Unconstrained")
     assert code == 0
     assert "fit ΔE00 on TCS CIE 1995" in out
@@ -136,7 +126,7 @@ def test_ccm_options_and_human_output(capsys):
 
 
 def test_illuminants_list_json(capsys):
-    code, out, _ = run_main(capsys, "illuminants", "list", "--json")
+    code, out, _ = run_cli(capsys, "illuminants", "list", "--json")
     assert code == 0
     doc = json.loads(out)
     assert {"A", "D65", "FL11", "LED-B1"} <= set(doc["illuminants"])
@@ -150,7 +140,7 @@ def test_illuminants_list_json(capsys):
 
 def test_sensors_list_json_reports_usability(capsys, shared_data, monkeypatch):
     monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(shared_data / CAMERA_DIR))
-    code, out, _ = run_main(capsys, "sensors", "list", "--json")
+    code, out, _ = run_cli(capsys, "sensors", "list", "--json")
     assert code == 0
     rows = {r["name"]: r for r in json.loads(out)["sensors"]}
     assert rows["XYZ"]["ok"] and rows["Nikon_D810"]["ok"]
@@ -160,7 +150,7 @@ def test_sensors_list_json_reports_usability(capsys, shared_data, monkeypatch):
 
 
 def test_sensors_list_human_output(capsys):
-    code, out, _ = run_main(capsys, "sensors", "list")
+    code, out, _ = run_cli(capsys, "sensors", "list")
     assert code == 0 and "XYZ" in out
 
 
@@ -184,23 +174,23 @@ def test_unknown_illuminant_is_one_line_with_a_suggestion_end_to_end():
     (("whitepoint", "--sensor", "Sigma SDMerill (NPL)", "--illuminant", "A"), "samples cover 400-680 nm"),
 ])
 def test_errors_are_one_line_exit_2(capsys, args, expected):
-    line = assert_one_line_error(*run_main(capsys, *args))
+    line = assert_one_line_error(*run_cli(capsys, *args))
     assert expected in line
 
 
 def test_unknown_sensor_name_suggests_a_folder_camera(capsys, shared_data, monkeypatch):
     monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(shared_data / CAMERA_DIR))
-    line = assert_one_line_error(*run_main(capsys, "whitepoint", "--sensor", "Nikon_D81", "--illuminant", "A"))
+    line = assert_one_line_error(*run_cli(capsys, "whitepoint", "--sensor", "Nikon_D81", "--illuminant", "A"))
     assert "unknown sensor 'Nikon_D81'" in line and "'Nikon_D810'" in line
 
 
 def test_bad_sensor_file_is_one_line(capsys, tmp_path):
     f = tmp_path / "cam.csv"
     f.write_text("wavelength,r,g,b\n380,1,1,1\n500,1,-1,1\n780,1,1,1\n")
-    line = assert_one_line_error(*run_main(capsys, "whitepoint", "--sensor", str(f), "--illuminant", "A"))
+    line = assert_one_line_error(*run_cli(capsys, "whitepoint", "--sensor", str(f), "--illuminant", "A"))
     assert "negative sensitivity at 500 nm" in line
 
 
 @pytest.mark.parametrize("args", [("whitepoint", "--sensor", "XYZ"), ("frobnicate",)])
 def test_usage_errors_are_one_line_exit_2(capsys, args):
-    assert_one_line_error(*run_main(capsys, *args))
+    assert_one_line_error(*run_cli(capsys, *args))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from illumix.cli import main
+from cli_testutil import run_cli
 from renderer_jobs import jobs
 from renderer_jobs.demo import demo_room_dict
 from renderer_jobs.scene_load import scene_from_dict
@@ -17,17 +17,6 @@ from renderer_jobs.scene_load import scene_from_dict
 TINY = ["--resolution", "24x16", "--spp", "16"]
 needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,
                                    reason="rendering needs the optional extra illumix[render]")
-
-
-def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
-    capsys.readouterr()
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as exc:
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def tiny_scene_file(tmp_path, name="mini") -> str:
