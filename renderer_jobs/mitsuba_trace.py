@@ -45,27 +45,28 @@ class Tracer:
         n = len(pix)
         sampler = self.sensor.sampler().clone()
         sampler.seed(dr.opaque(mi.UInt32, seed & 0xFFFFFFFF), n)
-        px = (pix % self.width).astype(np.float32) + jitter[:, 0]
-        py = (pix // self.width).astype(np.float32) + jitter[:, 1]
-        pos = mi.Point2f(mi.Float(_aligned(px / self.width)), mi.Float(_aligned(py / self.height)))
-        ray, _ = self.sensor.sample_ray_differential(0.0, mi.Float(0.5), pos, mi.Point2f(0.5, 0.5))
-        ray.wavelengths = type(ray.wavelengths)(*[mi.Float(_aligned(wavelengths[:, i]))
-                                                  for i in range(4)])
+        ray = self._camera_rays(pix, jitter, wavelengths, differential=True)
         spec, valid, _ = self.integrator.sample(self.ms, sampler, ray, None, True)
         spec = mi.unpolarized_spectrum(spec)
         dr.eval(spec)
         out = np.stack([np.asarray(spec[i], dtype=np.float32) for i in range(4)], axis=1)
         return out
 
-    def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> dict[str, np.ndarray]:
-        """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit ``(n,)``."""
-        mi, dr = self.mi, self.dr
+    def _camera_rays(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, differential: bool):
+        """Camera rays through film position ``pixel + jitter`` carrying the 4 given wavelengths."""
+        mi = self.mi
         px = (pix % self.width).astype(np.float32) + jitter[:, 0]
         py = (pix // self.width).astype(np.float32) + jitter[:, 1]
         pos = mi.Point2f(mi.Float(_aligned(px / self.width)), mi.Float(_aligned(py / self.height)))
-        ray, _ = self.sensor.sample_ray(0.0, mi.Float(0.5), pos, mi.Point2f(0.5, 0.5))
-        ray.wavelengths = type(ray.wavelengths)(*[mi.Float(_aligned(wavelengths[:, i]))
-                                                  for i in range(4)])
+        sample = self.sensor.sample_ray_differential if differential else self.sensor.sample_ray
+        ray, _ = sample(0.0, mi.Float(0.5), pos, mi.Point2f(0.5, 0.5))
+        ray.wavelengths = type(ray.wavelengths)(*[mi.Float(_aligned(wavelengths[:, i])) for i in range(4)])
+        return ray
+
+    def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> dict[str, np.ndarray]:
+        """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit ``(n,)``."""
+        dr = self.dr
+        ray = self._camera_rays(pix, jitter, wavelengths, differential=False)
         si = self.ms.ray_intersect(ray)
         valid = si.is_valid()
         bsdf = si.bsdf(ray)
