@@ -264,7 +264,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     ``group`` may be a list of groups (rendered together, all with their own emission) or ``None``
     for every group at once (the "all-on" render used to check additivity). Returns float32 band
     averages ``(H, W, n_bands)`` of radiance per unit emission spectrum. With ``settings.adaptive``
-    (and spp ≥ twice the pilot) the same total of paths is spread by :mod:`renderer_jobs.adaptive_spp`.
+    (and spp ≥ twice the pilot) the same total of paths (up to rounding) is spread by
+    :mod:`renderer_jobs.adaptive_spp`; with ``settings.noise_target`` each pixel gets what its noise needs.
     """
     groups = group_list(scene, group)
     t0 = time.perf_counter()
