@@ -244,6 +244,7 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     Against the full 63-band schedule (the flat cube × the emission: the same cube in expectation,
     and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
     pixels, two seeds) and CPU time at the same spp."""
+    from renderer_jobs.mitsuba_scene import group_emission
     from renderer_jobs.scene_load import scene_from_dict
 
     doc = json.loads(json.dumps(scene_doc, default=list))
@@ -251,11 +252,11 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     next(g for g in doc["light_groups"] if g["name"] == "ceiling")["emission"] = NARROW_BAND
     narrow_scene = scene_from_dict(doc)
     out = {"group": "ceiling", "emission": "540-560 nm box", "spp": args.skip_spp}
+    e = np.asarray(group_emission(narrow_scene, "ceiling")[0])  # the narrow cube's emission, per band
     for label, scene in (("emitting_bands_only", narrow_scene), ("all_63_bands", flat_scene)):
         warm_up(scene, args.view, "ceiling")
         (pair,), _, cpus = seed_pairs(argparse.Namespace(pairs=1, view=args.view), scene, mr, "ceiling",
                                       spp=args.skip_spp)
-        e = mr.render_cube(narrow_scene, args.view, "ceiling", mr.RenderSettings(spp=16)).emission
         live = mr.live_bands(e)
         a, b = (r.cube[..., live].astype(np.float64) * (1.0 if label == "emitting_bands_only" else e[live])
                 for r in pair)

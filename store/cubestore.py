@@ -58,13 +58,7 @@ class CubeStore:
         path, an empty directory or an fsspec URL with nothing there yet (``open(mode="a")`` creates
         one there). Reads only. Raises :class:`StoreError` for a location no store can be created
         at (a file, a non-empty directory that is not a store) or one that cannot be read."""
-        loc = os.fspath(location)
-        if not loc:
-            raise StoreError("store path is empty; give a directory or an fsspec URL")
-        try:
-            b = Backend(loc, read_only=True, storage_options=storage_options)
-        except (ImportError, ValueError, OSError) as exc:
-            raise StoreError(f"cannot open store {loc}: {exc}") from None
+        b = _backend(location, read_only=True, storage_options=storage_options)
         if node_attrs(b, "") is not None:
             return True
         if b.local and b.root.exists() and (not b.root.is_dir() or any(b.root.iterdir())):
@@ -93,14 +87,8 @@ class CubeStore:
             raise StoreError(f"unknown dtype policy {dtype_policy!r}; use one of {', '.join(POLICIES)}")
         if not 16 <= int(tile) <= 4096:
             raise StoreError(f"tile {tile} px is out of range; use 16-4096 (default {layout.DEFAULT_TILE})")
-        loc = os.fspath(location)
-        if not loc:
-            raise StoreError("store path is empty; give a directory or an fsspec URL")
-        try:
-            b = Backend(loc, read_only=(mode == "r"), storage_options=storage_options,
-                        atomic_rename=atomic_rename)
-        except (ImportError, ValueError, OSError) as exc:
-            raise StoreError(f"cannot open store {loc}: {exc}") from None
+        b = _backend(location, read_only=(mode == "r"), storage_options=storage_options,
+                     atomic_rename=atomic_rename)
         attrs = node_attrs(b, "")
         if attrs is None:
             if mode == "r" or (b.local and b.root.exists() and not b.root.is_dir()):
@@ -403,3 +391,14 @@ class CubeStore:
         from store.registry import Registry
 
         return Registry(self._b, kind, max_bytes=max_bytes)
+
+
+def _backend(location: str | os.PathLike, **kwargs) -> Backend:
+    """The store's file backend at ``location`` (a directory or fsspec URL); one-line errors."""
+    loc = os.fspath(location)
+    if not loc:
+        raise StoreError("store path is empty; give a directory or an fsspec URL")
+    try:
+        return Backend(loc, **kwargs)
+    except (ImportError, ValueError, OSError) as exc:
+        raise StoreError(f"cannot open store {loc}: {exc}") from None
