@@ -89,7 +89,7 @@ def ccm(
     illuminant: str = typer.Option(..., "--illuminant", help=ILLUMINANT_HELP),
     training: str = typer.Option(DEFAULT_TRAINING_SET, "--training",
                                  help="Reflectance training set name or CSV file."),
-    method: str = typer.Option(CCM_METHODS[0], "--method", help=f"One of: {', '.join(CCM_METHODS)}."),
+    method: str = typer.Option(CCM_METHODS.names[0], "--method", help=f"One of: {', '.join(CCM_METHODS.choices())}."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON: matrix, fit_delta_e00_mean."),
 ) -> None:
     """Fit the CCM (white-balanced raw → linear sRGB) of a sensor under an illuminant."""

@@ -13,7 +13,12 @@ set ``S_n``:
   row solved on the constraint's null space by least squares (robust to near-degenerate sensors).
 
 The fit's quality is reported as CIEDE2000 between ``M ρ̂_n`` and ``t_n`` in CIELAB (D65).
-Methods are dispatched by name: ``method="White Preserving"`` (default) or ``"Unconstrained"``.
+Methods are dispatched by name through :data:`CCM_METHODS` (case-insensitive, with aliases):
+``method="White Preserving"`` (default; alias ``"wp"``) or ``"Unconstrained"`` (alias
+``"Least Squares"``).
+
+colour-science is imported on first use, not at import, so the command line can list the methods
+without loading it.
 """
 
 from __future__ import annotations
@@ -21,15 +26,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import lru_cache
 
-import colour
 import numpy as np
 
 from retarget.errors import SpectralError
 from retarget.grid import SpectralGrid, resample
+from retarget.registry import MethodRegistry
 
-CCM_METHODS = ("White Preserving", "Unconstrained")
-_SRGB = colour.RGB_COLOURSPACES["sRGB"]
-_D65_XYZ = colour.xy_to_XYZ(_SRGB.whitepoint)
+# value: whether the fit keeps white (M·1 = 1)
+CCM_METHODS: MethodRegistry[bool] = MethodRegistry(
+    "CCM method", {"White Preserving": True, "Unconstrained": False},
+    aliases={"wp": "White Preserving", "Least Squares": "Unconstrained"})
 
 
 @dataclass(frozen=True)
@@ -48,8 +54,19 @@ class CCMFit:
         return float(np.max(self.delta_e00))
 
 
+@lru_cache(maxsize=1)
+def _srgb():
+    """``(colour module, sRGB colourspace, D65 white XYZ)``, loaded once on first use."""
+    import colour
+
+    space = colour.RGB_COLOURSPACES["sRGB"]
+    return colour, space, colour.xy_to_XYZ(space.whitepoint)
+
+
 @lru_cache(maxsize=16)
 def _cmfs(grid: SpectralGrid) -> np.ndarray:
+    import colour
+
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     return resample(cmfs.wavelengths, cmfs.values, grid) * grid.step
 
@@ -57,20 +74,22 @@ def _cmfs(grid: SpectralGrid) -> np.ndarray:
 def target_linear_srgb(spd: np.ndarray, reflectances: np.ndarray, grid: SpectralGrid,
                        cat: str = "CAT02") -> np.ndarray:
     """Adapted linear-sRGB targets ``(N, 3)`` of reflectances ``(N, n_bands)`` under ``spd``."""
+    colour, srgb, d65 = _srgb()
     cmf = _cmfs(grid)
     white = spd @ cmf
     if white[1] <= 0:
         raise SpectralError("CCM: the illuminant has no luminance on the grid")
     xyz = (reflectances * spd) @ cmf / white[1]
-    xyz_adapted = colour.chromatic_adaptation(xyz, white / white[1], _D65_XYZ,
+    xyz_adapted = colour.chromatic_adaptation(xyz, white / white[1], d65,
                                               method="Von Kries", transform=cat)
-    return colour.XYZ_to_RGB(xyz_adapted, _SRGB, apply_cctf_encoding=False)
+    return colour.XYZ_to_RGB(xyz_adapted, srgb, apply_cctf_encoding=False)
 
 
 def linear_srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
     """CIELAB (D65) of linear sRGB ``(..., 3)``."""
-    xyz = colour.RGB_to_XYZ(rgb, _SRGB, apply_cctf_decoding=False)
-    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint)
+    colour, srgb, _ = _srgb()
+    xyz = colour.RGB_to_XYZ(rgb, srgb, apply_cctf_decoding=False)
+    return colour.XYZ_to_Lab(xyz, srgb.whitepoint)
 
 
 def _solve(a: np.ndarray, t: np.ndarray, white_preserving: bool) -> np.ndarray:
@@ -89,8 +108,7 @@ def fit_ccm(sensor_weights: np.ndarray, spd: np.ndarray, reflectances: np.ndarra
 
     sensor_weights : ``(n_bands, 3)`` ``C_k Δλ``; spd : ``(n_bands,)``; reflectances ``(N, n_bands)``.
     """
-    if method not in CCM_METHODS:
-        raise SpectralError(f"CCM: unknown method {method!r}; choose one of {', '.join(CCM_METHODS)}")
+    white_preserving = CCM_METHODS[method]
     r = np.asarray(reflectances, dtype=np.float64)
     if r.ndim != 2 or r.shape[0] < 3:
         raise SpectralError(f"CCM: need at least 3 training reflectances, got shape {r.shape}")
@@ -100,8 +118,9 @@ def fit_ccm(sensor_weights: np.ndarray, spd: np.ndarray, reflectances: np.ndarra
         raise SpectralError("CCM: the illuminant gives no response in some sensor channel")
     raw = (r * spd) @ cw / raw_white
     target = target_linear_srgb(spd, r, grid, cat)
-    m = _solve(raw, target, method == "White Preserving")
+    m = _solve(raw, target, white_preserving)
     if not np.all(np.isfinite(m)):
         raise SpectralError("CCM: the fit is degenerate (sensor channels are linearly dependent)")
+    colour = _srgb()[0]
     de = colour.delta_E(linear_srgb_to_lab(raw @ m.T), linear_srgb_to_lab(target), method="CIE 2000")
     return CCMFit(matrix=m, delta_e00=np.asarray(de, dtype=np.float64))

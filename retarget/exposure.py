@@ -6,7 +6,8 @@
 percentile), ``H_tgt`` the level the bright end should reach. Values are relative to the white
 level (1.0 = saturation). The gain multiplies the whole image, so the signal stays linear.
 
-Methods (``method=``): ``"constant"`` — fixed ``M_min``; ``"adaptive"`` — ``M_min`` chosen where the
+Methods (``method=``, looked up in :data:`EXPOSURE_METHODS`, case-insensitive): ``"constant"`` (alias
+``"auto"``) — fixed ``M_min``; ``"adaptive"`` — ``M_min`` chosen where the
 saturated-pixel fraction, as a function of ``M_min``, changes fastest (thesis: "highest gradient
 change point"), taking the largest ``M_min`` before that jump.
 """
@@ -18,8 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from retarget.errors import SpectralError
+from retarget.registry import MethodRegistry
 
-EXPOSURE_METHODS = ("constant", "adaptive")
+EXPOSURE_METHODS: MethodRegistry[str] = MethodRegistry(
+    "exposure method", {"constant": "constant", "adaptive": "adaptive"}, aliases={"auto": "constant"})
 
 
 @dataclass(frozen=True)
@@ -49,8 +52,7 @@ def _gain(m_cur: float, h_cur: float, m_min: float, p: AECParams) -> float:
 def aec_gain(image: np.ndarray, method: str = "constant", params: AECParams | None = None) -> float:
     """Exposure gain for ``image`` ``(H, W, C)`` by eq. 4.2. A black image gets gain 1.0."""
     p = params or AECParams()
-    if method not in EXPOSURE_METHODS:
-        raise SpectralError(f"exposure: unknown method {method!r}; use {' or '.join(EXPOSURE_METHODS)}")
+    method = EXPOSURE_METHODS.canonical(method)
     if not (0 < p.m_min <= p.m_max and p.h_target > 0 and 0 < p.h_percentile <= 100):
         raise SpectralError(f"exposure: invalid parameters {p}")
     m_cur, h_cur = _stats(image, p)

@@ -18,8 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from retarget.errors import SpectralError
+from retarget.registry import MethodRegistry
 
-BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+BAYER_PATTERNS: MethodRegistry[str] = MethodRegistry("Bayer pattern", {p: p for p in ("RGGB", "BGGR", "GRBG", "GBRG")})
+
+# Physical ranges. A full well beyond 1e9 e- or a read noise beyond 1e6 e- is no camera, and numpy's
+# Poisson sampler refuses means near 1e19: refuse early with the range instead of failing inside.
+MAX_FULL_WELL = 1e9
+MAX_READ_NOISE = 1e6
 
 
 @dataclass(frozen=True)
@@ -33,9 +39,14 @@ class NoiseModel:
     bit_depth: int = 12
 
     def __post_init__(self) -> None:
-        if not (self.full_well > 0 and self.read_noise >= 0 and 1 <= self.bit_depth <= 16):
-            raise SpectralError(f"noise model: need full_well > 0, read_noise >= 0, 1 <= bit_depth "
-                                f"<= 16; got {self}")
+        for name in ("full_well", "read_noise", "black_level", "white_level"):
+            v = getattr(self, name)
+            if v is not None and not np.isfinite(v):
+                raise SpectralError(f"noise model: {name} must be a finite number, got {v}")
+        if not (0 < self.full_well <= MAX_FULL_WELL and 0 <= self.read_noise <= MAX_READ_NOISE
+                and isinstance(self.bit_depth, int) and 1 <= self.bit_depth <= 16):
+            raise SpectralError(f"noise model: need 0 < full_well <= {MAX_FULL_WELL:g} e-, 0 <= read_noise <= "
+                                f"{MAX_READ_NOISE:g} e-, 1 <= bit_depth <= 16 (an integer); got {self}")
         if not 0 <= self.black_level < self.white:
             raise SpectralError(f"noise model: black level {self.black_level} must be below white "
                                 f"level {self.white}")
@@ -48,12 +59,13 @@ class NoiseModel:
         return float(self.white_level if self.white_level is not None else 2 ** self.bit_depth - 1)
 
 
-# Presets by name: a clean base-ISO sensor, a typical phone sensor, and a high-ISO phone sensor.
-NOISE_PRESETS: dict[str, NoiseModel] = {
+# Presets by name (case-insensitive): a clean base-ISO sensor, a typical phone sensor, and a
+# high-ISO phone sensor.
+NOISE_PRESETS: MethodRegistry[NoiseModel] = MethodRegistry("noise preset", {
     "low": NoiseModel(full_well=20000, read_noise=1.5, black_level=256, bit_depth=14),
     "phone": NoiseModel(full_well=6000, read_noise=2.5, black_level=64, bit_depth=12),
     "high": NoiseModel(full_well=1000, read_noise=4.0, black_level=64, bit_depth=10),
-}
+}, aliases={"base iso": "low", "high iso": "high"})
 
 
 def simulate_raw(raw: np.ndarray, model: NoiseModel, seed: int | None = 0, *, noise: bool = True
@@ -74,9 +86,7 @@ def simulate_raw(raw: np.ndarray, model: NoiseModel, seed: int | None = 0, *, no
 def mosaic(rgb: np.ndarray, pattern: str = "RGGB") -> np.ndarray:
     """Bayer colour-filter-array sampling of ``(H, W, 3)`` → ``(H, W)``; pattern names the 2×2 tile
     read row by row (``RGGB``: R at (0, 0), G at (0, 1) and (1, 0), B at (1, 1))."""
-    pattern = pattern.upper()
-    if pattern not in BAYER_PATTERNS:
-        raise SpectralError(f"bayer: unknown pattern {pattern!r}; use one of {', '.join(BAYER_PATTERNS)}")
+    pattern = BAYER_PATTERNS.canonical(pattern)
     out = np.empty(rgb.shape[:2], dtype=rgb.dtype)
     for (dy, dx), ch in zip(((0, 0), (0, 1), (1, 0), (1, 1)), pattern):
         out[dy::2, dx::2] = rgb[dy::2, dx::2, "RGB".index(ch)]

@@ -168,7 +168,7 @@ def test_unknown_illuminant_is_one_line_with_a_suggestion_end_to_end():
     (("ccm", "--sensor", "XYZ", "--illuminant", "FL13"), "'FL1"),
     (("ccm", "--sensor", "XYZ", "--illuminant", "D65", "--training", "ColorChecker N Ota"),
      "did you mean 'ColorChecker N Ohta'"),
-    (("ccm", "--sensor", "XYZ", "--illuminant", "D65", "--method", "Gray World"), "unknown method"),
+    (("ccm", "--sensor", "XYZ", "--illuminant", "D65", "--method", "Gray World"), "unknown CCM method"),
     (("whitepoint", "--sensor", "XYZ", "--illuminant", "blackbody:100"), "outside 500-50000 K"),
     (("whitepoint", "--sensor", "/no/such/camera.json", "--illuminant", "A"), "does not exist"),
     (("whitepoint", "--sensor", "Sigma SDMerill (NPL)", "--illuminant", "A"), "samples cover 400-680 nm"),

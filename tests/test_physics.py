@@ -412,8 +412,12 @@ def test_ccm_method_dispatch_and_refusals(sensor, palette):
     wp = fit_ccm(sensor.weights(), spd, palette, DEFAULT_GRID)
     assert not np.allclose(un.matrix.sum(axis=1), 1.0, atol=1e-6)  # the constraint does something
     assert un.delta_e00.shape == (24,) and wp.delta_e00_max >= wp.delta_e00_mean
-    with pytest.raises(SpectralError, match="unknown method 'Gray World'"):
+    with pytest.raises(SpectralError, match="unknown CCM method 'Gray World'.*valid: White Preserving"):
         fit_ccm(sensor.weights(), spd, palette, DEFAULT_GRID, method="Gray World")
+    # colour-science style: case, spaces, hyphens and aliases select the same method
+    for spelling in ("white-preserving", "WHITE PRESERVING", "wp"):
+        np.testing.assert_array_equal(fit_ccm(sensor.weights(), spd, palette, DEFAULT_GRID,
+                                              method=spelling).matrix, wp.matrix)
     with pytest.raises(SpectralError, match="at least 3 training reflectances"):
         fit_ccm(sensor.weights(), spd, palette[:2], DEFAULT_GRID)
     blue_below_500 = sensor.weights().copy()
@@ -497,8 +501,9 @@ def test_adaptive_aec_hand_computed_example():
 def test_aec_edge_cases():
     assert aec.aec_gain(np.zeros((4, 4, 3))) == 1.0
     assert aec.aec_gain(np.zeros((4, 4, 3)), method="adaptive") == 1.0
-    with pytest.raises(SpectralError, match="unknown method"):
+    with pytest.raises(SpectralError, match="unknown exposure method 'histogram'.*valid: constant, adaptive, auto"):
         aec.aec_gain(np.ones((2, 2, 3)), method="histogram")
+    assert aec.aec_gain(np.ones((2, 2, 3)), method="Auto") == aec.aec_gain(np.ones((2, 2, 3)))
     with pytest.raises(SpectralError, match="invalid parameters"):
         aec.aec_gain(np.ones((2, 2, 3)), params=aec.AECParams(m_min=0.5, m_max=0.4))
 
@@ -568,7 +573,7 @@ def test_bayer_mosaic_sample_positions(pattern, tile):
         for x in range(w):
             c = "RGB".index(rows[y % 2][x % 2])
             assert out[y, x] == 1000 * c + 10 * y + x
-    with pytest.raises(SpectralError, match="unknown pattern"):
+    with pytest.raises(SpectralError, match="unknown Bayer pattern .RGBG.*valid: RGGB"):
         mosaic(rgb, "RGBG")
 
 
