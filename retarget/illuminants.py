@@ -108,9 +108,16 @@ def illuminant_spd(name: str, grid: SpectralGrid = DEFAULT_GRID,
 def spd_from_samples(wl: np.ndarray, values: np.ndarray, grid: SpectralGrid, what: str = "SPD") -> np.ndarray:
     """Validate, band-average and normalise a tabulated SPD (see module docstring)."""
     values = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(values)):
+        raise SpectralError(f"{what}: contains NaN or inf; an SPD must be finite numbers")
     if np.any(values < 0):
         raise SpectralError(f"{what}: has negative power at {np.asarray(wl)[values < 0][0]:g} nm; "
                             "an SPD must be non-negative")
+    peak = float(values.max()) if values.size else 0.0
+    if peak > 0:
+        # An SPD is relative: scaling it to peak 1 first keeps values like 1e-320 or 1e308 from
+        # under- or overflowing the band integrals and the luminance sum.
+        values = values / peak
     return normalise(resample(wl, values, grid, what=what), grid, what)
 
 

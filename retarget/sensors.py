@@ -72,6 +72,27 @@ def builtin_names() -> list[str]:
     return [XYZ, *colour.MSDS_CAMERA_SENSITIVITIES.keys(), *_dir_sensors()]
 
 
+def availability(grid: SpectralGrid = DEFAULT_GRID) -> tuple[list[str], dict[str, str]]:
+    """``(usable names, {unusable name: why})`` of the built-in sensors on ``grid``.
+
+    Some measured cameras do not cover the whole grid (``Sigma SDMerill (NPL)`` stops at 680 nm);
+    listing them as usable would promise samples that are always refused.
+    """
+    return _availability(grid, tuple(sorted((n, str(p)) for n, p in _dir_sensors().items())))
+
+
+@lru_cache(maxsize=8)
+def _availability(grid: SpectralGrid, files: tuple[tuple[str, str], ...]) -> tuple[list[str], dict[str, str]]:
+    usable, unusable = [], {}
+    for name in builtin_names():
+        try:
+            get_sensor(name, grid)
+            usable.append(name)
+        except SpectralError as exc:
+            unusable[name] = str(exc)
+    return usable, unusable
+
+
 def read_sensor_file(path: str | Path | bytes, *, fmt: str | None = None, what: str | None = None
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Samples ``(wavelengths (n,), rgb (n, 3))`` from a rawtoaces JSON or ``wavelength,r,g,b`` CSV.
@@ -103,6 +124,8 @@ def sensor_from_samples(name: str, wl: np.ndarray, rgb: np.ndarray, grid: Spectr
     if np.any(rgb < 0):
         bad = np.asarray(wl)[np.any(rgb < 0, axis=1)][0]
         raise SpectralError(f"{what}: negative sensitivity at {bad:g} nm; sensitivities must be >= 0")
+    if rgb.size and rgb.max() > 0:
+        rgb = rgb / rgb.max()  # relative curves: keep 1e-320 or 1e308 inputs inside float64's range
     s = resample(wl, rgb, grid, what=what)
     peak = s.max(axis=0)
     if np.any(peak <= 0):

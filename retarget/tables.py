@@ -27,7 +27,11 @@ def read_csv_table(source: str | Path | bytes, *, columns: int | None = None, wh
     number of value columns required (1 for an SPD, 3 for a camera).
     """
     text = _text(source, what)
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    try:
+        # splitlines() also ends a line at a bare CR, which csv.reader would refuse mid-field.
+        rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise SpectralError(f"{what}: not a readable CSV ({exc}); expected rows 'wavelength,value[,value…]'") from None
     rows = [r for r in rows if not r[0].lstrip().startswith("#")]
     if not rows:
         raise SpectralError(f"{what}: empty file; expected rows 'wavelength,value[,value…]'")
@@ -65,27 +69,37 @@ def read_rawtoaces_camera(source: str | Path | bytes, what: str = "camera JSON"
     following ``spectral_data.index.main``.
     """
     text = _text(source, what)
+    expected = "expected spectral_data.data.main mapping wavelength -> [R, G, B]"
     try:
         doc = json.loads(text)
-        sd = doc["spectral_data"]
-        table = sd["data"]["main"]
-        index = [str(c).upper() for c in sd.get("index", {}).get("main", ["R", "G", "B"])]
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise SpectralError(
-            f"{what}: not a rawtoaces camera JSON ({type(exc).__name__}: {exc}); expected "
-            "spectral_data.data.main mapping wavelength -> [R, G, B]"
-        ) from None
-    if sorted(index) != ["B", "G", "R"]:
-        raise SpectralError(f"{what}: channel index {index} is not R, G, B")
+    except json.JSONDecodeError as exc:
+        raise SpectralError(f"{what}: not valid JSON ({exc}); {expected}") from None
+    except RecursionError:
+        raise SpectralError(f"{what}: JSON nested too deeply; {expected}") from None
+    sd = doc.get("spectral_data") if isinstance(doc, dict) else None
+    table = sd.get("data") if isinstance(sd, dict) else None
+    table = table.get("main") if isinstance(table, dict) else None
+    if not isinstance(table, dict) or not table:
+        raise SpectralError(f"{what}: not a rawtoaces camera JSON; {expected}")
+    index = sd.get("index", {"main": ["R", "G", "B"]})
+    index = index.get("main") if isinstance(index, dict) else None
+    if not isinstance(index, list) or sorted(str(c).upper() for c in index) != ["B", "G", "R"]:
+        raise SpectralError(f"{what}: spectral_data.index.main must list the channels R, G, B "
+                            f"(in file order), got {str(index)[:60]}")
+    index = [str(c).upper() for c in index]
+    header = doc.get("header", {})
+    if not isinstance(header, dict):
+        raise SpectralError(f"{what}: 'header' must be an object, got {type(header).__name__}")
+    rows = list(table.values())
+    if not all(isinstance(v, list) and len(v) == 3 for v in rows):
+        raise SpectralError(f"{what}: each wavelength needs exactly 3 values (R, G, B)")
     try:
         wl = np.array([float(k) for k in table], dtype=np.float64)
-        vals = np.array([[float(x) for x in table[k]] for k in table], dtype=np.float64)
+        vals = np.array([[float(x) for x in v] for v in rows], dtype=np.float64)
     except (ValueError, TypeError):
         raise SpectralError(f"{what}: wavelengths and values must be numbers") from None
-    if vals.ndim != 2 or vals.shape[1] != 3:
-        raise SpectralError(f"{what}: each wavelength needs exactly 3 values (R, G, B)")
     order = [index.index(c) for c in "RGB"]
-    return wl, vals[:, order], dict(doc.get("header", {}))
+    return wl, vals[:, order], dict(header)
 
 
 def _text(source: str | Path | bytes, what: str) -> str:

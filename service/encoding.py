@@ -3,16 +3,29 @@
 - ``npz``: one array per output (``raw``/``gain`` ``(H, W, 3)`` float32 — raw ``(H, W)`` when Bayer
   mosaicked — ``ccm`` ``(H, W, 3, 3)``, ``srgb`` ``(H, W, 3)`` float32 in [0, 1], ``weights``
   ``(H, W, G)``, ``mask`` ``(H, W)`` bool) plus ``meta``, the metadata JSON as a 0-d string array.
-- ``png``: one image output. ``srgb`` 8-bit; ``raw`` 16-bit linear with 65535 = the largest value
-  reported in ``X-Illumix-Scale`` (raw DN are written as they are when noise was simulated);
-  ``gain`` 16-bit with value = gain × 4096 (gains up to 16); ``mask`` 8-bit 0/255.
+- ``png``: one image output, 16-bit unless noted, with a fixed, documented scale (never the frame's
+  own peak, which would crush every mid-tone of a frame with a lamp in view):
+
+  - ``raw``: DN = round(65535 · clip(raw, 0, 1)) with raw exposed so that 1.0 is the white level
+    (``exposure=`` as asked, auto exposure — thesis eq. 4.2 — when not given); highlights above the
+    white level clip as a camera's would. With ``noise=`` the sensor model's digital numbers are
+    written as they are (its black and white levels apply).
+  - ``gain``: value = gain × 4096 (gains up to 16); ``mask`` 8-bit 0/255; ``srgb`` 8-bit.
+
+  The scale, black level and white level are in the PNG's ``tEXt`` chunk ``illumix`` (JSON), in
+  the ``X-Illumix-Scale``/``X-Illumix-Black-Level``/``X-Illumix-White-Level`` headers and in the
+  sample's metadata (``meta["encoding"]``).
 - ``tiff``: one image output as float32 (``mask`` as uint8), exact.
+
+Metadata JSON never carries NaN or inf: it is written with ``allow_nan=False``.
 """
 
 from __future__ import annotations
 
 import io
 import json
+import struct
+import zlib
 
 import cv2
 import numpy as np
@@ -21,29 +34,52 @@ import tifffile
 from retarget.errors import SpectralError
 
 GAIN_PNG_SCALE = 4096.0
+RAW_PNG_WHITE = 65535
 IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights")}
 MEDIA = {"npz": "application/octet-stream", "png": "image/png", "tiff": "image/tiff"}
 
 
-def encode_npz(arrays: dict[str, np.ndarray], meta: dict | None) -> bytes:
+def meta_json(meta: dict) -> str:
+    """The metadata as JSON; a non-finite number is a bug upstream, refused here rather than sent."""
+    return json.dumps(meta, allow_nan=False)
+
+
+def encode_npz(arrays: dict[str, np.ndarray], meta: dict | None) -> memoryview:
+    """An uncompressed ``.npz`` of ``arrays`` (+ ``meta``), as a view of one buffer (no copy)."""
     buf = io.BytesIO()
     payload = dict(arrays)
     if meta is not None:
-        payload["meta"] = np.array(json.dumps(meta))
+        payload["meta"] = np.array(meta_json(meta))
     np.savez(buf, **payload)
-    return buf.getvalue()
+    return buf.getbuffer()
 
 
 def image_output(arrays: dict[str, np.ndarray], fmt: str) -> str:
-    names = [k for k in arrays]
+    names = list(arrays)
     if len(names) != 1 or names[0] not in IMAGE_OUTPUTS[fmt]:
         raise SpectralError(f"format={fmt} returns exactly one image output, one of "
                             f"{', '.join(IMAGE_OUTPUTS[fmt])}; ask e.g. outputs=srgb&format={fmt}")
     return names[0]
 
 
-def encode_image(arrays: dict[str, np.ndarray], fmt: str, noisy_raw: bool = False) -> tuple[bytes, dict]:
-    """``(bytes, extra headers)`` for a one-output png/tiff request."""
+def png_scale(name: str, noise) -> dict:
+    """How the PNG of output ``name`` maps to values: ``value = (DN - black_level) / scale``."""
+    if name == "raw":
+        if noise is not None:
+            return {"scale": 1.0, "black_level": float(noise.black_level), "white_level": float(noise.white),
+                    "units": "sensor digital numbers (noise model)"}
+        return {"scale": float(RAW_PNG_WHITE), "black_level": 0.0, "white_level": float(RAW_PNG_WHITE),
+                "units": "linear raw, 1.0 = white level (exposed), clipped above"}
+    if name == "gain":
+        return {"scale": GAIN_PNG_SCALE, "black_level": 0.0, "white_level": 65535.0, "units": "gain"}
+    if name == "mask":
+        return {"scale": 255.0, "black_level": 0.0, "white_level": 255.0, "units": "valid pixel"}
+    return {"scale": 255.0, "black_level": 0.0, "white_level": 255.0, "units": "sRGB, 8-bit"}
+
+
+def encode_image(arrays: dict[str, np.ndarray], fmt: str, noise=None, meta: dict | None = None
+                 ) -> tuple[bytes, dict]:
+    """``(bytes, extra headers)`` for a one-output png/tiff request (see the module docstring)."""
     name = image_output(arrays, fmt)
     a = arrays[name]
     headers = {"X-Illumix-Output": name}
@@ -53,25 +89,37 @@ def encode_image(arrays: dict[str, np.ndarray], fmt: str, noisy_raw: bool = Fals
         rgb = data.ndim == 3 and data.shape[2] == 3
         tifffile.imwrite(buf, data, photometric="rgb" if rgb else "minisblack")
         return buf.getvalue(), headers
+    scale = png_scale(name, noise)
     if name == "srgb":
         img = np.round(np.clip(a, 0, 1) * 255).astype(np.uint8)
     elif name == "mask":
         img = a.astype(np.uint8) * 255
     elif name == "gain":
         img = np.round(np.clip(a * GAIN_PNG_SCALE, 0, 65535)).astype(np.uint16)
-        headers["X-Illumix-Scale"] = str(GAIN_PNG_SCALE)
+    elif noise is not None:
+        img = np.clip(np.round(a), 0, 65535).astype(np.uint16)
     else:
-        if noisy_raw:
-            img = np.clip(a, 0, 65535).astype(np.uint16)
-            headers["X-Illumix-Scale"] = "1"
-        else:
-            peak = float(a.max()) if a.size else 0.0
-            scale = 65535.0 / peak if peak > 0 else 1.0
-            img = np.round(a * scale).astype(np.uint16)
-            headers["X-Illumix-Scale"] = repr(peak)
+        img = np.round(np.clip(a, 0.0, 1.0) * RAW_PNG_WHITE).astype(np.uint16)
+    headers.update({"X-Illumix-Scale": repr(scale["scale"]), "X-Illumix-Black-Level": repr(scale["black_level"]),
+                    "X-Illumix-White-Level": repr(scale["white_level"])})
     if img.ndim == 3:
         img = img[..., ::-1]  # OpenCV writes BGR
     ok, png = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:
         raise SpectralError("could not encode PNG")
-    return png.tobytes(), headers
+    text = {"output": name, **scale}
+    if meta is not None:
+        text.update({k: meta[k] for k in ("scene", "view", "seed", "exposure_gain") if k in meta})
+    return add_png_text(png.tobytes(), "illumix", meta_json(text)), headers
+
+
+def add_png_text(png: bytes, key: str, text: str) -> bytes:
+    """``png`` with a ``tEXt`` chunk ``key``/``text`` (Latin-1) inserted after the header chunk.
+
+    OpenCV writes 16-bit PNGs but no text chunks; a chunk is length + type + data + CRC-32 (PNG
+    spec §5.3), placed right after IHDR so every reader sees it before the image data.
+    """
+    data = key.encode("latin-1") + b"\0" + text.encode("latin-1", "replace")
+    chunk = struct.pack(">I", len(data)) + b"tEXt" + data + struct.pack(">I", zlib.crc32(b"tEXt" + data))
+    ihdr_end = 8 + 4 + 4 + 13 + 4  # signature, IHDR length/type/data/CRC
+    return png[:ihdr_end] + chunk + png[ihdr_end:]

@@ -1,15 +1,20 @@
-"""Compose one sample from the store: resolve the request, read (cached) cubes, run the physics.
+"""Compose one sample from the store: resolve the request, price it, read (cached) cubes, run the physics.
 
-``build_sample(spec, ctx)`` → ``(arrays, meta)``: arrays named as in :data:`retarget.compose.OUTPUTS`,
-meta a JSON-able dict (scene/view/groups, illuminants with their sensor white points, intensities,
-CCMs, exposure gain, seeds, store and renderer provenance, timings).
+Three steps, so a request is refused or queued *before* it costs anything:
+
+- :func:`plan` resolves names, window and lighting from metadata only (no cube is read);
+- :func:`price` bounds the bytes it will allocate (:mod:`service.budget`);
+- :func:`build` reads the cubes and composes → ``(arrays, meta)``: arrays named as in
+  :data:`retarget.compose.OUTPUTS`, meta a JSON-able dict (scene/view/groups, illuminants with their
+  sensor white points, intensities, CCMs, exposure gain, seeds, store and renderer provenance,
+  timings).
 """
 
 from __future__ import annotations
 
 import random
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -17,22 +22,42 @@ import numpy as np
 from retarget.compose import compose
 from retarget.errors import SpectralError, unknown_name
 from retarget.sensor_model import mosaic, simulate_raw
-from service.cache import ArrayCache
+from service import budget
+from service.errors import NotFound, fail
 from service.library import Library
 from service.limits import Limits
 from service.spec import SampleSpec
-
-
-class NotFound(SpectralError):
-    """A scene or view that is not in the store (HTTP 404)."""
+from store.lru import LRUCache
 
 
 @dataclass
 class Context:
     store: object
     library: Library
-    cache: ArrayCache
+    cache: LRUCache
     limits: Limits
+    memory: budget.MemoryBudget
+
+
+@dataclass
+class Plan:
+    """A resolved request: everything but the pixels."""
+
+    spec: SampleSpec
+    seed: int
+    scene: str
+    view: str
+    groups: list[str]
+    metas: list = field(repr=False)
+    names: list[str | None] = field(default_factory=list)
+    intensities: list[float] = field(default_factory=list)
+    window: tuple[int, int, int, int] = (0, 0, 0, 0)
+    full: tuple[int, int] = (0, 0)
+    out_size: tuple[int, int] = (0, 0)
+
+    def reads(self) -> list[bool]:
+        """Per group: whether its cube window is read (lit and not recorded empty)."""
+        return [a > 0 and not m.empty for a, m in zip(self.intensities, self.metas)]
 
 
 def _pick(kind: str, name: str | None, options: list[str], rng: random.Random) -> str:
@@ -41,8 +66,7 @@ def _pick(kind: str, name: str | None, options: list[str], rng: random.Random) -
     if name is None:
         return rng.choice(sorted(options))
     if name not in options:
-        err = unknown_name(kind, name, options)
-        raise NotFound(str(err))
+        raise NotFound(str(unknown_name(kind, name, options)))
     return name
 
 
@@ -77,8 +101,6 @@ def _lighting(spec: SampleSpec, groups: list[str], rendered_as: list[str]) -> tu
             intens = full
         if len(intens) != len(names):
             raise SpectralError(f"intensities= needs one value per lit group ({len(lit)}), got {len(intens)}")
-    if any(not (np.isfinite(a) and 0 <= a <= 1e9) for a in intens):
-        raise SpectralError("intensities must be finite numbers between 0 and 1e9")
     return names, [float(a) for a in intens]
 
 
@@ -88,38 +110,13 @@ def _window(spec: SampleSpec, width: int, height: int, limits: Limits) -> tuple[
         raise SpectralError(f"crop {x},{y},{w},{h} exceeds the view's {width}x{height} frame")
     out_w, out_h = spec.size if spec.size else (w, h)
     if max(out_w, out_h) > limits.max_side or out_w * out_h > limits.max_pixels:
-        raise SpectralError(f"output {out_w}x{out_h} exceeds the limits (side <= {limits.max_side}, "
-                            f"pixels <= {limits.max_pixels}); crop or resize smaller")
+        raise fail(413, f"output {out_w}x{out_h} exceeds the limits (side <= {limits.max_side}, "
+                        f"pixels <= {limits.max_pixels}); crop or resize smaller", code="too_large")
     return (x, y, w, h), (out_w, out_h)
 
 
-def _resizer(out_w: int, out_h: int, w: int, h: int):
-    if (out_w, out_h) == (w, h):
-        return None
-    interp = cv2.INTER_AREA if out_w <= w and out_h <= h else cv2.INTER_LINEAR
-
-    def resize(group_raw: np.ndarray) -> np.ndarray:
-        return np.stack([cv2.resize(g, (out_w, out_h), interpolation=interp) for g in group_raw])
-
-    return resize
-
-
-def read_cube(ctx: Context, scene: str, view: str, group: str, window: tuple[int, int, int, int],
-              full: tuple[int, int]) -> np.ndarray:
-    """A crop of a cube through the LRU cache (a cached full frame serves any crop)."""
-    x, y, w, h = window
-    full_key = (scene, view, group, None)
-    cached = ctx.cache.peek(full_key)
-    if cached is not None:
-        return cached[y:y + h, x:x + w]
-    if (w, h) == full:
-        return ctx.cache.get(full_key, lambda: ctx.store.read_cube(scene, view, group))
-    return ctx.cache.get((scene, view, group, window),
-                         lambda: ctx.store.read_cube(scene, view, group, crop=window))
-
-
-def build_sample(spec: SampleSpec, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
-    t0 = time.perf_counter()
+def plan(spec: SampleSpec, ctx: Context) -> Plan:
+    """Resolve a request from metadata (no cube read). Raises 404/413/422 errors."""
     seed = spec.seed if spec.seed is not None else random.SystemRandom().randrange(2**31)
     rng = random.Random(seed)
     store = ctx.store
@@ -133,56 +130,118 @@ def build_sample(spec: SampleSpec, ctx: Context) -> tuple[dict[str, np.ndarray],
     if len([n for n in names if n]) > ctx.limits.max_groups:
         raise SpectralError(f"at most {ctx.limits.max_groups} illuminants per request")
     vmeta = store.view_meta(scene, view)
-    window, (out_w, out_h) = _window(spec, vmeta.width, vmeta.height, ctx.limits)
-    grid = metas[0].spectral_grid
-    if any(m.spectral_grid != grid for m in metas):
+    window, out_size = _window(spec, vmeta.width, vmeta.height, ctx.limits)
+    if any(m.spectral_grid != metas[0].spectral_grid for m in metas):
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
-    sensor, skey = ctx.library.sensor(spec.sensor, grid)
-    spds, ikeys = [], []
-    for n in names:
-        spd, key = ctx.library.illuminant(n or "E", grid)
-        spds.append(spd)
-        ikeys.append(key)
-    spds_arr = np.stack(spds)
-    ccms, fit_de = zip(*(ctx.library.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
+    return Plan(spec, seed, scene, view, groups, metas, names, intensities, window,
+                (vmeta.width, vmeta.height), out_size)
+
+
+def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
+    """Upper bound of the bytes :func:`build` (and encoding, when ``encoded``) will allocate.
+
+    A window the cache will hold is the cache's memory (bounded by ``--cache-mb``), not the request's.
+    """
+    w, h = p.window[2:]
+    bands = p.metas[0].n_bands
+    copies = to_read = 0
+    for g, lit in zip(p.groups, p.reads()):
+        if not lit:
+            continue
+        if (p.scene, p.view, g, None) in ctx.cache:
+            copies += (w, h) != p.full  # a crop of the cached cube is copied to be contiguous
+        elif (p.scene, p.view, g, p.window) not in ctx.cache:
+            to_read += 1
+            copies += w * h * bands * 4 > ctx.cache.max_cost
+    return budget.sample_bytes(window=(w, h), out_size=p.out_size, bands=bands, window_copies=copies,
+                               groups_to_read=to_read, n_groups=len(p.groups), outputs=p.spec.array_outputs(),
+                               noise=p.spec.noise is not None, encoded=encoded)
+
+
+def _resizer(out_w: int, out_h: int, w: int, h: int):
+    if (out_w, out_h) == (w, h):
+        return None
+    interp = cv2.INTER_AREA if out_w <= w and out_h <= h else cv2.INTER_LINEAR
+
+    def resize(group_raw: np.ndarray) -> np.ndarray:
+        return np.stack([cv2.resize(g, (out_w, out_h), interpolation=interp) for g in group_raw])
+
+    return resize
+
+
+def read_cube(ctx: Context, p: Plan, group: str) -> np.ndarray:
+    """A crop of a cube through the LRU cache (a cached full frame serves any crop)."""
+    x, y, w, h = p.window
+    full_key = (p.scene, p.view, group, None)
+    cached = ctx.cache.peek(full_key)
+    if cached is not None:
+        return cached[y:y + h, x:x + w]
+    if (w, h) == p.full:
+        return ctx.cache.get(full_key, lambda: ctx.store.read_cube(p.scene, p.view, group))
+    return ctx.cache.get((p.scene, p.view, group, p.window),
+                         lambda: ctx.store.read_cube(p.scene, p.view, group, crop=p.window))
+
+
+def exposure_for(spec: SampleSpec) -> float | str | None:
+    """The exposure to apply: as asked, else auto for a PNG of raw (its 16 bits map 1.0 = white level)."""
+    value = spec.exposure_value()
+    if value is None and spec.format == "png" and "raw" in spec.outputs:
+        return "constant"
+    return value
+
+
+def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
+    """Read and compose the planned sample."""
+    t0 = time.perf_counter()
+    spec, lib = p.spec, ctx.library
+    grid = p.metas[0].spectral_grid
+    sensor, skey = lib.sensor(spec.sensor, grid)
+    spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
+    ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
     t_setup = time.perf_counter()
-    x, y, w, h = window
+    x, y, w, h = p.window
     zero = np.broadcast_to(np.float32(0), (h, w, grid.n_bands))
-    cubes = []
-    for g, m, a in zip(groups, metas, intensities):
-        skip = a == 0 or m.empty
-        cubes.append(zero if skip else read_cube(ctx, scene, view, g, window, (vmeta.width, vmeta.height)))
-    emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in metas])
+    cubes = [read_cube(ctx, p, g) if r else zero for g, r in zip(p.groups, p.reads())]
+    emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
     t_read = time.perf_counter()
     want = set(spec.array_outputs())
-    comp = compose(cubes, emissions=emissions, illuminants=spds_arr, intensities=np.array(intensities),
+    exposure = exposure_for(spec)
+    comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
                    sensor=sensor, ccms=np.stack(ccms), outputs=want | ({"raw"} if spec.noise else set()),
-                   exposure=spec.exposure_value(), group_names=groups,
-                   resize=_resizer(out_w, out_h, w, h))
-    arrays = comp.outputs()
+                   exposure=exposure, group_names=p.groups, resize=_resizer(*p.out_size, w, h))
+    del cubes
+    arrays = {k: v for k, v in comp.outputs().items() if k in want}
+    for k, a in arrays.items():
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise SpectralError(f"the composed {k} overflows float32 (intensities × exposure × the stored "
+                                "radiance is too large); lower intensities= or exposure=")
     noise = spec.noise_model()
     if noise is not None and "raw" in want:
-        arrays["raw"] = simulate_raw(arrays["raw"], noise, seed=seed)
+        arrays["raw"] = simulate_raw(arrays["raw"], noise, seed=p.seed)
     if spec.bayer and "raw" in want:
         arrays["raw"] = mosaic(arrays["raw"], spec.bayer)
-    arrays = {k: v for k, v in arrays.items() if k in want}
     t_compose = time.perf_counter()
     meta = {
-        "scene": scene, "view": view, "groups": groups, "seed": seed,
+        "scene": p.scene, "view": p.view, "groups": p.groups, "seed": p.seed,
         "sensor": {"name": sensor.name, "source": sensor.source},
         "illuminants": [
             {"group": g, "illuminant": n, "intensity": a,
              "white_point_rgb": [float(v) for v in wp],
              "ccm": np.asarray(c).round(8).tolist(), "ccm_fit_delta_e00_mean": float(de)}
-            for g, n, a, wp, c, de in zip(groups, names, intensities, comp.white_points, ccms, fit_de)
+            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms, fit_de)
         ],
-        "crop": list(window), "size": [out_w, out_h], "exposure_gain": comp.exposure_gain,
-        "noise": None if noise is None else noise.__dict__ | {"seed": seed}, "bayer": spec.bayer,
+        "crop": list(p.window), "size": list(p.out_size), "exposure_gain": comp.exposure_gain,
+        "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": spec.bayer,
         "grid": grid.to_dict(),
         "provenance": [{"group": g, "emission": m.emission_name, "renderer": m.renderer.model_dump(),
                         "spp": m.spp, "seed": m.seed, "scene_hash": m.scene_hash, "created": m.created,
-                        "empty": m.empty} for g, m in zip(groups, metas)],
+                        "empty": m.empty} for g, m in zip(p.groups, p.metas)],
         "timings_ms": {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
                        "compose": 1e3 * (t_compose - t_read)},
     }
     return arrays, meta
+
+
+def build_sample(spec: SampleSpec, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
+    """:func:`plan` then :func:`build`, without admission (for in-process use and benchmarks)."""
+    return build(plan(spec, ctx), ctx)

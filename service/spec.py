@@ -1,145 +1,224 @@
 """The sample request: one pydantic model for GET /sample query parameters and POST /batch items.
 
-Parsing errors are :class:`retarget.errors.SpectralError` with a message saying what to fix; the
-app turns them into HTTP 422.
+The wire form is the query-string form (``pair=A,D65``, ``crop=0,0,256,256``, ``size=256x192``);
+JSON batch items may also give lists (``"pair": ["A", "D65"]``, ``"size": [256, 192]``). Unknown
+parameters are refused (``extra="forbid"``), so a typo such as ``crops=`` is a 422 naming ``crop``,
+never silently ignored. Field validation errors become 422 answers through
+:mod:`service.errors`; derived values that need the library (noise, exposure) raise
+:class:`retarget.errors.SpectralError`, also a 422.
 """
 
 from __future__ import annotations
 
 import re
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, WithJsonSchema, field_validator
 
 from retarget.compose import OUTPUTS
-from retarget.errors import SpectralError
+from retarget.errors import SpectralError, UnknownName
+from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 
 FORMATS = ("npz", "png", "tiff")
-EXPOSURE_WORDS = {"auto": "constant", "constant": "constant", "adaptive": "adaptive"}
+ALL_OUTPUTS = (*OUTPUTS, "meta")
+MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 
 
-def _split(value: str | list | None) -> list[str] | None:
-    if value is None or isinstance(value, list):
-        return value
-    items = [v.strip() for v in value.split(",")]
-    return [v for v in items if v]
+def _items(v: Any, what: str) -> list[str] | None:
+    """Comma-separated text, or a list of items (each possibly comma-separated) → stripped items."""
+    if v is None:
+        return None
+    parts = v if isinstance(v, list) else [v]
+    out = []
+    for p in parts:
+        if isinstance(p, bool) or not isinstance(p, (str, int, float)):
+            raise ValueError(f"{what} must be comma-separated text, e.g. {_EXAMPLES[what]}")
+        out.extend(x.strip() for x in str(p).split(","))
+    return [x for x in out if x]
+
+
+def _names(what: str):
+    def check(v: Any) -> list[str] | None:
+        items = _items(v, what)
+        if items is not None and any(len(x) > MAX_NAME for x in items):
+            raise ValueError(f"{what}: names are at most {MAX_NAME} characters")
+        return items
+    return check
+
+
+def _floats(v: Any) -> list[float] | None:
+    items = _items(v, "intensities")
+    if items is None:
+        return None
+    try:
+        vals = [float(x) for x in items]
+    except ValueError:
+        raise ValueError("intensities must be comma-separated numbers, e.g. 1,0.5") from None
+    if not all(np.isfinite(x) and 0 <= x <= 1e9 for x in vals):
+        raise ValueError("intensities must be finite numbers between 0 and 1e9")
+    return vals
+
+
+def _ints(what: str, n: int, example: str):
+    def check(v: Any) -> list[int] | None:
+        if v is None:
+            return None
+        if what == "size" and isinstance(v, (str, list)) and len(v) == 1 and isinstance(v[0], str):
+            v = v[0]  # one query value
+        if what == "size" and isinstance(v, str):
+            m = re.fullmatch(r"\s*(\d{1,6})\s*[xX]\s*(\d{1,6})\s*", v)
+            if not m:
+                raise ValueError(f"size must be WxH in pixels, e.g. {example}")
+            vals = [int(m[1]), int(m[2])]
+        else:
+            items = v if isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in v) \
+                else _items(v, what)
+            try:
+                vals = [int(x) if isinstance(x, int) else int(str(x), 10) for x in items]
+            except ValueError:
+                raise ValueError(f"{what} must be {n} integers, e.g. {example}") from None
+        if len(vals) != n or any(x < 0 or x > 10**6 for x in vals):
+            raise ValueError(f"{what} must be {n} integers between 0 and 1e6, e.g. {example}")
+        if what == "size" and 0 in vals:
+            raise ValueError(f"size must be at least 1x1 pixels, e.g. {example}")
+        if what == "crop" and (vals[2] == 0 or vals[3] == 0):
+            raise ValueError(f"crop must be x,y,w,h with w,h > 0, e.g. {example}")
+        return vals
+    return check
+
+
+def _seed(v: Any) -> Any:
+    # Lax int parsing would take 1.0, "1.0" and True as seed 1; a seed is an exact integer.
+    if v is None or (isinstance(v, int) and not isinstance(v, bool)):
+        return v
+    if isinstance(v, str) and re.fullmatch(r"\d{1,19}", v.strip()):
+        return int(v)
+    raise ValueError(f"seed must be a non-negative integer, e.g. 7; got {v!r}")
+
+
+_EXAMPLES = {"pair": "A,D65", "illuminants": "FL11,D50", "outputs": "raw,gain,meta",
+             "intensities": "1,0.5", "crop": "0,0,256,256", "size": "256x192"}
+
+
+def _text(description: str, example: str, pattern: str | None = None) -> WithJsonSchema:
+    schema: dict[str, Any] = {"type": "string", "description": description, "examples": [example]}
+    if pattern:
+        schema["pattern"] = pattern
+    return WithJsonSchema(schema)
+
+
+Outputs = Annotated[list[str], BeforeValidator(_names("outputs")),
+                    _text(f"comma-separated subset of {', '.join(ALL_OUTPUTS)} (default: all)", "raw,gain,meta")]
 
 
 class SampleSpec(BaseModel):
     """What one sample is: which view, lit how, seen by which sensor, cut and encoded how."""
 
     model_config = ConfigDict(extra="forbid")  # a typo (crops=) must be a 422, not ignored
-    scene: str | None = None
-    view: str | None = None
-    seed: int | None = Field(None, ge=0, le=2**63 - 1)
-    sensor: str = "XYZ"
-    pair: list[str] | None = None
-    illuminants: list[str] | None = None
-    intensities: list[float] | None = None
-    crop: list[int] | None = None
-    size: list[int] | None = None
-    outputs: list[str] = Field(default_factory=lambda: list(OUTPUTS) + ["meta"])
-    format: str = "npz"
-    exposure: str | None = None
-    noise: str | None = None
-    bayer: str | None = None
 
-    @field_validator("pair", "illuminants", "outputs", mode="before")
-    @classmethod
-    def _names(cls, v):
-        return _split(v)
-
-    @field_validator("intensities", mode="before")
-    @classmethod
-    def _floats(cls, v):
-        items = _split(v)
-        if items is None:
-            return None
-        try:
-            return [float(x) for x in items]
-        except (TypeError, ValueError):
-            raise ValueError("intensities must be comma-separated numbers, e.g. 1,0.5") from None
-
-    @field_validator("crop", mode="before")
-    @classmethod
-    def _crop(cls, v):
-        items = _split(v)
-        if items is None:
-            return None
-        try:
-            vals = [int(x) for x in items]
-        except (TypeError, ValueError):
-            raise ValueError("crop must be x,y,w,h in integer pixels, e.g. 0,0,256,256") from None
-        if len(vals) != 4 or vals[0] < 0 or vals[1] < 0 or vals[2] <= 0 or vals[3] <= 0:
-            raise ValueError("crop must be x,y,w,h with x,y >= 0 and w,h > 0")
-        return vals
-
-    @field_validator("size", mode="before")
-    @classmethod
-    def _size(cls, v):
-        if v is None or isinstance(v, list):
-            return v
-        m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(v))
-        if not m or int(m[1]) == 0 or int(m[2]) == 0:
-            raise ValueError("size must be WxH in pixels, e.g. 256x192")
-        return [int(m[1]), int(m[2])]
-
-    @field_validator("format")
-    @classmethod
-    def _format(cls, v):
-        if v not in FORMATS:
-            raise ValueError(f"format must be one of {', '.join(FORMATS)}")
-        return v
-
-    @field_validator("bayer")
-    @classmethod
-    def _bayer(cls, v):
-        if v is not None and v.upper() not in BAYER_PATTERNS:
-            raise ValueError(f"bayer must be one of {', '.join(BAYER_PATTERNS)}")
-        return v.upper() if v else None
+    scene: str | None = Field(None, max_length=MAX_NAME, description="scene name (random when omitted)")
+    view: str | None = Field(None, max_length=MAX_NAME, description="view name (random when omitted)")
+    seed: Annotated[int | None, BeforeValidator(_seed)] = Field(
+        None, ge=0, le=2**63 - 1, description="seed for the random choices and the noise (random when omitted)")
+    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name")
+    pair: Annotated[list[str] | None, BeforeValidator(_names("pair")),
+                    _text("two illuminants for the view's first two light groups", "A,D65")] = None
+    illuminants: Annotated[list[str] | None, BeforeValidator(_names("illuminants")),
+                           _text("one illuminant per light group", "FL11,D50")] = None
+    intensities: Annotated[list[float] | None, BeforeValidator(_floats),
+                           _text("one intensity per lit group (default 1), 0..1e9", "1,0.5")] = None
+    crop: Annotated[list[int] | None, BeforeValidator(_ints("crop", 4, "0,0,256,256")),
+                    _text("x,y,w,h in pixels", "0,0,256,256", r"^\s*\d+\s*(,\s*\d+\s*){3}$")] = None
+    size: Annotated[list[int] | None, BeforeValidator(_ints("size", 2, "256x192")),
+                    _text("WxH output size in pixels (area resampling)", "256x192", r"^\s*\d+\s*[xX]\s*\d+\s*$")] = None
+    outputs: Outputs = Field(default_factory=lambda: list(ALL_OUTPUTS))
+    format: Literal["npz", "png", "tiff"] = Field("npz", description="npz (all outputs), or png/tiff (one image output)")
+    exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
+                                 pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
+    noise: str | None = Field(None, max_length=512, description="low, phone, high or key:value;… "
+                                                                "(full_well, read_noise, black_level, white_level, bit_depth)")
+    bayer: str | None = Field(None, description="RGGB, BGGR, GRBG or GBRG (any case)",
+                              pattern=r"^([Rr][Gg][Gg][Bb]|[Bb][Gg][Gg][Rr]|[Gg][Rr][Bb][Gg]|[Gg][Bb][Rr][Gg])$")
 
     @field_validator("outputs")
     @classmethod
-    def _outputs(cls, v):
-        allowed = set(OUTPUTS) | {"meta"}
-        bad = [o for o in v if o not in allowed]
+    def _outputs(cls, v: list[str]) -> list[str]:
+        bad = [o for o in v if o not in ALL_OUTPUTS]
         if bad or not v:
-            raise ValueError(f"outputs: unknown {bad}; choose from {', '.join(sorted(allowed))}")
+            raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
+        return list(dict.fromkeys(v))
+
+    @field_validator("bayer")
+    @classmethod
+    def _bayer(cls, v: str | None) -> str | None:
+        return None if v is None else _known(BAYER_PATTERNS, v)
+
+    @field_validator("exposure")
+    @classmethod
+    def _exposure(cls, v: str | None) -> str | None:
+        if v is None or v in EXPOSURE_METHODS:
+            return v
+        try:
+            gain = float(v)
+        except ValueError:
+            raise ValueError(f"exposure must be {', '.join(EXPOSURE_METHODS.choices())} or a positive number") from None
+        if not (0 < gain < 1e12):
+            raise ValueError("exposure must be a positive number below 1e12")
+        return v
+
+    @field_validator("noise")
+    @classmethod
+    def _noise(cls, v: str | None) -> str | None:
+        if v is not None:
+            parse_noise(v)
         return v
 
     # -- derived -----------------------------------------------------------------------------
     def exposure_value(self) -> float | str | None:
+        """``None`` (relative units), an AEC method name or a gain. Noise needs raw on the
+        white-level scale, so it implies auto exposure."""
         if self.exposure is None:
-            return "constant" if self.noise else None  # noise needs raw on the white-level scale
-        word = EXPOSURE_WORDS.get(self.exposure.lower())
-        if word:
-            return word
-        try:
-            v = float(self.exposure)
-        except ValueError:
-            raise SpectralError("exposure must be auto, adaptive or a positive number") from None
-        if not (v > 0 and v < 1e12):
-            raise SpectralError("exposure must be a positive number below 1e12")
-        return v
+            return "constant" if self.noise else None
+        if self.exposure in EXPOSURE_METHODS:
+            return EXPOSURE_METHODS.canonical(self.exposure)
+        return float(self.exposure)
 
     def noise_model(self) -> NoiseModel | None:
-        """``noise=`` is a preset name (low, phone, high) or ``key:value`` pairs, e.g.
-        ``full_well:8000;read_noise:3;bit_depth:12`` (separated by ``;`` or ``|``)."""
-        if not self.noise or self.noise == "none":
-            return None
-        if self.noise in NOISE_PRESETS:
-            return NOISE_PRESETS[self.noise]
-        fields = {}
-        for part in re.split(r"[;|]", self.noise):
-            key, sep, val = part.partition(":")
-            if not sep or key.strip() not in NoiseModel.__dataclass_fields__:
-                raise SpectralError(f"noise: {part!r} is not a preset ({', '.join(NOISE_PRESETS)}) or "
-                                    f"key:value with key in {', '.join(NoiseModel.__dataclass_fields__)}")
-            try:
-                fields[key.strip()] = int(val) if key.strip() == "bit_depth" else float(val)
-            except ValueError:
-                raise SpectralError(f"noise: {key.strip()} must be a number") from None
-        return NoiseModel(**fields)
+        return None if self.noise is None else parse_noise(self.noise)
 
     def array_outputs(self) -> list[str]:
         return [o for o in self.outputs if o != "meta"]
+
+
+def _known(registry, value: str) -> str:
+    try:
+        return registry.canonical(value)
+    except UnknownName as exc:
+        raise ValueError(str(exc)) from None
+
+
+def parse_noise(text: str) -> NoiseModel | None:
+    """``noise=`` is ``none``, a preset name (low, phone, high) or ``key:value`` pairs, e.g.
+    ``full_well:8000;read_noise:3;bit_depth:12`` (separated by ``;`` or ``|``)."""
+    if not text.strip() or text.strip().lower() == "none":
+        return None
+    if text in NOISE_PRESETS:
+        return NOISE_PRESETS[text]
+    fields: dict[str, Any] = {}
+    keys = NoiseModel.__dataclass_fields__
+    for part in re.split(r"[;|]", text):
+        key, sep, val = (p.strip() for p in part.partition(":"))
+        if not sep or key not in keys:
+            raise SpectralError(f"noise: {part.strip()!r} is not a preset ({', '.join(NOISE_PRESETS.choices())}) "
+                                f"or key:value with key in {', '.join(keys)}")
+        try:
+            fields[key] = int(val) if key == "bit_depth" else float(val)
+        except ValueError:
+            raise SpectralError(f"noise: {key} must be a {'whole ' if key == 'bit_depth' else ''}number, "
+                                f"got {val!r}") from None
+    return NoiseModel(**fields)
+
+
+SAMPLE_PARAMETERS = list(SampleSpec.model_fields)

@@ -12,9 +12,9 @@ publication), :mod:`store.registry` (uploaded sensors/illuminants), :mod:`store.
 """
 
 from store.cubestore import CubeStore
-from store.errors import StoreError, StoreKeyError
+from store.errors import StoreError, StoreKeyError, StoreWriteError
 from store.registry import Registry, RegistryEntry
 from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, RendererInfo, StorageInfo, ViewMeta
 
 __all__ = ["CubeStore", "CubeMeta", "ViewMeta", "RendererInfo", "BandStats", "StorageInfo", "StoreError",
-           "StoreKeyError", "Registry", "RegistryEntry", "SCHEMA_VERSION"]
+           "StoreKeyError", "StoreWriteError", "Registry", "RegistryEntry", "SCHEMA_VERSION"]

@@ -144,14 +144,18 @@ def encode(cube: np.ndarray, policy: Policy = "auto") -> Encoded:
     return Encoded("float16", data, exponent, beta.tolist(), underflow, reason)
 
 
-def decode(data: np.ndarray, exponent: np.ndarray | None, band_exponent: list[int] | np.ndarray | None
-           ) -> np.ndarray:
+def decode(data: np.ndarray, exponent: np.ndarray | None, band_exponent: list[int] | np.ndarray | None,
+           out: np.ndarray | None = None) -> np.ndarray:
     """Decode stored values to float32.
 
     ``data``: ``(h, w, k)`` float16 or float32 as read; ``exponent``: ``(h, w)`` int8 (float16 only);
-    ``band_exponent``: the ``k`` β values of the bands in ``data``. Returns a new float32 array.
+    ``band_exponent``: the ``k`` β values of the bands in ``data``. Returns a new float32 array, or
+    ``out`` (a float32 ``(h, w, k)`` array, possibly a view into a larger one) filled in place.
     """
-    out = data.astype(np.float32)
+    if out is None:
+        out = data.astype(np.float32)
+    else:
+        out[...] = data
     if data.dtype == np.float16:
         if exponent is None or band_exponent is None:
             raise ValueError("float16 cube data needs its exponent array and band exponents to decode")

@@ -27,8 +27,8 @@ from store.backend import STAGING, TRASH, Backend
 from store.codec import EXPONENT_FILL, POLICIES, Policy, decode
 from store.errors import StoreError, StoreKeyError
 from store.names import check_name
-from store.nodes import (STATE_ATTR, ArrayCache, band_index, crop_region, current_write_id, node_attrs,
-                         read_state)
+from store.nodes import (STATE_ATTR, array_handles, band_index, crop_region, current_write_id, node_attrs,
+                         open_array, read_state)
 from store.schema import SCHEMA_VERSION, CubeMeta, ViewMeta, parse_stored, utc_now
 from store import writer
 
@@ -49,7 +49,7 @@ class CubeStore:
     def __init__(self, backend: Backend, tile: int, codec: str, dtype_policy: Policy) -> None:
         self._b = backend
         self.tile, self.codec, self.dtype_policy = tile, codec, dtype_policy
-        self._arrays = ArrayCache()
+        self._arrays = array_handles()
 
     # ---- opening -------------------------------------------------------------------------------
     @classmethod
@@ -148,7 +148,7 @@ class CubeStore:
 
     def close(self) -> None:
         """Drop cached array handles (the store holds no other resources)."""
-        self._arrays = ArrayCache()
+        self._arrays = array_handles()
 
     # ---- listing -------------------------------------------------------------------------------
     def scenes(self) -> list[str]:
@@ -168,14 +168,21 @@ class CubeStore:
     def groups(self, scene: str, view: str, include_incomplete: bool = False) -> list[str]:
         """The view's light groups in stored order: first ``ViewMeta.groups`` (declared order), then
         undeclared ones in order of first write. Only complete groups (empty ones included) unless
-        ``include_incomplete`` (then also interrupted or in-progress writes)."""
+        ``include_incomplete`` (then also interrupted or in-progress writes, and damaged ones).
+        Raises :class:`StoreError` when a group's metadata is corrupt (without ``include_incomplete``),
+        never leaving it out silently."""
         vm = self.view_meta(scene, view)
         cubes = f"{layout.view_path(scene, view)}/cubes"
         entries: dict[str, tuple[bool, str]] = {}
         for g in self._b.list_dirs(cubes):
             try:
                 st = read_state(self._b, f"{cubes}/{g}")
-            except StoreError:
+            except StoreError as exc:
+                if not include_incomplete:
+                    # Dropping the group would silently re-shape the view (pair= would light
+                    # other groups): a damaged view is an error until it is repaired.
+                    raise StoreError(f"view {scene}/{view} is damaged: {exc}; run `illumix store verify "
+                                     f"{self.url}` and re-render the group") from None
                 st = {"complete": False}
             if st is not None:
                 entries[g] = (bool(st.get("complete")), str(st.get("first_written") or ""))
@@ -269,10 +276,22 @@ class CubeStore:
                 return np.zeros((y1 - y0, x1 - x0, k), np.float32)
             wid = st["write_id"]
             f16 = meta.storage.dtype == "float16"
+            beta = meta.storage.band_exponent
+            beta = None if beta is None else (beta if idx is None else np.asarray(beta)[idx])
+            out = np.empty((y1 - y0, x1 - x0, k), np.float32)
             try:
-                data = self._arrays.get(self._b, f"{path}/data", wid)
-                raw = data[y0:y1, x0:x1] if idx is None else data.oindex[y0:y1, x0:x1, idx]
-                ex = self._arrays.get(self._b, f"{path}/exponent", wid)[y0:y1, x0:x1] if f16 else None
+                data = open_array(self._arrays, self._b, f"{path}/data", wid)
+                exp = open_array(self._arrays, self._b, f"{path}/exponent", wid) if f16 else None
+                # One chunk row at a time: the stored (float16) copy in memory is one row band,
+                # not the whole window, so a full-frame read costs little beyond its float32 result.
+                ex = exp[y0:y1, x0:x1] if f16 else None  # one byte per pixel: read it whole
+                if ex is not None and np.any(ex == EXPONENT_FILL):
+                    raise StoreError("missing exponent chunk")
+                step = max(data.chunks[0], 128)
+                edges = [y0, *range((y0 // step + 1) * step, y1, step), y1]
+                for a, b in zip(edges[:-1], edges[1:]):
+                    raw = data[a:b, x0:x1] if idx is None else data.oindex[a:b, x0:x1, idx]
+                    decode(raw, None if ex is None else ex[a - y0:b - y0], beta, out=out[a - y0:b - y0])
             except Exception as exc:  # noqa: BLE001 - any zarr/codec/IO failure
                 if current_write_id(self._b, path) != wid:
                     continue  # replaced while we read: retry on the new version
@@ -280,9 +299,7 @@ class CubeStore:
                                  "delete and rewrite this cube") from None
             if current_write_id(self._b, path) != wid:
                 continue
-            beta = meta.storage.band_exponent
-            out = decode(raw, ex, None if beta is None else (beta if idx is None else np.asarray(beta)[idx]))
-            if (ex is not None and np.any(ex == EXPONENT_FILL)) or np.isnan(out.sum(dtype=np.float64)):
+            if np.isnan(out.sum(dtype=np.float64)):
                 raise StoreError(f"missing or corrupt chunks in {self.url}/{path}/data (crop {crop}); "
                                  "delete and rewrite this cube")
             return out
@@ -300,7 +317,7 @@ class CubeStore:
             if wid is None:
                 raise StoreKeyError("AOV", name, vm.aovs, f"{scene}/{view}")
             try:
-                out = self._arrays.get(self._b, path, wid)[y0:y1, x0:x1]
+                out = open_array(self._arrays, self._b, path, wid)[y0:y1, x0:x1]
             except Exception as exc:  # noqa: BLE001
                 if current_write_id(self._b, path) != wid:
                     continue

@@ -10,6 +10,17 @@ class StoreError(ValueError):
     """A store problem: missing or corrupt data, a newer schema, a bad name, a refused write."""
 
 
+class StoreWriteError(StoreError):
+    """The storage refused a write (disk full, no permission, I/O error); nothing was written.
+
+    ``errno`` is the operating system's error number (``errno.ENOSPC`` for a full disk), or ``None``.
+    """
+
+    def __init__(self, message: str, errno: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno
+
+
 class StoreKeyError(StoreError, KeyError):
     """An unknown scene, view, group, AOV or registry entry.
 

@@ -10,8 +10,6 @@ retried, so a reader never returns a mix of two versions (a seqlock).
 from __future__ import annotations
 
 import json
-import threading
-from collections import OrderedDict
 from typing import Any
 
 import numpy as np
@@ -20,6 +18,7 @@ import zarr
 from store.backend import Backend
 from store.errors import StoreError
 from store.layout import compressors
+from store.lru import LRUCache
 
 STATE_ATTR = "illumix_state"
 
@@ -81,30 +80,16 @@ def create_array(backend: Backend, path: str, shape: tuple[int, ...], chunks: tu
                              config={"write_empty_chunks": True})  # every chunk on disk: countable
 
 
-class ArrayCache:
-    """Open zarr array handles keyed by ``(path, write_id)`` (a replaced node gets a new id).
+def array_handles(size: int = 256) -> LRUCache[zarr.Array]:
+    """Open zarr array handles keyed by ``(path, write_id)`` (a replaced node gets a new id), at
+    most ``size`` of them. Opening an array reads its ``zarr.json``; caching the handle saves that
+    on every crop read."""
+    return LRUCache(size)
 
-    Opening an array reads its ``zarr.json``; caching the handle saves that on every crop read.
-    """
 
-    def __init__(self, size: int = 256) -> None:
-        self._d: OrderedDict[tuple[str, str], zarr.Array] = OrderedDict()
-        self._size = size
-        self._lock = threading.Lock()
-
-    def get(self, backend: Backend, path: str, write_id: str) -> zarr.Array:
-        key = (path, write_id)
-        with self._lock:
-            arr = self._d.get(key)
-            if arr is not None:
-                self._d.move_to_end(key)
-                return arr
-        arr = zarr.open_array(backend.zstore, path=path, mode="r")
-        with self._lock:
-            self._d[key] = arr
-            while len(self._d) > self._size:
-                self._d.popitem(last=False)
-        return arr
+def open_array(handles: LRUCache[zarr.Array], backend: Backend, path: str, write_id: str) -> zarr.Array:
+    """The read-only zarr array at ``path`` of the node version ``write_id``, through ``handles``."""
+    return handles.get((path, write_id), lambda: zarr.open_array(backend.zstore, path=path, mode="r"))
 
 
 def crop_region(crop: tuple[int, int, int, int] | None, height: int, width: int,

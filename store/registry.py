@@ -10,12 +10,13 @@ and validates it (rawtoaces camera JSON, CSV …) before putting it.
 from __future__ import annotations
 
 import base64
+import errno
 import hashlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 from store.backend import Backend
-from store.errors import StoreError, StoreKeyError
+from store.errors import StoreError, StoreKeyError, StoreWriteError
 from store.names import check_fmt, check_name
 from store.nodes import group_meta_bytes, node_attrs
 from store.schema import SCHEMA_VERSION, utc_now
@@ -81,6 +82,11 @@ class Registry:
         except FileExistsError:
             raise StoreError(f"{self._what} {name!r} already exists in the {self.kind} registry of "
                              f"{self._b.url}; pass overwrite=True to replace it") from None
+        except OSError as exc:  # the temp file is removed: nothing half-written stays behind
+            full = exc.errno in (errno.ENOSPC, errno.EDQUOT)
+            raise StoreWriteError(f"could not write {self._what} {name!r} to {self._b.url}: "
+                                  f"{exc.strerror or exc}; nothing was written"
+                                  f"{' — free disk space and upload again' if full else ''}", exc.errno) from None
         return entry
 
     def _load(self, name: str) -> dict:

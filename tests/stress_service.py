@@ -32,7 +32,7 @@ from store import CubeMeta, CubeStore, ViewMeta
 
 TOKEN = "stress-token"
 N = DEFAULT_GRID.n_bands
-LIMITS = Limits(max_side=512, max_pixels=512 * 64, max_batch=4, max_batch_pixels=40000)
+LIMITS = Limits(max_side=512, max_pixels=512 * 64, max_batch=4)
 VIEWS = {("synth", "v0"): (synth.W, synth.H), ("stress", "ext"): (32, 24), ("stress", "dot"): (1, 1),
          ("stress", "wide"): (300, 1), ("stress", "dark"): (8, 8), ("stress", "halfdark"): (12, 8),
          ("stress", "forced16"): (16, 12), ("stress", "fallback32"): (16, 12)}

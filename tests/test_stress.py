@@ -12,7 +12,8 @@ on in-memory arrays. This file pushes the same kinds of input through the layers
   narrow-band uploaded illuminants, degenerate uploaded sensors, intensities 1e-6 … 1e6, 1×1 to
   at-the-limit crops and resizes, zero-light and all-dark frames, float16 and float32-fallback
   cubes — a 200 whose arrays are finite, in range and equal to an independent float64 computation
-  from the cubes as written (before storage), or a 422 that says what is wrong. Nothing else.
+  from the cubes as written (before storage), a 422 that says what is wrong, or a 413 for a size
+  over the limits. Nothing else.
 
 Seeded (derandomize=True): the same cases run in CI every time.
 """
@@ -192,11 +193,12 @@ def stress_app(tmp_path_factory):
 def test_service_answers_finite_correct_samples_or_clear_422(stress_app, params):
     client, ctx = stress_app
     r = client.get("/sample", params=params)
-    assert r.status_code in (200, 422), (r.status_code, r.text[:300], params)
-    if r.status_code == 422:
-        detail = r.json()["detail"]
-        assert isinstance(detail, str) and len(detail) > 10, detail
-        event(f"422: {detail.split(':')[0][:40]}")
+    assert r.status_code in (200, 413, 422), (r.status_code, r.text[:300], params)
+    if r.status_code in (413, 422):
+        err = r.json()
+        assert isinstance(err["detail"], str) and len(err["detail"]) > 10, err
+        assert err["status"] == r.status_code and (r.status_code == 422 or err["code"] == "too_large"), err
+        event(f"{r.status_code}: {err['detail'].split(':')[0][:40]}")
         return
     event("200")
     z = np.load(io.BytesIO(r.content))
@@ -223,14 +225,14 @@ def test_tiny_and_at_the_limit_crops_and_sizes(stress_app):
     np.testing.assert_allclose(up["gain"], np.broadcast_to(px["gain"], up["gain"].shape), rtol=1e-6)
     big = _npz(client.get("/sample", params=base | {"size": "512x64", "outputs": "srgb"}))  # exactly at the limit
     assert big["srgb"].shape == (64, 512, 3) and np.isfinite(big["srgb"]).all()
-    for bad, needle in (({"size": "513x1"}, "exceeds the limits"), ({"size": "256x129"}, "exceeds the limits"),
-                        ({"crop": "1,0,64,48"}, "exceeds the view"), ({"crop": "0,0,0,5"}, "crop"),
-                        ({"crop": "0,0,5"}, "crop"), ({"size": "0x5"}, "size")):
+    for bad, status, needle in (({"size": "513x1"}, 413, "exceeds the limits"),
+                                ({"size": "256x129"}, 413, "exceeds the limits"),
+                                ({"crop": "1,0,64,48"}, 422, "exceeds the view"), ({"crop": "0,0,0,5"}, 422, "crop"),
+                                ({"crop": "0,0,5"}, 422, "crop"), ({"size": "0x5"}, 422, "size")):
         r = client.get("/sample", params=base | bad)
-        assert r.status_code == 422 and needle in r.json()["detail"], (bad, r.text)
-    body = {"samples": [base | {"size": "512x64", "outputs": "raw"}] * 2}  # 65536 px > 40000 budget
-    r = client.post("/batch", json=body)
-    assert r.status_code == 422 and "exceeds" in r.json()["detail"]
+        assert r.status_code == status and needle in r.json()["detail"], (bad, r.text)
+    r = client.post("/batch", json={"samples": [base | {"outputs": "raw"}] * 5})  # max_batch is 4
+    assert r.status_code == 413 and "split it" in r.json()["detail"]
 
 
 def test_all_dark_and_half_dark_frames_are_flagged_not_nan(stress_app):

@@ -1,0 +1,96 @@
+"""Response models of the JSON endpoints (so ``/openapi.json`` says what each returns)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from service.spec import SampleSpec
+
+
+class CacheStats(BaseModel):
+    bytes: int = Field(description="decoded cube bytes held")
+    max_bytes: int = Field(description="the cache's bound (--cache-mb)")
+    hits: int
+    misses: int
+
+
+class MemoryStats(BaseModel):
+    inflight_bytes: int = Field(description="working memory reserved by requests being computed or sent")
+    inflight_limit_bytes: int
+    request_limit_bytes: int
+    peak_inflight_bytes: int
+    refused_busy: int = Field(description="requests answered 503 because the budget stayed full")
+
+
+class Health(BaseModel):
+    status: str = Field(description="'ok'")
+    scenes: int
+    cache_bytes: int
+    cache_hits: int
+    cache_misses: int
+    cache: CacheStats
+    memory: MemoryStats
+    auth: bool = Field(description="whether writes need a token")
+
+
+class GroupInfo(BaseModel):
+    name: str
+    emission: str = Field(description="emission the cube was rendered with ('flat' = unit, relightable)")
+
+
+class ViewInfo(BaseModel):
+    name: str
+    width: int
+    height: int
+    groups: list[GroupInfo]
+
+
+class SceneInfo(BaseModel):
+    name: str
+    views: list[ViewInfo]
+
+
+class Scenes(BaseModel):
+    scenes: list[SceneInfo]
+
+
+class SensorList(BaseModel):
+    builtin: list[str] = Field(description="built-in sensors usable on the store's spectral grid")
+    unavailable: dict[str, str] = Field(description="built-in sensors that cannot be used, with the reason")
+    uploaded: list[str]
+
+
+class SensorDetail(BaseModel):
+    name: str
+    source: str
+    grid: dict = Field(description="spectral grid {start, end, step} in nm")
+    wavelengths: list[float] = Field(description="band centres, nm")
+    sensitivities: list[list[float]] = Field(description="(bands, 3) R, G, B band averages, peak 1")
+
+
+class KelvinRange(BaseModel):
+    min_kelvin: float
+    max_kelvin: float
+
+
+class IlluminantList(BaseModel):
+    builtin: list[str]
+    parametric: dict[str, KelvinRange] = Field(description="'<kind>:<kelvin>' names, e.g. blackbody:3200")
+    uploaded: list[str]
+
+
+class Uploaded(BaseModel):
+    name: str
+    format: str = Field(description="'json' (rawtoaces camera) or 'csv'")
+    bytes: int
+
+
+class Deleted(BaseModel):
+    deleted: str
+
+
+class BatchRequest(BaseModel):
+    """``POST /batch``: the samples, each with the ``GET /sample`` parameters (npz only)."""
+
+    model_config = ConfigDict(extra="forbid")
+    samples: list[SampleSpec] = Field(description="1..max_batch sample specs (the GET /sample parameters)")

@@ -1,0 +1,40 @@
+"""``GET /health`` and ``GET /scenes``: what the service holds and how it is doing."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+
+from service.deps import CtxDep
+from service.errors import error_responses
+from service.models import CacheStats, GroupInfo, Health, MemoryStats, SceneInfo, Scenes, ViewInfo
+
+router = APIRouter(tags=["status"])
+
+
+@router.get("/health", response_model=Health)
+def health(request: Request, ctx: CtxDep) -> Health:
+    """Liveness plus cache and working-memory figures."""
+    c, m = ctx.cache, ctx.memory
+    return Health(status="ok", scenes=len(ctx.store.scenes()), cache_bytes=c.total_cost, cache_hits=c.hits,
+                  cache_misses=c.misses,
+                  cache=CacheStats(bytes=c.total_cost, max_bytes=c.max_cost, hits=c.hits, misses=c.misses),
+                  memory=MemoryStats(inflight_bytes=m.used, inflight_limit_bytes=m.capacity,
+                                     request_limit_bytes=m.per_request, peak_inflight_bytes=m.peak,
+                                     refused_busy=m.refused_busy),
+                  auth=request.app.state.token is not None)
+
+
+@router.get("/scenes", response_model=Scenes, responses=error_responses(503))
+def scenes(ctx: CtxDep) -> Scenes:
+    """Every scene, view and light group the store holds. A damaged view is a 503 (run
+    `illumix store verify`), never silently left out."""
+    store = ctx.store
+    out = []
+    for s in store.scenes():
+        views = []
+        for v in store.views(s):
+            vm = store.view_meta(s, v)
+            groups = [GroupInfo(name=g, emission=store.cube_meta(s, v, g).emission_name) for g in store.groups(s, v)]
+            views.append(ViewInfo(name=v, width=vm.width, height=vm.height, groups=groups))
+        out.append(SceneInfo(name=s, views=views))
+    return Scenes(scenes=out)

@@ -1,0 +1,175 @@
+"""Bounded requests (issue 13): memory priced before work (413 / 503), bodies bounded in size and
+time (413 / 408), PNG raw on a fixed scale. Servers bind to 127.0.0.1; every wait is bounded."""
+
+from __future__ import annotations
+
+import io
+import itertools
+import json
+import socket
+import struct
+import threading
+import time
+import tracemalloc
+import zlib
+
+import cv2
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+import synthetic_store as synth
+from server_testutil import ThreadServer
+from service.app import create_app
+from service.budget import MemoryBudget
+from service.encoding import encode_npz
+from service.errors import ServiceError
+from service.limits import Limits
+from service.sampling import build, plan, price
+from service.spec import SampleSpec
+from store import CubeMeta, CubeStore
+
+H, W = 96, 128
+
+
+@pytest.fixture(scope="module")
+def store_path(tmp_path_factory):
+    path = tmp_path_factory.mktemp("limits") / "store"
+    synth.build(path, H, W, extras=False)
+    return path
+
+
+@pytest.mark.parametrize("cache_mb", [0, 64])
+def test_price_bounds_what_a_sample_allocates(store_path, cache_mb):
+    """The admission price is an upper bound of the numpy memory a sample allocates (tracemalloc
+    sees numpy's buffers), over outputs, crops, resizes, noise, cached and uncached cubes."""
+    ctx = create_app(CubeStore.open(str(store_path), mode="r"), cache_mb=cache_mb).state.ctx
+    worst = 0.0
+    for outs, crop, size, noise in itertools.product(
+            ["raw", "gain", "srgb", "ccm,weights,mask", "raw,gain,ccm,srgb,weights,mask,meta"],
+            [None, "5,7,60,40", "100,90,1,1"], [None, f"{2 * W}x{2 * H}", "16x12"], [None, "phone"]):
+        spec = SampleSpec(scene="synth", view="v0", pair="FL11,D65", outputs=outs, crop=crop, size=size,
+                          noise=noise, seed=1)
+        p = plan(spec, ctx)
+        if cache_mb:
+            build(p, ctx)  # second pass reads from the cache
+        bound = price(p, ctx)
+        tracemalloc.start()
+        arrays, meta = build(p, ctx)
+        body = encode_npz(arrays, meta)
+        del arrays, body
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        worst = max(worst, peak / bound)
+        assert peak <= bound, (outs, crop, size, noise, peak, bound)
+    assert worst > 0.3  # a bound, but not a wildly loose one
+
+
+def test_oversized_request_and_batch_are_413_with_a_hint(store_path):
+    limits = Limits(max_request_mb=24, inflight_mb=24)
+    with TestClient(create_app(CubeStore.open(str(store_path), mode="r"), limits=limits)) as c:
+        r = c.get("/sample", params={"scene": "synth", "view": "v0", "size": "2048x2048"})
+        body = r.json()
+        assert r.status_code == 413 and body["code"] == "too_large"
+        assert "24 MiB per request" in body["detail"] and "smaller crop= or size=" in body["detail"]
+        ok = c.get("/sample", params={"scene": "synth", "view": "v0", "outputs": "raw"})
+        assert ok.status_code == 200
+        r = c.post("/batch", json={"samples": [{"scene": "synth", "view": "v0", "size": "512x512"}] * 8})
+        assert r.status_code == 413 and "batch of 8" in r.json()["detail"]
+        assert c.get("/health").json()["memory"]["inflight_bytes"] == 0  # every reservation released
+
+
+def test_memory_budget_queues_then_answers_503_with_retry_after():
+    budget = MemoryBudget(capacity=100, timeout=0.3)
+    first = budget.acquire(80, "a")
+    t = time.monotonic()
+    with pytest.raises(ServiceError) as exc:
+        budget.acquire(30, "b")
+    assert exc.value.status == 503 and exc.value.headers["Retry-After"] == "1"
+    assert 0.25 <= time.monotonic() - t < 5
+    threading.Timer(0.1, first.release).start()
+    second = budget.acquire(30, "c")  # waits for the first to finish, then runs
+    assert budget.used == 30
+    second.release()
+    second.release()  # idempotent
+    assert budget.used == 0 and budget.peak == 80 and budget.refused_busy == 1
+    with pytest.raises(ServiceError) as exc:
+        budget.acquire(101, "d")
+    assert exc.value.status == 413
+
+
+# -- request bodies bounded in size and time (real sockets) ----------------------------------------
+def _raw_http(port: int, head: bytes, body: bytes = b"", wait: float = 10.0) -> tuple[bytes, float]:
+    t = time.monotonic()
+    with socket.create_connection(("127.0.0.1", port), timeout=wait) as s:
+        s.sendall(head + body)
+        data = b""
+        while b"\r\n\r\n" not in data or len(data) < data.find(b"\r\n\r\n") + 4 + _length(data):
+            chunk = s.recv(65536)
+            if not chunk:
+                break
+            data += chunk
+    return data, time.monotonic() - t
+
+
+def _length(data: bytes) -> int:
+    for line in data.split(b"\r\n"):
+        if line.lower().startswith(b"content-length:"):
+            return int(line.split(b":")[1])
+    return 0
+
+
+def test_huge_declared_body_is_413_at_once_and_slow_body_408(store_path):
+    app = create_app(CubeStore.open(str(store_path), mode="a"), token="t",
+                     limits=Limits(body_timeout_s=1.0))
+    with ThreadServer(app) as url:
+        port = int(url.rsplit(":", 1)[1])
+        head = (b"POST /illuminants HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer t\r\n"
+                b"Content-Type: multipart/form-data; boundary=b\r\nContent-Length: 2000000000\r\n\r\n")
+        data, dt = _raw_http(port, head)
+        assert data.startswith(b"HTTP/1.1 413") and b"too_large" in data and dt < 5
+        head = (b"POST /batch HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                b"Content-Length: 100\r\n\r\n")
+        data, dt = _raw_http(port, head, b'{"samples": [')  # then nothing more
+        assert data.startswith(b"HTTP/1.1 408") and b"stopped arriving" in data and dt < 8
+        data, _ = _raw_http(port, b"GET /health HTTP/1.1\r\nHost: x\r\n\r\n")  # still serving
+        assert data.startswith(b"HTTP/1.1 200")
+
+
+# -- PNG raw on a fixed scale ----------------------------------------------------------------------
+def _png_text(png: bytes) -> dict:
+    pos, out = 8, {}
+    while pos < len(png):
+        n, kind = struct.unpack(">I4s", png[pos:pos + 8])
+        data = png[pos + 8:pos + 8 + n]
+        assert struct.unpack(">I", png[pos + 8 + n:pos + 12 + n])[0] == zlib.crc32(kind + data)
+        if kind == b"tEXt":
+            key, _, text = data.partition(b"\0")
+            out[key.decode()] = json.loads(text)
+        pos += 12 + n
+    return out
+
+
+def test_png_raw_keeps_midtones_with_a_lamp_in_view(tmp_path):
+    path = tmp_path / "lamp"
+    synth.build(path, extras=False)
+    st = CubeStore.open(str(path), mode="a")
+    cube = st.read_cube("synth", "v0", "window")
+    cube[10:12, 10:12] *= 5000.0  # a lamp: a few pixels thousands of times brighter than the room
+    meta = st.cube_meta("synth", "v0", "window").model_dump(include={"grid", "emission", "emission_name"})
+    st.write_cube("synth", "v0", "window", cube, CubeMeta(**meta), overwrite=True)
+    with TestClient(create_app(st)) as c:
+        p = {"scene": "synth", "view": "v0", "pair": "A,D65"}
+        r = c.get("/sample", params=p | {"outputs": "raw", "format": "png"})
+        assert r.status_code == 200, r.text
+        text = _png_text(r.content)["illumix"]
+        assert text["scale"] == 65535.0 and text["black_level"] == 0.0 and text["white_level"] == 65535.0
+        assert r.headers["x-illumix-scale"] == "65535.0"
+        png = cv2.imdecode(np.frombuffer(r.content, np.uint8), cv2.IMREAD_UNCHANGED)[..., ::-1]
+        z = np.load(io.BytesIO(c.get("/sample", params=p | {"outputs": "raw,mask,meta"}).content))
+        valid = z["mask"]
+        assert np.mean(png[valid].max(axis=-1) == 0) < 0.01  # the peak-scaled PNG crushed 80 % to 0
+        assert (png[10:12, 10:12] == 65535).any()  # the lamp clips, as a camera's highlights would
+        gain = text["exposure_gain"]
+        expected = np.clip(z["raw"] * gain, 0, 1) * 65535
+        np.testing.assert_allclose(png[valid], expected[valid], atol=0.51 + 1e-6 * 65535)
