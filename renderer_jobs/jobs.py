@@ -106,15 +106,6 @@ def _open_store(path: str, mode: str = "a"):
     return CubeStore.open(path, mode=mode)
 
 
-def _store_errors() -> tuple[type[BaseException], ...]:
-    try:
-        from store import StoreError
-
-        return (StoreError,)
-    except ImportError:  # pragma: no cover
-        return ()
-
-
 def _view_meta(scene: Scene, view: str):
     from store import ViewMeta
 

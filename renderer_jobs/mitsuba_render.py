@@ -386,10 +386,3 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
             "normal": normal.reshape(h, w, 3).astype(np.float32),
             "depth": depth.reshape(h, w).astype(np.float32),
             "mask": hit[:, 0].reshape(h, w)}
-
-
-def camera_meta(scene: Scene, view: str, resolution: tuple[int, int] | None = None) -> dict:
-    v = scene.view(view)
-    w, h = resolution or v.resolution
-    return {"width": int(w), "height": int(h), "camera": {"origin": list(v.origin), "target": list(v.target),
-                                                          "up": list(v.up)}, "fov": v.fov, "fov_axis": "x"}

@@ -208,9 +208,6 @@ def mitsuba_d65(scene: Scene) -> np.ndarray:
     return resample(fine, np.asarray(vals), grid)
 
 
-PORTAL_PASSES = ("without", "only")
-
-
 def _emitter_dicts(mi, scene: Scene, group: str, radius: float, portals: str = "without"
                    ) -> tuple[dict[str, dict], dict[str, dict]]:
     """``(shape emitters by shape name, other emitters by light name)`` for one group.

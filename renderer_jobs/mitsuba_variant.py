@@ -129,12 +129,6 @@ def import_mitsuba():
     return mi, dr
 
 
-def mitsuba_version() -> str:
-    import mitsuba as mi
-
-    return str(mi.__version__)
-
-
 def libllvm_path() -> str | None:
     """The libLLVM the ``llvm_ad_spectral`` variant runs on (None before selection or on other variants)."""
     return _STATE.get("libllvm")

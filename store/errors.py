@@ -42,8 +42,3 @@ class StoreKeyError(StoreError, KeyError):
 
     def __str__(self) -> str:  # KeyError would repr() the message
         return str(self.args[0])
-
-
-def close_matches(name: str, known: Iterable[str], n: int = 3) -> list[str]:
-    """Up to ``n`` names from ``known`` that look like ``name`` (for 404 hints)."""
-    return difflib.get_close_matches(name, list(known), n=n, cutoff=0.5)

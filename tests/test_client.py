@@ -123,11 +123,6 @@ def test_illuminant_pool_and_spec_sampler():
 # -- against a real server ------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    pytest.importorskip("store")
-    try:
-        from store import CubeStore  # noqa: F401
-    except ImportError as exc:
-        pytest.skip(f"the store package is not complete yet ({exc})")
     import synthetic_store
 
     root = tmp_path_factory.mktemp("client")

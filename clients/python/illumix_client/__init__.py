@@ -17,7 +17,8 @@ from illumix_client.aio import AsyncClient
 from illumix_client.client import Client
 from illumix_client.draw import CIE_FLUORESCENT, CIE_LED, CIE_STANDARD, IlluminantPool, ViewInfo
 from illumix_client.errors import (AuthError, ConflictError, ConnectionFailed, ForbiddenError, IllumixError,
-                                   InvalidRequestError, NotFoundError, RequestTooLargeError, ServerError)
+                                   InvalidRequestError, NotFoundError, RequestTimeoutError,
+                                   RequestTooLargeError, ServerError)
 from illumix_client.sample import OUTPUTS, Sample
 
 __version__ = "0.1.0"
@@ -25,8 +26,8 @@ __version__ = "0.1.0"
 __all__ = [
     "AsyncClient", "AuthError", "CIE_FLUORESCENT", "CIE_LED", "CIE_STANDARD", "Client", "ConflictError",
     "ConnectionFailed", "ForbiddenError", "IlluminantPool", "IllumixError",
-    "InvalidRequestError", "NotFoundError", "OUTPUTS", "RequestTooLargeError", "RetryPolicy", "Sample",
-    "ServerError", "ViewInfo",
+    "InvalidRequestError", "NotFoundError", "OUTPUTS", "RequestTimeoutError", "RequestTooLargeError",
+    "RetryPolicy", "Sample", "ServerError", "ViewInfo",
 ]
 
 

@@ -1,21 +1,28 @@
-"""What each API call sends and how its answer is read, plus the retry policy — shared by the sync
-and async clients, which only differ in how they wait.
+"""What each API call sends and how its answer is read, plus the retry loop — shared by the sync
+and async clients, which only differ in how they sleep and send.
 
 A :class:`Call` is a plain description of one HTTP request with a ``parse`` function for a 2xx
-answer. Both clients run it through the same bounded retry loop:
+answer. Both clients drive it through the same bounded retry loop, :func:`retry_loop`, written
+sans-I/O (a generator that yields the wait before each try and is sent each try's outcome):
 
-- *reads* (GET, POST /batch) retry on any transport error (refused, reset, dropped, timed out) and
-  on any 5xx answer;
+- *reads* (GET, POST /batch) retry on any transport error (refused, reset, dropped, timed out), on
+  any 5xx answer and on 408 (the service gave up waiting for a slow request body);
 - *writes* (uploads, deletes) retry only where the request cannot have been processed: a connection
-  that never opened, or 502/503/504;
-- 4xx answers are never retried: they are raised at once as typed exceptions.
+  that never opened, 408, or 502/503/504;
+- other 4xx answers are never retried: they are raised at once as typed exceptions (413, a request
+  over the service's limits, as :class:`~illumix_client.errors.RequestTooLargeError`);
+- a ``Retry-After`` header (seconds or an HTTP date, as the service sends with 503 when it is busy)
+  stretches the next wait, up to ``RetryPolicy.max_backoff``;
+- at most ``RetryPolicy.attempts`` tries in all; the last failure is raised.
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
+import time
+from collections.abc import Awaitable, Callable, Generator
 from dataclasses import dataclass
+from email.utils import parsedate_to_datetime
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -26,7 +33,13 @@ import numpy as np
 from illumix_client.errors import ConnectionFailed, IllumixError, error_for
 from illumix_client.sample import as_specs, encode_spec, parse_batch, parse_sample
 
-_UNPROCESSED_5XX = frozenset({502, 503, 504})
+# Answers that say the request was not processed, so even a write may be resent: 408 (the body
+# never fully arrived), 502/504 (a proxy got no answer upstream), 503 (busy or down; the service
+# refuses before doing any work).
+_UNPROCESSED = frozenset({408, 502, 503, 504})
+
+Outcome = httpx.Response | httpx.TransportError
+"""What one try produced: the service's answer, or the transport error that stopped it."""
 
 
 @dataclass(frozen=True)
@@ -49,14 +62,33 @@ class RetryPolicy:
             raise ValueError(f"invalid retry policy {self}")
 
     def delay(self, attempt: int, retry_after: str | None = None) -> float:
-        """Seconds to wait before try number ``attempt`` (1-based count of retries)."""
+        """Seconds to wait before try number ``attempt`` (1-based count of retries).
+
+        ``retry_after`` is the previous answer's ``Retry-After`` header (delta-seconds or an HTTP
+        date); it can lengthen the wait, never shorten it, and never past ``max_backoff``.
+        """
         base = min(self.max_backoff, self.backoff * 2 ** (attempt - 1))
-        if retry_after:
-            try:
-                base = min(self.max_backoff, max(base, float(retry_after)))
-            except ValueError:
-                pass
+        asked = _retry_after_seconds(retry_after)
+        if asked is not None:
+            base = min(self.max_backoff, max(base, asked))
         return base * (1.0 + self.jitter * random.random())
+
+
+def _retry_after_seconds(value: str | None) -> float | None:
+    """A ``Retry-After`` header in seconds from now, or None when absent or unreadable."""
+    if not value:
+        return None
+    try:
+        seconds = float(value)
+    except ValueError:
+        try:
+            when = parsedate_to_datetime(value)
+        except (TypeError, ValueError):
+            return None
+        if when.tzinfo is None:  # an HTTP date is GMT; a naive one cannot be compared otherwise
+            return None
+        seconds = when.timestamp() - time.time()
+    return seconds if seconds == seconds else None  # NaN reads as absent
 
 
 @dataclass
@@ -89,9 +121,9 @@ class Call:
         return isinstance(exc, (httpx.ConnectError, httpx.ConnectTimeout))
 
     def retry_on_status(self, status: int) -> bool:
-        if status < 500:
-            return False
-        return self.idempotent or status in _UNPROCESSED_5XX
+        if status in _UNPROCESSED:
+            return True
+        return self.idempotent and status >= 500
 
     def failure(self, resp: httpx.Response) -> IllumixError:
         return error_for(resp.status_code, resp.content, resp.reason_phrase, method=self.method,
@@ -110,6 +142,70 @@ class Call:
         except ValueError as exc:  # JSON decoding
             raise IllumixError(f"could not decode the answer to {self.method} {self.path}: {exc}",
                                resp.status_code) from None
+
+
+def retry_loop(call: Call, policy: RetryPolicy, base_url: str) -> Generator[float, Outcome, Any]:
+    """The retry loop for ``call``, without I/O: the driver sleeps and sends.
+
+    Yields the seconds to wait before each try (``0.0`` before the first), and must then be sent
+    that try's :data:`Outcome` — the ``httpx.Response`` (any status) or the
+    ``httpx.TransportError`` raised while sending. Finishes (``StopIteration.value``) with
+    ``call.parse`` of the first 2xx/3xx answer, or raises the typed
+    :class:`~illumix_client.errors.IllumixError` for an answer or error that is not retried or
+    that used up the last of ``policy.attempts`` tries. See :func:`run_sync` for a driver.
+    """
+    retry_after: str | None = None
+    for attempt in range(policy.attempts):
+        outcome = yield policy.delay(attempt, retry_after) if attempt else 0.0
+        last = attempt == policy.attempts - 1
+        if isinstance(outcome, httpx.TransportError):
+            if last or not call.retry_on_exception(outcome):
+                raise call.connection_failure(outcome, base_url, attempt + 1) from outcome
+            retry_after = None
+            continue
+        if outcome.status_code < 400:
+            return call.read(outcome)
+        if last or not call.retry_on_status(outcome.status_code):
+            raise call.failure(outcome)
+        retry_after = outcome.headers.get("retry-after")
+    raise AssertionError("unreachable")  # pragma: no cover  (the last try returns or raises)
+
+
+def run_sync(call: Call, policy: RetryPolicy, base_url: str, send: Callable[[Call], httpx.Response],
+             sleep: Callable[[float], None]) -> Any:
+    """Drive :func:`retry_loop` with a blocking ``send(call) -> Response`` and ``sleep(seconds)``."""
+    loop = retry_loop(call, policy, base_url)
+    wait = next(loop)
+    while True:
+        if wait > 0:
+            sleep(wait)
+        try:
+            outcome: Outcome = send(call)
+        except httpx.TransportError as exc:
+            outcome = exc
+        try:
+            wait = loop.send(outcome)
+        except StopIteration as done:
+            return done.value
+
+
+async def run_async(call: Call, policy: RetryPolicy, base_url: str,
+                    send: Callable[[Call], Awaitable[httpx.Response]],
+                    sleep: Callable[[float], Awaitable[None]]) -> Any:
+    """:func:`run_sync` with an awaitable ``send`` and ``sleep``."""
+    loop = retry_loop(call, policy, base_url)
+    wait = next(loop)
+    while True:
+        if wait > 0:
+            await sleep(wait)
+        try:
+            outcome: Outcome = await send(call)
+        except httpx.TransportError as exc:
+            outcome = exc
+        try:
+            wait = loop.send(outcome)
+        except StopIteration as done:
+            return done.value
 
 
 def _json(resp: httpx.Response) -> Any:

@@ -5,7 +5,7 @@ Same methods, same parameters, same exceptions and retry policy; every method is
 
 from __future__ import annotations
 
-import asyncio
+from asyncio import sleep as _sleep  # a module global, so tests can patch the waits
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,24 +42,10 @@ class AsyncClient:
         await self._http.aclose()
 
     async def _run(self, call: P.Call) -> Any:
-        retry_after: str | None = None
-        for attempt in range(self.retry.attempts):
-            if attempt:
-                await asyncio.sleep(self.retry.delay(attempt, retry_after))
-            last = attempt == self.retry.attempts - 1
-            try:
-                resp = await self._http.request(call.method, call.path, **call.request_kwargs())
-            except httpx.TransportError as exc:
-                if last or not call.retry_on_exception(exc):
-                    raise call.connection_failure(exc, self.base_url, attempt + 1) from exc
-                retry_after = None
-                continue
-            if resp.status_code < 400:
-                return call.read(resp)
-            if last or not call.retry_on_status(resp.status_code):
-                raise call.failure(resp)
-            retry_after = resp.headers.get("retry-after")
-        raise AssertionError("unreachable")  # pragma: no cover
+        return await P.run_async(call, self.retry, self.base_url, self._send, _sleep)
+
+    async def _send(self, call: P.Call) -> httpx.Response:
+        return await self._http.request(call.method, call.path, **call.request_kwargs())
 
     async def health(self) -> dict:
         return await self._run(P.health())

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from time import sleep as _sleep  # a module global, so tests can patch the waits
 from typing import Any
 
 import httpx
@@ -21,9 +21,10 @@ class Client:
     ``Client("http://127.0.0.1:8000", token=None, timeout=60.0, retry=RetryPolicy())``. ``token`` is
     sent as ``Authorization: Bearer`` (needed for uploads and deletes when the service has one);
     ``timeout`` is seconds (or an ``httpx.Timeout``) per try; ``retry`` bounds the retries on
-    connection errors and 5xx (never on 4xx, see :mod:`illumix_client._protocol`). Errors are raised
-    as :class:`illumix_client.IllumixError` subclasses. Thread-safe; use as a context manager or call
-    :meth:`close`.
+    connection errors, 5xx and 408 (never on other 4xx, see :mod:`illumix_client._protocol`);
+    ``transport`` replaces httpx's network transport (tests pass an ``httpx.MockTransport``).
+    Errors are raised as :class:`illumix_client.IllumixError` subclasses. Thread-safe; use as a
+    context manager or call :meth:`close`.
     """
 
     def __init__(self, base_url: str = "http://127.0.0.1:8000", token: str | None = None,
@@ -44,24 +45,10 @@ class Client:
         self._http.close()
 
     def _run(self, call: P.Call) -> Any:
-        retry_after: str | None = None
-        for attempt in range(self.retry.attempts):
-            if attempt:
-                time.sleep(self.retry.delay(attempt, retry_after))
-            last = attempt == self.retry.attempts - 1
-            try:
-                resp = self._http.request(call.method, call.path, **call.request_kwargs())
-            except httpx.TransportError as exc:
-                if last or not call.retry_on_exception(exc):
-                    raise call.connection_failure(exc, self.base_url, attempt + 1) from exc
-                retry_after = None
-                continue
-            if resp.status_code < 400:
-                return call.read(resp)
-            if last or not call.retry_on_status(resp.status_code):
-                raise call.failure(resp)
-            retry_after = resp.headers.get("retry-after")
-        raise AssertionError("unreachable")  # pragma: no cover
+        return P.run_sync(call, self.retry, self.base_url, self._send, _sleep)
+
+    def _send(self, call: P.Call) -> httpx.Response:
+        return self._http.request(call.method, call.path, **call.request_kwargs())
 
     # -- reads -----------------------------------------------------------------------------------
     def health(self) -> dict:
