@@ -1,38 +1,29 @@
-"""Load test of the running service on loopback (issue 7, item 4): errors, latency, resident memory.
+"""Load test of the running service on loopback: errors, refusals, latency, resident memory.
 
-Builds a synthetic store (tests/synthetic_store.py's two-group view plus three more two-group
-views and a one-group view, ``--height``×``--width``×63, float16 policy), then runs ``illumix serve``
-on 127.0.0.1 twice in a subprocess:
+Builds a synthetic store (tests/synthetic_store.py's two-group view plus three more two-group views
+and a one-group view, ``--height``×``--width``×63, float16 policy), runs ``illumix serve
+--cache-mb N`` on 127.0.0.1 in a subprocess and sends it, from ``--clients`` threads for
+``--seconds`` (bounded by ``--max-requests``), a mix of valid requests:
 
-1. ``--cache-mb 0`` for ``--baseline-seconds``: every request reads and decodes its cubes; the
-   RSS growth of this phase is the server's *transient* footprint (requests in flight, allocator
-   slack) without a cache — the baseline measured in the same run;
-2. ``--cache-mb M`` for ``--seconds`` (the same duration by default: glibc's allocator keeps
-   freed memory in per-thread arenas and its heap, so RSS creeps for minutes before it levels off,
-   and both phases must creep for as long): the cube cache fills up to M MiB and then churns (the
-   cubes of all views together are several times M).
+- ``GET /sample``: random view, illuminant pair (spiky ones included), sensor, full frame or a
+  random crop, sometimes a ``size=`` up to 2048², a random subset of outputs, sometimes PNG;
+- large ones (``--large-share``): all outputs at up to 4096² — refused with 413 and a hint when
+  their priced working memory exceeds ``--max-request-mb``;
+- ``POST /batch`` of 2–8 such samples (``--batch-share``);
+- ``/health``, ``/scenes``, ``/sensors``.
 
-Environment variables of this process reach the server, so allocator or BLAS settings can be
-compared: ``MALLOC_MMAP_THRESHOLD_=1048576 python bench/load.py`` (recorded in ``server_env``).
+Outcomes: 200; 413 ``too_large`` (a correct refusal); 503 ``busy`` (the in-flight memory budget was
+full for the queue timeout: the client is told to retry); anything else — another 4xx, a 5xx, a
+transport error, a NaN/inf in a JSON answer — is an error and must be 0.
 
-In each phase ``--clients`` threads send requests back to back until the time or the request cap
-(``--max-requests``) is reached: random view, illuminant pair (spiky ones included), sensor, full
-frame or a random crop (each new crop window is a new cache entry while its full frame is not
-cached), sometimes a ``size=`` resize, a random subset of outputs, sometimes PNG. Every request is
-valid: any non-200 answer or transport error counts as an error (must be 0).
-
-Resident memory: ``VmRSS`` of the server process from ``/proc/<pid>/status`` every 0.25 s.
-``rss_start`` is taken after a warm-up request (imports, CCM fits, BLAS buffers).
-``rss_growth_within_cache_bound``: the cached phase grows by at most M MiB plus the transient
-footprint measured in phase 1 (×1.25 + 16 MiB for run-to-run variation: how many large requests
-happen to be in flight together varies); ``rss_plateau``: the median RSS of the last quarter of
-phase 2 exceeds that of its second quarter by less than 10 % of that bound (no trend; a short run
-cannot rule out a very slow leak — run longer with ``--seconds``).
+Resident memory: ``VmRSS`` of the server process from ``/proc/<pid>/status`` every 0.25 s; the goal
+(issue 13) is ``rss_peak ≤ N + 300 MiB`` (``rss_within_bound``). The server's own figures from
+``/health`` (cache bytes and hits, peak in-flight reservation, 503s) are reported beside it.
 
 ``--leak-check N`` adds an in-process check that requests leave nothing allocated behind
 (tracemalloc, numpy buffers included): RSS alone cannot tell a leak from allocator retention.
 
-Usage: python bench/load.py [--clients 8 --seconds 40 --baseline-seconds 40 --cache-mb 64] [--leak-check 600];
+Usage: python bench/load.py [--clients 16 --seconds 60 --cache-mb 256] [--leak-check 600];
 progress on stderr; JSON last on stdout.
 """
 
@@ -95,7 +86,8 @@ def build_store(path: str, h: int, w: int) -> list[tuple[str, str, int]]:
     return views
 
 
-def random_request(rng: random.Random, views, h: int, w: int) -> dict:
+def random_request(rng: random.Random, views, h: int, w: int, large: bool = False) -> dict:
+    """One valid sample spec (query form); ``large``: all outputs at up to 4096²."""
     scene, view, groups = rng.choice(views)
     pair = rng.choice(PAIRS)
     p = {"scene": scene, "view": view, "sensor": rng.choice(SENSORS), "seed": rng.randrange(1 << 30)}
@@ -103,17 +95,53 @@ def random_request(rng: random.Random, views, h: int, w: int) -> dict:
         p["pair"] = pair
     else:
         p["illuminants"] = pair.split(",")[0]
+    if large:
+        side = rng.choice([1024, 2048, 3072, 4096])
+        p.update(size=f"{side}x{side * 3 // 4}", outputs=",".join(OUTPUTS + ["meta"]))
+        return p
     if rng.random() < 0.5:
         cw, ch = rng.randint(16, w), rng.randint(16, h)
         p["crop"] = f"{rng.randint(0, w - cw)},{rng.randint(0, h - ch)},{cw},{ch}"
     if rng.random() < 0.2:
-        p["size"] = f"{rng.randint(8, 128)}x{rng.randint(8, 128)}"
+        p["size"] = f"{rng.randint(8, 2048)}x{rng.randint(8, 1536)}"
     if rng.random() < 0.1:
         p.update(format="png", outputs="srgb")
     else:
         outs = rng.sample(OUTPUTS, rng.randint(1, len(OUTPUTS)))
         p["outputs"] = ",".join(outs + (["meta"] if rng.random() < 0.5 else []))
     return p
+
+
+def random_call(rng: random.Random, views, h: int, w: int, large_share: float, batch_share: float
+                ) -> tuple[str, str, dict]:
+    """``(method, path, kwargs)`` of one request of the mix (see the module docstring)."""
+    u = rng.random()
+    if u < large_share:
+        return "GET", "/sample", {"params": random_request(rng, views, h, w, large=True)}
+    if u < large_share + batch_share:
+        items = []
+        for _ in range(rng.randint(2, 8)):
+            item = random_request(rng, views, h, w)
+            item.pop("format", None)
+            items.append(item)
+        return "POST", "/batch", {"json": {"samples": items}}
+    if u < large_share + batch_share + 0.05:
+        return "GET", rng.choice(["/health", "/scenes", "/sensors", "/illuminants"]), {}
+    return "GET", "/sample", {"params": random_request(rng, views, h, w)}
+
+
+def classify(r) -> str:
+    """``ok``, ``refused_413``, ``busy_503`` or ``error``."""
+    if r.status_code == 200:
+        if r.headers.get("content-type", "").startswith("application/json"):
+            json.loads(r.content, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+        return "ok"
+    code = r.json().get("code") if r.headers.get("content-type", "").startswith("application/json") else None
+    if r.status_code == 413 and code == "too_large":
+        return "refused_413"
+    if r.status_code == 503 and code == "busy" and r.headers.get("retry-after"):
+        return "busy_503"
+    return "error"
 
 
 def server_env(blas_threads: int | None) -> dict:
@@ -132,17 +160,16 @@ def rss_mb(pid: int) -> float:
     raise RuntimeError("no VmRSS")
 
 
-def phase(store: str, views, h: int, w: int, cache_mb: int, clients: int, seconds: float,
-          max_requests: int, seed: int, blas_threads: int | None = None) -> dict:
-    """Start a server with ``cache_mb``, load it, stop it; latency, errors and the RSS series."""
+def phase(store: str, views, h: int, w: int, args) -> dict:
+    """Start a server, load it, stop it; outcomes, latency and the RSS series."""
     import httpx
 
     port = free_port()
     url = f"http://127.0.0.1:{port}"
     errlog = tempfile.TemporaryFile()  # uvicorn logs every request: a pipe nobody reads would block it
-    proc = subprocess.Popen([sys.executable, "-m", "illumix.cli", "serve", "--store", store, "--host", "127.0.0.1",
-                             "--port", str(port), "--cache-mb", str(cache_mb)],
-                            stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=server_env(blas_threads))
+    cmd = [sys.executable, "-m", "illumix.cli", "serve", "--store", store, "--host", "127.0.0.1",
+           "--port", str(port), "--cache-mb", str(args.cache_mb)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=server_env(args.blas_threads))
     try:
         deadline = time.monotonic() + 60
         while True:
@@ -170,32 +197,37 @@ def phase(store: str, views, h: int, w: int, cache_mb: int, clients: int, second
                 stop.wait(0.25)
 
         lat: list[float] = []
+        outcomes = {"ok": 0, "refused_413": 0, "busy_503": 0, "error": 0}
         errors: list[str] = []
         lock = threading.Lock()
-        counter = iter(range(max_requests))
-        end = t0 + seconds
+        counter = iter(range(args.max_requests))
+        end = t0 + args.seconds
 
         def client(i: int) -> None:
-            rng = random.Random(seed * 1000 + i)
+            rng = random.Random(args.seed * 1000 + i)
             with httpx.Client(timeout=120) as c:
                 while time.monotonic() < end:
                     with lock:
                         if next(counter, None) is None:
                             return
-                    p = random_request(rng, views, h, w)
+                    method, path, kw = random_call(rng, views, h, w, args.large_share, args.batch_share)
                     t = time.perf_counter()
                     try:
-                        r = c.get(f"{url}/sample", params=p)
-                        ok, msg = r.status_code == 200, f"{r.status_code} {r.text[:200]} {p}"
-                    except httpx.HTTPError as exc:
-                        ok, msg = False, f"{type(exc).__name__}: {exc} {p}"
+                        r = c.request(method, f"{url}{path}", **kw)
+                        kind, msg = classify(r), f"{r.status_code} {r.text[:200]} {method} {path} {kw}"
+                    except (httpx.HTTPError, ValueError) as exc:
+                        kind, msg = "error", f"{type(exc).__name__}: {exc} {method} {path}"
                     dt = 1e3 * (time.perf_counter() - t)
                     with lock:
-                        (lat.append(dt) if ok else errors.append(msg))
+                        outcomes[kind] += 1
+                        if kind == "ok":
+                            lat.append(dt)
+                        elif kind == "error":
+                            errors.append(msg[:600])
 
         sampler = threading.Thread(target=sample_rss, daemon=True)
         sampler.start()
-        threads = [threading.Thread(target=client, args=(i,)) for i in range(clients)]
+        threads = [threading.Thread(target=client, args=(i,)) for i in range(args.clients)]
         for t in threads:
             t.start()
         for t in threads:
@@ -213,19 +245,14 @@ def phase(store: str, views, h: int, w: int, cache_mb: int, clients: int, second
             proc.wait()
         errlog.close()
     rss = np.array([v for _, v in series])
-    q = len(rss) // 4
     pct = np.percentile(lat, [50, 99]) if lat else [float("nan")] * 2
-    return {"cache_mb": cache_mb, "clients": clients, "seconds": round(wall, 1), "requests": len(lat) + len(errors),
-            "errors": len(errors), "error_samples": errors[:5], "throughput_rps": round(len(lat) / wall, 2),
+    return {"seconds": round(wall, 1), "requests": sum(outcomes.values()), "outcomes": outcomes,
+            "error_samples": errors[:5], "throughput_rps": round(len(lat) / wall, 2),
             "p50_ms": round(float(pct[0]), 1), "p99_ms": round(float(pct[1]), 1),
             "max_ms": round(max(lat), 1) if lat else None,
             "mean_ms": round(statistics.fmean(lat), 1) if lat else None,
             "rss_start_mb": round(float(rss[0]), 1), "rss_peak_mb": round(float(rss.max()), 1),
-            "rss_end_mb": round(float(rss[-1]), 1), "rss_growth_mb": round(float(rss.max() - rss[0]), 1),
-            "rss_median_q2_mb": round(float(np.median(rss[q:2 * q])), 1),
-            "rss_median_q4_mb": round(float(np.median(rss[3 * q:])), 1),
-            "cache_bytes_end": health["cache_bytes"], "cache_hits": health["cache_hits"],
-            "cache_misses": health["cache_misses"],
+            "rss_end_mb": round(float(rss[-1]), 1), "health": health,
             "rss_series_mb": [[round(t, 1), round(v, 1)] for t, v in series[:: max(1, len(series) // 60)]]}
 
 
@@ -261,69 +288,69 @@ def leak_check(store: str, views, h: int, w: int, n: int, cache_mb: int, seed: i
         if i % max(1, n // 6) == 0 or i == n:
             gc.collect()
             cur = tracemalloc.get_traced_memory()[0]
-            trace.append([i, round((cur - base - ctx.cache.nbytes) / 2**20, 2)])
+            trace.append([i, round((cur - base - ctx.cache.total_cost) / 2**20, 2)])
     tracemalloc.stop()
     return {"requests": n, "retained_minus_cache_mib": trace, "leak_free": abs(trace[-1][1]) < 1.0}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--clients", type=int, default=8)
-    ap.add_argument("--seconds", type=float, default=40.0, help="duration of the cached phase")
-    ap.add_argument("--baseline-seconds", type=float, default=40.0,
-                    help="duration of the cache-less phase (keep it equal: allocator retention grows with time)")
-    ap.add_argument("--max-requests", type=int, default=5000, help="request cap per phase")
-    ap.add_argument("--cache-mb", type=int, default=64)
+    ap.add_argument("--clients", type=int, default=16)
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--max-requests", type=int, default=20000, help="request cap")
+    ap.add_argument("--cache-mb", type=int, default=256)
+    ap.add_argument("--rss-margin-mb", type=int, default=300, help="the goal: RSS <= cache + this")
+    ap.add_argument("--large-share", type=float, default=0.1, help="share of all-output requests up to 4096²")
+    ap.add_argument("--batch-share", type=float, default=0.2, help="share of POST /batch requests")
     ap.add_argument("--height", type=int, default=240)
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--leak-check", type=int, default=0, metavar="N",
                     help="also run N requests in-process under tracemalloc (see leak_check)")
     ap.add_argument("--blas-threads", type=int, default=None,
-                    help="OPENBLAS/OMP/MKL_NUM_THREADS for the server (default: the library's own)")
+                    help="OPENBLAS/OMP/MKL_NUM_THREADS for the server (default: illumix serve's own, 1)")
     args = ap.parse_args()
-    if not (1 <= args.clients <= 64 and 0 < args.seconds <= 600 and 0 < args.baseline_seconds <= 600
-            and args.height >= 16 and args.width >= 16 and args.cache_mb >= 1):
-        ap.error("need 1..64 clients, 0 < seconds <= 600, a frame of at least 16x16 and --cache-mb >= 1")
+    if not (1 <= args.clients <= 64 and 0 < args.seconds <= 600 and args.height >= 16 and args.width >= 16
+            and args.cache_mb >= 0 and 0 <= args.large_share + args.batch_share <= 0.95):
+        ap.error("need 1..64 clients, 0 < seconds <= 600, a frame of at least 16x16, --cache-mb >= 0 and "
+                 "large + batch shares <= 0.95")
     with tempfile.TemporaryDirectory() as tmp:
         store = os.path.join(tmp, "store")
         log(f"building a synthetic {args.width}x{args.height}x63 store …")
         views = build_store(store, args.height, args.width)
         cube_mb = args.height * args.width * 63 * 4 / 2**20
         n_cubes = sum(g for *_, g in views)
-        log(f"phase 1: --cache-mb 0, {args.clients} clients, {args.baseline_seconds:g} s")
-        base = phase(store, views, args.height, args.width, 0, args.clients, args.baseline_seconds,
-                     args.max_requests, args.seed, args.blas_threads)
-        log(f"  {base['requests']} requests, {base['errors']} errors, p50 {base['p50_ms']} ms, "
-            f"RSS {base['rss_start_mb']} → peak {base['rss_peak_mb']} MiB")
-        log(f"phase 2: --cache-mb {args.cache_mb}, {args.clients} clients, {args.seconds:g} s")
-        main_ = phase(store, views, args.height, args.width, args.cache_mb, args.clients, args.seconds,
-                      args.max_requests, args.seed + 1, args.blas_threads)
-        log(f"  {main_['requests']} requests, {main_['errors']} errors, p50 {main_['p50_ms']} ms, "
-            f"RSS {main_['rss_start_mb']} → peak {main_['rss_peak_mb']} MiB")
+        log(f"--cache-mb {args.cache_mb}, {args.clients} clients, {args.seconds:g} s")
+        run = phase(store, views, args.height, args.width, args)
+        log(f"  {run['requests']} requests {run['outcomes']}, p50 {run['p50_ms']} ms, "
+            f"RSS {run['rss_start_mb']} → peak {run['rss_peak_mb']} MiB")
         leak = None
         if args.leak_check:
             log(f"leak check: {args.leak_check} requests in-process under tracemalloc")
             leak = leak_check(store, views, args.height, args.width, args.leak_check, args.cache_mb, args.seed)
             log(f"  retained minus cache: {leak['retained_minus_cache_mib']} MiB")
-    transient = base["rss_growth_mb"]
-    bound = args.cache_mb + 1.25 * transient + 16
+    bound = args.cache_mb + args.rss_margin_mb
+    mem = run["health"]["memory"]
     result = {
         "bench": "load", "frame": [args.width, args.height], "views": len(views),
         "decoded_cube_mb": round(cube_mb, 1), "all_cubes_mb": round(cube_mb * n_cubes, 1),
-        "cache_mb": args.cache_mb, "clients": args.clients, "cpus": os.cpu_count(),
-        "errors": base["errors"] + main_["errors"], "requests": main_["requests"],
-        "p50_ms": main_["p50_ms"], "p99_ms": main_["p99_ms"], "throughput_rps": main_["throughput_rps"],
-        "rss_start": main_["rss_start_mb"], "rss_peak": main_["rss_peak_mb"], "rss_end": main_["rss_end_mb"],
-        "rss_growth_mb": main_["rss_growth_mb"], "transient_mb_without_cache": transient,
-        "rss_bound_mb": round(bound, 1), "rss_growth_within_cache_bound": main_["rss_growth_mb"] <= bound,
-        "rss_plateau": main_["rss_median_q4_mb"] - main_["rss_median_q2_mb"] <= 0.1 * bound,
+        "cache_mb": args.cache_mb, "clients": args.clients, "seconds": run["seconds"], "cpus": os.cpu_count(),
+        "requests": run["requests"], "outcomes": run["outcomes"], "errors": run["outcomes"]["error"],
+        "error_samples": run["error_samples"],
+        "p50_ms": run["p50_ms"], "p99_ms": run["p99_ms"], "throughput_rps": run["throughput_rps"],
+        "rss_start_mb": run["rss_start_mb"], "rss_peak_mb": run["rss_peak_mb"], "rss_end_mb": run["rss_end_mb"],
+        "rss_bound_mb": bound, "rss_within_bound": run["rss_peak_mb"] <= bound,
+        "rss_peak_over_cache_mb": round(run["rss_peak_mb"] - args.cache_mb, 1),
+        "cache_bytes_end": run["health"]["cache"]["bytes"], "cache_hits": run["health"]["cache"]["hits"],
+        "cache_misses": run["health"]["cache"]["misses"],
+        "inflight_peak_mb": round(mem["peak_inflight_bytes"] / 2**20, 1),
+        "inflight_limit_mb": round(mem["inflight_limit_bytes"] / 2**20, 1),
+        "request_limit_mb": round(mem["request_limit_bytes"] / 2**20, 1),
         "blas_threads": args.blas_threads,
         "server_env": {k: os.environ[k] for k in ("OPENBLAS_NUM_THREADS", "MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_")
                        if k in os.environ},
-        "cache_bytes_within_limit": main_["cache_bytes_end"] <= args.cache_mb * 2**20,
         "leak_check": leak,
-        "phases": {"no_cache": base, "cached": main_},
+        "rss_series_mb": run["rss_series_mb"],
     }
     print(json.dumps(result))
 

@@ -26,11 +26,11 @@ OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1}
 WEIGHT_BYTES_PER_GROUP = 4
 GT_OUTPUTS = frozenset({"gain", "ccm", "srgb", "weights", "mask"})
 # Working memory per pixel, measured with tracemalloc (bench/load.py --calibrate) and rounded up:
-PROJECT_BYTES_PER_GROUP = 16  # per-group raw (float32 RGB) at the window's and the output's size
-PROJECT_BYTES = 16            # the summed raw
-GT_BYTES = 48                 # float64 weights sum, mixed white point, gain map, mask …
-GT_BYTES_PER_GROUP = 20       # per-group weights (float64 + float32)
-SRGB_BYTES = 64               # CCM-map product, exposure, encoding curve temporaries
+PROJECT_BYTES_PER_GROUP = 12  # per-group raw (float32 RGB) at the window's and the output's size
+PROJECT_BYTES = 12            # the summed raw
+GT_BYTES = 42                 # float64 weights sum, mixed white point, gain map, mask …
+GT_BYTES_PER_GROUP = 12       # per-group weights
+SRGB_BYTES = 56               # CCM-map product, exposure, encoding curve temporaries
 NOISE_BYTES = 128             # float64 electrons, Poisson draws, read noise
 #: a lit group's window as float32 when the request alone holds it (a crop of a cached cube is
 #: copied to be contiguous; a window too big for the cache), per pixel and band
@@ -39,7 +39,7 @@ WINDOW_BYTES_PER_BAND = 4
 #: chunks at a time): float16 chunks, their assembly, the exponents
 DECODE_BYTES_PER_BAND = 6
 TILE = 128
-SAFETY = 1.25
+SAFETY = 1.1  # allocator rounding and the spread between measured shapes
 BASE_BYTES = 1 << 20  # metadata, npz headers, small temporaries of any request
 
 

@@ -142,6 +142,23 @@ def degenerate_sensors(draw):
     return kind, sensor_from_samples("degenerate", wl, rgb)
 
 
+def _unresolvable_energy(raw: np.ndarray, target: np.ndarray) -> float:
+    """Target energy that double precision cannot attribute to the fit or to the residual.
+
+    The constrained problem is least squares on ``A = raw · N`` (N spans M·1 = 1's null space). Along
+    a left singular vector of A whose singular value is below √ε·‖raw‖ (ε = 2.2e-16), any two
+    correct solvers — lstsq on A, or the KKT system, whose normal-equation block squares A's
+    condition number — may either fit or leave the target's component, depending on rounding (BLAS
+    kernel and operand alignment, hence test order). Their residuals may differ by that energy.
+    """
+    null = np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, -1.0]])
+    a = raw @ null
+    u, sv, _ = np.linalg.svd(a, full_matrices=False)
+    weak = sv < np.sqrt(np.finfo(float).eps) * np.linalg.norm(raw, 2)  # on raw's scale: A's columns cancel
+    rhs = target - (raw @ np.full(3, 1.0 / 3.0))[:, None]
+    return float(np.sum((u[:, weak].T @ rhs) ** 2))
+
+
 def _kkt_residual(raw: np.ndarray, target: np.ndarray) -> float:
     """Independent white-preserving least squares (KKT system): min Σ‖M ρ_n − t_n‖², M·1 = 1."""
     a = raw.T @ raw
@@ -174,7 +191,9 @@ def test_ill_conditioned_ccm_fits_are_optimal_and_white_preserving_or_refused(se
     raw = (PALETTE * spd) @ cw / (spd @ cw)
     target = target_linear_srgb(spd, PALETTE, s.grid)
     ours = float(np.sum((raw @ m.T - target) ** 2))
-    assert ours <= _kkt_residual(raw, target) * (1 + 1e-6) + 1e-9  # no worse than the optimum
+    slack = _unresolvable_energy(raw, target)
+    event(f"{kind}: unresolvable {'> 0' if slack > 1e-12 else '0'}")
+    assert ours <= _kkt_residual(raw, target) * (1 + 1e-6) + 1e-9 + slack  # no worse than the optimum
 
 
 # ---------------------------------------------------------------------------------- service
