@@ -41,25 +41,29 @@ def main(argv: list[str] | None = None) -> None:
 
     _register()
     try:
-        app(args=argv, standalone_mode=False)
+        code = app(args=argv, prog_name="illumix", standalone_mode=False)
     except (SpectralError, UserError) as exc:
         print(f"illumix: error: {exc}", file=sys.stderr)
         sys.exit(2)
-    except typer.Exit as exc:
-        sys.exit(exc.exit_code)
     except typer.Abort:
         print("illumix: aborted", file=sys.stderr)
-        sys.exit(130)
-    except KeyboardInterrupt:
-        print("illumix: interrupted", file=sys.stderr)
         sys.exit(130)
     except Exception as exc:
         # Usage errors (missing option, unknown command): typer ships its own copy of click, so
         # recognise them by what they can do rather than by class.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
-            print(f"illumix: error: {exc.format_message()}", file=sys.stderr)
+            message = exc.format_message()
+            if message:  # empty for `illumix` / `illumix store` alone: the help is already printed
+                print(f"illumix: error: {message}", file=sys.stderr)
             sys.exit(2)
         raise
+    # With standalone_mode=False click *returns* the code of a `typer.Exit` raised in a command
+    # (and turns Ctrl-C into 130) instead of exiting: pass it on, or `store verify` finding problems
+    # and an interrupted render would both exit 0.
+    if code == 130:
+        print("illumix: interrupted", file=sys.stderr)
+    if isinstance(code, int) and code:
+        sys.exit(code)
 
 
 if __name__ == "__main__":
