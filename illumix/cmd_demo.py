@@ -106,7 +106,7 @@ def demo(
     _ensure_rendered(store, resolution, spp, workers)
     console.rule("[bold]2. serve")
     port = _free_port(port)
-    app = create_app(open_store(store, mode="a"), cache_mb=512)
+    app = create_app(open_store(store), cache_mb=512)  # step 1 made it
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
