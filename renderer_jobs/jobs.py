@@ -30,11 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer_jobs.modes import EXECUTORS
 from renderer_jobs.scene_load import scene_from_dict
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
-
-EXECUTORS = ("local", "ray")
 
 
 class JobError(RuntimeError):
@@ -375,7 +374,8 @@ def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", 
             ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
     """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries."""
     if executor not in EXECUTORS:
-        raise SceneError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        raise SceneError(str(EXECUTORS.unknown(executor)))
+    executor = EXECUTORS.canonical(executor)
     settings_dict = settings.to_dict() if hasattr(settings, "to_dict") else dict(settings)
     cb = on_done or (lambda job, r, exc: None)
     if not plan_.jobs:

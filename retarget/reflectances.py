@@ -22,11 +22,10 @@ import colour
 import numpy as np
 from colour.quality import datasets as quality_data
 
+from retarget.ccm_methods import DEFAULT_TRAINING_SET  # noqa: F401  (callers import it from here)
 from retarget.errors import SpectralError, unknown_name
 from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
 from retarget.tables import read_csv_table
-
-DEFAULT_TRAINING_SET = "ColorChecker N Ohta"
 
 
 def _sets() -> dict[str, dict]:
