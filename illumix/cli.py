@@ -1,7 +1,11 @@
 """``illumix`` — entry point. Sub-commands live in ``illumix/cmd_*.py`` and register here.
 
 Every expected failure (bad name, bad file, bad parameter) ends as one line on stderr and exit
-code 2 — never a traceback.
+code 2 — never a traceback. A command that finds a problem (``store verify``) exits 1.
+
+Registering the commands must stay cheap — ``illumix --help`` and ``illumix CMD --help`` import
+typer, rich and the pure-Python option registries only: the ``cmd_*`` modules import numpy,
+colour-science, zarr, Mitsuba and the service inside the commands (tests/test_cli_startup.py).
 """
 
 from __future__ import annotations
@@ -20,6 +24,24 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _version(value: bool) -> None:
+    if not value:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        print(f"illumix {version('illumix')}")
+    except PackageNotFoundError:  # a source tree on sys.path, never pip-installed
+        print("illumix (version unknown: not installed; pip install -e .)")
+    raise typer.Exit()
+
+
+@app.callback()
+def _root(show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                            help="Print the version and exit.")) -> None:
+    """Options before the command (the app's help text is set on ``app``)."""
 
 
 def _register() -> None:

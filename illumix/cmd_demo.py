@@ -10,12 +10,15 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
 from rich.console import Console
 
 from illumix.errors import UserError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: `--help` must not wait for it
+    import numpy as np
 
 console = Console(stderr=True)
 PAIRS = (("A", "D65"), ("FL11", "daylight:5500"))
@@ -36,6 +39,7 @@ def _free_port(preferred: int) -> int:
 def _write_png(path: Path, rgb: np.ndarray) -> None:
     """Atomic 8-bit PNG of an ``(H, W, 3)`` image in [0, 1]."""
     import cv2
+    import numpy as np
 
     ok, data = cv2.imencode(".png", np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8)[..., ::-1])
     if not ok:
@@ -56,6 +60,7 @@ def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> Non
 
 def _save_samples(url: str, out: Path) -> list[str]:
     import httpx
+    import numpy as np
 
     from retarget.isp import preview
 

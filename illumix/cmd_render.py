@@ -14,9 +14,10 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from illumix.errors import UserError
+from illumix.options import choice_option, described, wavelengths_option
+from renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
 
@@ -51,12 +52,11 @@ def render(
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
     spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (4 wavelengths each; >= 16 on 63 bands)."),
     seed: int = typer.Option(0, "--seed", help="Render seed (same seed, same cube)."),
-    wavelengths: str = typer.Option("stratified", "--wavelengths",
-                                    help="Wavelength sampling: stratified (default) or random (Mitsuba's)."),
+    wavelengths: str = wavelengths_option(),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
-    executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
+    executor: str = choice_option(EXECUTORS, "--executor", f"Where jobs run — {described(EXECUTORS)}."),
     address: str | None = typer.Option(None, "--address", help="Ray cluster address (ray executor)."),
     skip_dark: bool = typer.Option(True, "--skip-dark/--no-skip-dark",
                                    help="Probe each view/group first (<= 1/16 of its paths) and record a group "
@@ -74,18 +74,16 @@ def render(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
 ) -> None:
     """Render spectral transport cubes (one per view and light group) into a cube store."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES, RenderSettings
+    from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.scene_load import load_scenes
     from renderer_jobs.scene_schema import SceneError
 
     try:
         if demo == (config is not None):
             raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
-        if executor not in jobs.EXECUTORS:
-            raise UserError(f"--executor {executor!r} unknown; choose one of {', '.join(jobs.EXECUTORS)}")
-        if wavelengths not in WAVELENGTH_MODES:
-            raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")
         if executor == "local" and address:
             raise UserError("--address is for --executor ray")
         res = jobs.parse_resolution(resolution)
