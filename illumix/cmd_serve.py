@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import socket
 import sys
 
 import typer
@@ -21,6 +22,23 @@ def open_store(path: str, *, create: bool = False):
         return CubeStore.open(path, mode="a")
     except StoreError as exc:
         raise UserError(str(exc)) from None
+
+
+def check_address(host: str, port: int) -> None:
+    """Refuse a --host this machine cannot listen on, or a --port already taken, with one line
+    (uvicorn would log a few lines and exit 3). A port taken between here and uvicorn's own bind
+    is still reported by uvicorn."""
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except socket.gaierror as exc:
+        raise UserError(f"--host {host!r} is not an address: {exc.strerror}; give e.g. 127.0.0.1 or 0.0.0.0") from None
+    with socket.socket(family, kind, proto) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
+        try:
+            s.bind(addr)
+        except OSError as exc:
+            raise UserError(f"cannot listen on {host}:{port}: {exc.strerror}; choose another --port or "
+                            "--host") from None
 
 
 def resolve_token(token: str | None, host: str, port: int) -> str | None:
@@ -46,7 +64,8 @@ def serve(
     cache_mb: int = typer.Option(1024, "--cache-mb", min=0, help="Decoded-cube LRU cache size, MiB."),
 ) -> None:
     """Serve samples over HTTP (OpenAPI docs at /docs)."""
-    cube_store = open_store(store, create=create)  # refuse before anything starts
+    check_address(host, port)  # refuse before anything starts or is created
+    cube_store = open_store(store, create=create)
     token = resolve_token(token, host, port)
     import uvicorn
 
