@@ -64,7 +64,10 @@ def _save_samples(url: str, out: Path) -> list[str]:
 
     from retarget.isp import preview
 
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create --out {out}: {exc.strerror}; give a writable directory") from None
     scenes = httpx.get(f"{url}/scenes", timeout=60).json()["scenes"]
     scene = next(s for s in scenes if s["name"].startswith("demo"))
     written = []
@@ -98,7 +101,7 @@ def demo(
     resolution: str = typer.Option("240x180", "--resolution", help="Render resolution WIDTHxHEIGHT."),
     spp: int = typer.Option(32, "--spp", min=16, help="Render paths per pixel."),
     workers: int = typer.Option(1, "--workers", min=1, help="Render worker processes."),
-    port: int = typer.Option(8000, "--port", help="Port on 127.0.0.1 (a free one if taken)."),
+    port: int = typer.Option(8000, "--port", min=0, max=65535, help="Port on 127.0.0.1 (a free one if taken)."),
     serve: bool = typer.Option(True, "--serve/--no-serve", help="Keep serving after the samples."),
 ) -> None:
     """Render the demo room (if needed), serve it on 127.0.0.1, fetch and save samples."""
@@ -107,6 +110,8 @@ def demo(
     from illumix.cmd_serve import open_store
     from service.app import create_app
 
+    if out.exists() and not out.is_dir():  # found now, not after the render and the server start
+        raise UserError(f"--out {out} is a file; give a directory for the sample PNGs")
     console.rule("[bold]1. render the demo room (skipped where the store is complete)")
     _ensure_rendered(store, resolution, spp, workers)
     console.rule("[bold]2. serve")

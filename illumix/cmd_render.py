@@ -16,7 +16,7 @@ import typer
 from rich.console import Console
 
 from illumix.errors import UserError
-from illumix.options import choice_option, described, wavelengths_option
+from illumix.options import choice_option, described, seed_option, wavelengths_option
 from renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
@@ -38,20 +38,24 @@ def require_renderer() -> None:
                         "(or bash scripts/install.sh; on Debian also apt-get install libllvm19)")
 
 
-def _split(text: str | None) -> list[str] | None:
-    if not text:
+def _split(text: str | None, flag: str) -> list[str] | None:
+    """The names of a comma-separated option; ``None`` (all) when it is not given."""
+    if text is None:
         return None
-    return [t.strip() for t in text.split(",") if t.strip()]
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:  # `--groups ""` or `--groups ,` would otherwise quietly mean "all"
+        raise UserError(f"{flag} {text!r} names nothing; give comma-separated names, or leave {flag} out for all")
+    return names
 
 
 def render(
     config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]})."),
     store: str = typer.Option(..., "--store", help="Cube store directory or fsspec URL (created if missing)."),
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
-    demo_seed: int = typer.Option(0, "--demo-seed", help="Seed of the demo room's layout and materials."),
+    demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
     spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (4 wavelengths each; >= 16 on 63 bands)."),
-    seed: int = typer.Option(0, "--seed", help="Render seed (same seed, same cube)."),
+    seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
     wavelengths: str = wavelengths_option(),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
@@ -103,7 +107,8 @@ def render(
                             "e.g. 0.05 for 5 %")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target)
-        p = jobs.plan(scenes, store, views=_split(views), groups=_split(groups), overwrite=overwrite)
+        p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
+                      overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:

@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from illumix.errors import UserError
-from illumix.options import wavelengths_option
+from illumix.options import seed_option, wavelengths_option
 
 console = Console(stderr=True)
 
@@ -21,7 +21,7 @@ def validate(
     illuminants: str = typer.Option("D65,A,FL2,FL11,FL12,blackbody:2300", "--illuminants",
                                     help="Comma-separated illuminants (names, blackbody:K, daylight:K, CSV)."),
     spp: int = typer.Option(64, "--spp", min=16, help="Paths per pixel of the chart render."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("--seed", "Render seed of the chart."),
     resolution: str = typer.Option("192x128", "--resolution", help="WIDTHxHEIGHT of the chart render."),
     incidence: float = typer.Option(30.0, "--incidence", min=0.0, max=80.0,
                                     help="Angle of the light from the chart normal, degrees."),

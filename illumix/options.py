@@ -16,6 +16,10 @@ from renderer_jobs.modes import WAVELENGTH_MODES
 from retarget.errors import UnknownName
 from retarget.registry import MethodRegistry
 
+# The renderer hashes seeds to 32 bits, so --seed N and N + 2**32 would give the same cube.
+SEED_MAX = 2**32 - 1
+
+
 def choice_option(registry: MethodRegistry, flag: str, help: str, default: str | None = None) -> Any:
     """A typer option taking one name of ``registry`` (default: its first name)."""
 
@@ -36,3 +40,7 @@ def described(registry: MethodRegistry[str]) -> str:
 
 def wavelengths_option() -> Any:
     return choice_option(WAVELENGTH_MODES, "--wavelengths", f"Wavelength sampling — {described(WAVELENGTH_MODES)}.")
+
+
+def seed_option(flag: str, help: str) -> Any:
+    return typer.Option(0, flag, min=0, max=SEED_MAX, help=help)

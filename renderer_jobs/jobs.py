@@ -345,7 +345,11 @@ def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | N
     except ImportError:
         raise JobError("the ray executor needs Ray: pip install 'illumix[ray]'") from None
     if not ray.is_initialized():
-        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+        try:
+            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+        except Exception as exc:  # ConnectionError, or ValueError for a malformed address
+            where = f"at {address}" if address else "(no --address: a new local instance)"
+            raise JobError(f"cannot start or reach the Ray cluster {where}: {type(exc).__name__}: {exc}") from None
     # One CPU per task and a one-thread Dr.Jit pool in it: Ray packs as many tasks as a node has cores.
     remote = ray.remote(num_cpus=1)(run_job)
     payloads = {n: ray.put(_scene_payload(s)) for n, s in plan_.scenes.items()}
