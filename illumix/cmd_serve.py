@@ -10,6 +10,7 @@ import typer
 
 from illumix.errors import UserError
 
+
 def open_store(path: str, *, create: bool = False):
     """The store at ``path`` opened for the service (which persists uploads). A path holding no
     store is refused unless ``create``: a typo must not silently serve a new, empty store."""
