@@ -105,6 +105,9 @@ def render(
         if noise_target is not None and not 0 < noise_target < 1:
             raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
                             "e.g. 0.05 for 5 %")
+        if noise_target is not None and not adaptive:  # the renderer would quietly let the target win
+            raise UserError("--noise-target spreads the paths by the adaptive pilot, which --no-adaptive turns off; "
+                            "give one of the two")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target)
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
