@@ -32,7 +32,8 @@ case "$role" in
       echo "illumix-entrypoint: no ILLUMIX_TOKEN: uploads and deletes are open to anyone who can" \
            "reach ${ILLUMIX_HOST:-127.0.0.1}:${ILLUMIX_PORT:-8000}" >&2
     fi
-    exec illumix serve --store "${ILLUMIX_STORE:?set ILLUMIX_STORE to a store directory or fsspec URL}" \
+    # --create: the service may start before the first render fills the store volume.
+    exec illumix serve --create --store "${ILLUMIX_STORE:?set ILLUMIX_STORE to a store directory or fsspec URL}" \
       --host "${ILLUMIX_HOST:-127.0.0.1}" --port "${ILLUMIX_PORT:-8000}" \
       --cache-mb "${ILLUMIX_CACHE_MB:-1024}" "$@"
     ;;

@@ -1,7 +1,11 @@
 """``illumix`` — entry point. Sub-commands live in ``illumix/cmd_*.py`` and register here.
 
 Every expected failure (bad name, bad file, bad parameter) ends as one line on stderr and exit
-code 2 — never a traceback.
+code 2 — never a traceback. A command that finds a problem (``store verify``) exits 1.
+
+Registering the commands must stay cheap — ``illumix --help`` and ``illumix CMD --help`` import
+typer, rich and the pure-Python option registries only: the ``cmd_*`` modules import numpy,
+colour-science, zarr, Mitsuba and the service inside the commands (tests/test_cli_startup.py).
 """
 
 from __future__ import annotations
@@ -22,7 +26,27 @@ app = typer.Typer(
 )
 
 
+def _version(value: bool) -> None:
+    if not value:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        print(f"illumix {version('illumix')}")
+    except PackageNotFoundError:  # a source tree on sys.path, never pip-installed
+        print("illumix (version unknown: not installed; pip install -e .)")
+    raise typer.Exit()
+
+
+@app.callback()
+def _root(show_version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                            help="Print the version and exit.")) -> None:
+    """Options before the command (the app's help text is set on ``app``)."""
+
+
 def _register() -> None:
+    if app.registered_commands:  # main() runs many times in one process in the tests
+        return
     from illumix import cmd_demo, cmd_render, cmd_serve, cmd_spectra, cmd_store, cmd_validate
 
     for module in (cmd_spectra, cmd_store, cmd_render, cmd_validate, cmd_serve, cmd_demo):
@@ -41,25 +65,29 @@ def main(argv: list[str] | None = None) -> None:
 
     _register()
     try:
-        app(args=argv, standalone_mode=False)
+        code = app(args=argv, prog_name="illumix", standalone_mode=False)
     except (SpectralError, UserError) as exc:
         print(f"illumix: error: {exc}", file=sys.stderr)
         sys.exit(2)
-    except typer.Exit as exc:
-        sys.exit(exc.exit_code)
     except typer.Abort:
         print("illumix: aborted", file=sys.stderr)
-        sys.exit(130)
-    except KeyboardInterrupt:
-        print("illumix: interrupted", file=sys.stderr)
         sys.exit(130)
     except Exception as exc:
         # Usage errors (missing option, unknown command): typer ships its own copy of click, so
         # recognise them by what they can do rather than by class.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
-            print(f"illumix: error: {exc.format_message()}", file=sys.stderr)
+            message = exc.format_message()
+            if message:  # empty for `illumix` / `illumix store` alone: the help is already printed
+                print(f"illumix: error: {message}", file=sys.stderr)
             sys.exit(2)
         raise
+    # With standalone_mode=False click *returns* the code of a `typer.Exit` raised in a command
+    # (and turns Ctrl-C into 130) instead of exiting: pass it on, or `store verify` finding problems
+    # and an interrupted render would both exit 0.
+    if code == 130:
+        print("illumix: interrupted", file=sys.stderr)
+    if isinstance(code, int) and code:
+        sys.exit(code)
 
 
 if __name__ == "__main__":

@@ -10,12 +10,15 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
 from rich.console import Console
 
 from illumix.errors import UserError
+
+if TYPE_CHECKING:  # numpy is imported where it is used: `--help` must not wait for it
+    import numpy as np
 
 console = Console(stderr=True)
 PAIRS = (("A", "D65"), ("FL11", "daylight:5500"))
@@ -36,6 +39,7 @@ def _free_port(preferred: int) -> int:
 def _write_png(path: Path, rgb: np.ndarray) -> None:
     """Atomic 8-bit PNG of an ``(H, W, 3)`` image in [0, 1]."""
     import cv2
+    import numpy as np
 
     ok, data = cv2.imencode(".png", np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8)[..., ::-1])
     if not ok:
@@ -56,10 +60,14 @@ def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> Non
 
 def _save_samples(url: str, out: Path) -> list[str]:
     import httpx
+    import numpy as np
 
     from retarget.isp import preview
 
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create --out {out}: {exc.strerror}; give a writable directory") from None
     scenes = httpx.get(f"{url}/scenes", timeout=60).json()["scenes"]
     scene = next(s for s in scenes if s["name"].startswith("demo"))
     written = []
@@ -93,7 +101,7 @@ def demo(
     resolution: str = typer.Option("240x180", "--resolution", help="Render resolution WIDTHxHEIGHT."),
     spp: int = typer.Option(32, "--spp", min=16, help="Render paths per pixel."),
     workers: int = typer.Option(1, "--workers", min=1, help="Render worker processes."),
-    port: int = typer.Option(8000, "--port", help="Port on 127.0.0.1 (a free one if taken)."),
+    port: int = typer.Option(8000, "--port", min=0, max=65535, help="Port on 127.0.0.1 (a free one if taken)."),
     serve: bool = typer.Option(True, "--serve/--no-serve", help="Keep serving after the samples."),
 ) -> None:
     """Render the demo room (if needed), serve it on 127.0.0.1, fetch and save samples."""
@@ -102,11 +110,13 @@ def demo(
     from illumix.cmd_serve import open_store
     from service.app import create_app
 
+    if out.exists() and not out.is_dir():  # found now, not after the render and the server start
+        raise UserError(f"--out {out} is a file; give a directory for the sample PNGs")
     console.rule("[bold]1. render the demo room (skipped where the store is complete)")
     _ensure_rendered(store, resolution, spp, workers)
     console.rule("[bold]2. serve")
     port = _free_port(port)
-    app = create_app(open_store(store, mode="a"), cache_mb=512)
+    app = create_app(open_store(store), cache_mb=512)  # step 1 made it
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from illumix.errors import UserError
+from illumix.options import choice_option, described, seed_option, wavelengths_option
+from renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
 
@@ -37,26 +38,29 @@ def require_renderer() -> None:
                         "(or bash scripts/install.sh; on Debian also apt-get install libllvm19)")
 
 
-def _split(text: str | None) -> list[str] | None:
-    if not text:
+def _split(text: str | None, flag: str) -> list[str] | None:
+    """The names of a comma-separated option; ``None`` (all) when it is not given."""
+    if text is None:
         return None
-    return [t.strip() for t in text.split(",") if t.strip()]
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:  # `--groups ""` or `--groups ,` would otherwise quietly mean "all"
+        raise UserError(f"{flag} {text!r} names nothing; give comma-separated names, or leave {flag} out for all")
+    return names
 
 
 def render(
     config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]})."),
     store: str = typer.Option(..., "--store", help="Cube store directory or fsspec URL (created if missing)."),
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
-    demo_seed: int = typer.Option(0, "--demo-seed", help="Seed of the demo room's layout and materials."),
+    demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
     spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (4 wavelengths each; >= 16 on 63 bands)."),
-    seed: int = typer.Option(0, "--seed", help="Render seed (same seed, same cube)."),
-    wavelengths: str = typer.Option("stratified", "--wavelengths",
-                                    help="Wavelength sampling: stratified (default) or random (Mitsuba's)."),
+    seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
+    wavelengths: str = wavelengths_option(),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
-    executor: str = typer.Option("local", "--executor", help="local (process pool) or ray."),
+    executor: str = choice_option(EXECUTORS, "--executor", f"Where jobs run — {described(EXECUTORS)}."),
     address: str | None = typer.Option(None, "--address", help="Ray cluster address (ray executor)."),
     skip_dark: bool = typer.Option(True, "--skip-dark/--no-skip-dark",
                                    help="Probe each view/group first (<= 1/16 of its paths) and record a group "
@@ -74,18 +78,16 @@ def render(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
 ) -> None:
     """Render spectral transport cubes (one per view and light group) into a cube store."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
     from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES, RenderSettings
+    from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.scene_load import load_scenes
     from renderer_jobs.scene_schema import SceneError
 
     try:
         if demo == (config is not None):
             raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
-        if executor not in jobs.EXECUTORS:
-            raise UserError(f"--executor {executor!r} unknown; choose one of {', '.join(jobs.EXECUTORS)}")
-        if wavelengths not in WAVELENGTH_MODES:
-            raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")
         if executor == "local" and address:
             raise UserError("--address is for --executor ray")
         res = jobs.parse_resolution(resolution)
@@ -103,9 +105,13 @@ def render(
         if noise_target is not None and not 0 < noise_target < 1:
             raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
                             "e.g. 0.05 for 5 %")
+        if noise_target is not None and not adaptive:  # the renderer would quietly let the target win
+            raise UserError("--noise-target spreads the paths by the adaptive pilot, which --no-adaptive turns off; "
+                            "give one of the two")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target)
-        p = jobs.plan(scenes, store, views=_split(views), groups=_split(groups), overwrite=overwrite)
+        p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
+                      overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:

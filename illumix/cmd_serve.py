@@ -3,37 +3,76 @@
 from __future__ import annotations
 
 import os
+import socket
+import sys
 
 import typer
 
 from illumix.errors import UserError
 
 
-def open_store(path: str, mode: str = "r"):
+def open_store(path: str, *, create: bool = False):
+    """The store at ``path`` opened for the service (which persists uploads). A path holding no
+    store is refused unless ``create``: a typo must not silently serve a new, empty store."""
     from store import CubeStore, StoreError
 
     try:
-        return CubeStore.open(path, mode=mode)
+        if not create and not CubeStore.exists(path):
+            raise UserError(f"no illumix store at {path}; render one there with `illumix render --store "
+                            f"{path} …`, or pass --create to serve a new, empty store")
+        return CubeStore.open(path, mode="a")
     except StoreError as exc:
         raise UserError(str(exc)) from None
 
 
+def check_address(host: str, port: int) -> None:
+    """Refuse a --host this machine cannot listen on, or a --port already taken, with one line
+    (uvicorn would log a few lines and exit 3). A port taken between here and uvicorn's own bind
+    is still reported by uvicorn."""
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except socket.gaierror as exc:
+        raise UserError(f"--host {host!r} is not an address: {exc.strerror}; give e.g. 127.0.0.1 or 0.0.0.0") from None
+    with socket.socket(family, kind, proto) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
+        try:
+            s.bind(addr)
+        except OSError as exc:
+            raise UserError(f"cannot listen on {host}:{port}: {exc.strerror}; choose another --port or "
+                            "--host") from None
+
+
+def resolve_token(token: str | None, host: str, port: int) -> str | None:
+    """The service's token, ``None`` for none. An empty (or blank) token turns authentication off,
+    which must not pass unnoticed: it is as likely an unset shell variable as a choice. click reads
+    an empty ILLUMIX_TOKEN as unset, so the environment is consulted again here."""
+    given = token if token is not None else os.environ.get("ILLUMIX_TOKEN")
+    if given is not None and not given.strip():
+        print(f"illumix: warning: the token is empty (--token '' or ILLUMIX_TOKEN=''), so authentication "
+              f"is off: uploads and deletes are open to anyone who can reach {host}:{port}", file=sys.stderr)
+        return None
+    return given
+
+
 def serve(
-    store: str = typer.Option(..., "--store", help="Store path or fsspec URL."),
+    store: str = typer.Option(..., "--store", help="Store path or fsspec URL (must hold a store unless --create)."),
+    create: bool = typer.Option(False, "--create", help="Create an empty store at --store if none is there."),
     host: str = typer.Option("127.0.0.1", "--host", help="Address to bind (default loopback only)."),
     port: int = typer.Option(8000, "--port", min=0, max=65535),
     token: str | None = typer.Option(None, "--token", envvar="ILLUMIX_TOKEN",
-                                     help="Bearer token required for uploads/deletes (or ILLUMIX_TOKEN)."),
+                                     help="Bearer token required for uploads/deletes (or ILLUMIX_TOKEN); "
+                                          "without one, writes are open."),
     cache_mb: int = typer.Option(1024, "--cache-mb", min=0, help="Decoded-cube LRU cache size, MiB."),
 ) -> None:
     """Serve samples over HTTP (OpenAPI docs at /docs)."""
+    check_address(host, port)  # refuse before anything starts or is created
+    cube_store = open_store(store, create=create)
+    token = resolve_token(token, host, port)
     import uvicorn
 
     from service.app import create_app
 
-    app = create_app(open_store(store, mode="a"), token=token or os.environ.get("ILLUMIX_TOKEN"),
-                     cache_mb=cache_mb)
-    uvicorn.run(app, host=host, port=port, log_level="info")
+    uvicorn.run(create_app(cube_store, token=token, cache_mb=cache_mb), host=host, port=port, log_level="info")
 
 
 def register(app: typer.Typer) -> None:

@@ -6,15 +6,12 @@ import json
 
 import typer
 from rich.console import Console
-from rich.table import Table
 
-from retarget import illuminants as ill
-from retarget import sensors as sen
-from retarget.ccm import CCM_METHODS, fit_ccm
-from retarget.errors import SpectralError
-from retarget.groundtruth import white_point
-from retarget.reflectances import DEFAULT_TRAINING_SET, get_reflectances
+from illumix.options import choice_option
+from retarget.ccm_methods import CCM_METHODS, DEFAULT_TRAINING_SET
 
+# The spectral libraries (colour-science, numpy) are imported inside the commands: `--help` must not
+# wait for them.
 console = Console()
 illuminants_app = typer.Typer(help="The illuminant library.", no_args_is_help=True)
 sensors_app = typer.Typer(help="The sensor library.", no_args_is_help=True)
@@ -26,6 +23,9 @@ ILLUMINANT_HELP = "Illuminant name (see `illumix illuminants list`), blackbody:K
 @illuminants_app.command("list")
 def illuminants_list(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """List the built-in illuminants and the parametric forms."""
+    from retarget import illuminants as ill
+    from retarget.errors import SpectralError
+
     names, unusable = [], {}
     for name in ill.builtin_names():
         try:
@@ -49,6 +49,11 @@ def illuminants_list(as_json: bool = typer.Option(False, "--json", help="Print J
 @sensors_app.command("list")
 def sensors_list(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """List the built-in sensors (plus files in ILLUMIX_SENSOR_PATH) and whether they cover the grid."""
+    from rich.table import Table
+
+    from retarget import sensors as sen
+    from retarget.errors import SpectralError
+
     rows = []
     for name in sen.builtin_names():
         try:
@@ -73,6 +78,10 @@ def whitepoint(
     as_json: bool = typer.Option(False, "--json", help="Print JSON: rgb, r_over_g, b_over_g."),
 ) -> None:
     """The sensor's white point of an illuminant (thesis eq. 3.2): R/G, B/G and RGB with G = 1."""
+    from retarget import illuminants as ill
+    from retarget import sensors as sen
+    from retarget.groundtruth import white_point
+
     s = sen.get_sensor(sensor)
     wp = white_point(s.weights(), ill.illuminant_spd(illuminant, s.grid), what=illuminant)
     result = {"sensor": s.name, "illuminant": illuminant, "rgb": [float(x) for x in wp],
@@ -89,10 +98,16 @@ def ccm(
     illuminant: str = typer.Option(..., "--illuminant", help=ILLUMINANT_HELP),
     training: str = typer.Option(DEFAULT_TRAINING_SET, "--training",
                                  help="Reflectance training set name or CSV file."),
-    method: str = typer.Option(CCM_METHODS.names[0], "--method", help=f"One of: {', '.join(CCM_METHODS.choices())}."),
+    method: str = choice_option(CCM_METHODS, "--method",
+                                "White Preserving keeps white exactly (M·1 = 1); Unconstrained: plain least squares."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON: matrix, fit_delta_e00_mean."),
 ) -> None:
     """Fit the CCM (white-balanced raw → linear sRGB) of a sensor under an illuminant."""
+    from retarget import illuminants as ill
+    from retarget import sensors as sen
+    from retarget.ccm import fit_ccm
+    from retarget.reflectances import get_reflectances
+
     s = sen.get_sensor(sensor)
     _, refl = get_reflectances(training, s.grid)
     fit = fit_ccm(s.weights(), ill.illuminant_spd(illuminant, s.grid), refl, s.grid, method=method)

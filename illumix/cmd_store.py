@@ -93,7 +93,7 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
         c = rep["checked"]
         status = "[green]OK[/]" if rep["ok"] else f"[red]{len(rep['problems'])} problem(s)[/]"
         console.print(f"{status}: checked {c['views']} views, {c['aovs']} AOVs, {c['cubes']} cubes, "
-                      f"{c['registry_entries']} registry entries in {rep['store']}", highlight=False)
+                      f"{c['registry_entries']} registry entries in {rep['store']}", soft_wrap=True, highlight=False)
     if not rep["ok"]:
         raise typer.Exit(1)
 

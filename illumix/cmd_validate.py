@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from illumix.errors import UserError
+from illumix.options import seed_option, wavelengths_option
 
 console = Console(stderr=True)
 
@@ -20,24 +21,18 @@ def validate(
     illuminants: str = typer.Option("D65,A,FL2,FL11,FL12,blackbody:2300", "--illuminants",
                                     help="Comma-separated illuminants (names, blackbody:K, daylight:K, CSV)."),
     spp: int = typer.Option(64, "--spp", min=16, help="Paths per pixel of the chart render."),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("--seed", "Render seed of the chart."),
     resolution: str = typer.Option("192x128", "--resolution", help="WIDTHxHEIGHT of the chart render."),
     incidence: float = typer.Option(30.0, "--incidence", min=0.0, max=80.0,
                                     help="Angle of the light from the chart normal, degrees."),
-    wavelengths: str = typer.Option("stratified", "--wavelengths",
-                                    help="Wavelength sampling: stratified (default) or random (Mitsuba's)."),
+    wavelengths: str = wavelengths_option(),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Render a Lambertian ColorChecker under a distant light and compare it with closed form."""
+    from illumix.cmd_render import require_renderer
     from renderer_jobs.jobs import parse_resolution
     from renderer_jobs.scene_schema import SceneError
     from renderer_jobs.validate import run_validation
-
-    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES
-
-    if wavelengths not in WAVELENGTH_MODES:
-        raise UserError(f"--wavelengths {wavelengths!r} unknown; choose one of {', '.join(WAVELENGTH_MODES)}")
-    from illumix.cmd_render import require_renderer
 
     require_renderer()
     names = [s.strip() for s in illuminants.split(",") if s.strip()]

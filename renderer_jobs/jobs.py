@@ -30,11 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer_jobs.modes import EXECUTORS
 from renderer_jobs.scene_load import scene_from_dict
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
-
-EXECUTORS = ("local", "ray")
 
 
 class JobError(RuntimeError):
@@ -337,7 +336,11 @@ def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | N
     except ImportError:
         raise JobError("the ray executor needs Ray: pip install 'illumix[ray]'") from None
     if not ray.is_initialized():
-        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+        try:
+            ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
+        except Exception as exc:  # ConnectionError, or ValueError for a malformed address
+            where = f"at {address}" if address else "(no --address: a new local instance)"
+            raise JobError(f"cannot start or reach the Ray cluster {where}: {type(exc).__name__}: {exc}") from None
     # One CPU per task and a one-thread Dr.Jit pool in it: Ray packs as many tasks as a node has cores.
     remote = ray.remote(num_cpus=1)(run_job)
     payloads = {n: ray.put(_scene_payload(s)) for n, s in plan_.scenes.items()}
@@ -366,7 +369,8 @@ def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", 
             ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
     """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries."""
     if executor not in EXECUTORS:
-        raise SceneError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        raise SceneError(str(EXECUTORS.unknown(executor)))
+    executor = EXECUTORS.canonical(executor)
     settings_dict = settings.to_dict() if hasattr(settings, "to_dict") else dict(settings)
     cb = on_done or (lambda job, r, exc: None)
     if not plan_.jobs:

@@ -63,11 +63,12 @@ from renderer_jobs import adaptive_spp
 from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
+from renderer_jobs.modes import WAVELENGTH_MODES
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
-WAVELENGTH_MODES = ("stratified", "random")
+
 def lane_stride(n_live: int) -> int:
     """Band offset between a path's 4 wavelengths when ``n_live`` bands are sampled (16 for 63)."""
     return max(1, round(n_live / 4))
@@ -114,8 +115,9 @@ class RenderSettings:
         if self.spp < 1:
             raise SceneError(f"spp must be >= 1, got {self.spp}")
         if self.wavelengths not in WAVELENGTH_MODES:
-            raise SceneError(f"wavelength sampling {self.wavelengths!r} unknown; "
-                             f"use one of {', '.join(WAVELENGTH_MODES)}")
+            raise SceneError(str(WAVELENGTH_MODES.unknown(self.wavelengths)))
+        # Any accepted spelling ("Stratified") becomes the canonical name the renderer compares with.
+        object.__setattr__(self, "wavelengths", WAVELENGTH_MODES.canonical(self.wavelengths))
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
         if self.probe_ratio < 1:

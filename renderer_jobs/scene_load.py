@@ -82,7 +82,8 @@ def load_scenes(path: str | Path, *, check: bool = True) -> list[Scene]:
     """Load a YAML or JSON file holding one scene or ``{scenes: [...]}``."""
     p = Path(path)
     if not p.is_file():
-        raise SceneError(f"scene file {str(p)!r} does not exist")
+        what = "is a directory; give a YAML or JSON file" if p.is_dir() else "does not exist"
+        raise SceneError(f"scene file {str(p)!r} {what}")
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:

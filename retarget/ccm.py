@@ -13,12 +13,12 @@ set ``S_n``:
   row solved on the constraint's null space by least squares (robust to near-degenerate sensors).
 
 The fit's quality is reported as CIEDE2000 between ``M ρ̂_n`` and ``t_n`` in CIELAB (D65).
-Methods are dispatched by name through :data:`CCM_METHODS` (case-insensitive, with aliases):
+Methods are dispatched by name through :data:`CCM_METHODS` (case-insensitive, with aliases; defined
+in :mod:`retarget.ccm_methods`):
 ``method="White Preserving"`` (default; alias ``"wp"``) or ``"Unconstrained"`` (alias
 ``"Least Squares"``).
 
-colour-science is imported on first use, not at import, so the command line can list the methods
-without loading it.
+colour-science is imported on first use, not at import.
 """
 
 from __future__ import annotations
@@ -28,14 +28,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from retarget.ccm_methods import CCM_METHODS
 from retarget.errors import SpectralError
 from retarget.grid import SpectralGrid, resample
-from retarget.registry import MethodRegistry
-
-# value: whether the fit keeps white (M·1 = 1)
-CCM_METHODS: MethodRegistry[bool] = MethodRegistry(
-    "CCM method", {"White Preserving": True, "Unconstrained": False},
-    aliases={"wp": "White Preserving", "Least Squares": "Unconstrained"})
 
 
 @dataclass(frozen=True)

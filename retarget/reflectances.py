@@ -22,11 +22,10 @@ import colour
 import numpy as np
 from colour.quality import datasets as quality_data
 
-from retarget.errors import SpectralError, unknown_name
+from retarget.ccm_methods import DEFAULT_TRAINING_SET  # noqa: F401  (callers import it from here)
+from retarget.errors import SpectralError, UnknownName, unknown_name
 from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
 from retarget.tables import read_csv_table
-
-DEFAULT_TRAINING_SET = "ColorChecker N Ohta"
 
 
 def _sets() -> dict[str, dict]:
@@ -52,7 +51,8 @@ def get_reflectances(name: str, grid: SpectralGrid = DEFAULT_GRID) -> tuple[list
     if Path(name).is_file():
         wl, v, cols = read_csv_table(name, what=f"reflectance file {name!r}")
         return cols, _validate(resample(wl, v, grid, extend="constant", what=name).T, name)
-    raise unknown_name("reflectance set", name, set_names())
+    err = unknown_name("reflectance set", name, set_names())
+    raise UnknownName(f"{err} (sets: {', '.join(set_names())}; or a CSV file: wavelength, one column per sample)")
 
 
 @lru_cache(maxsize=32)
