@@ -169,6 +169,9 @@ def phase(store: str, views, h: int, w: int, args) -> dict:
     errlog = tempfile.TemporaryFile()  # uvicorn logs every request: a pipe nobody reads would block it
     cmd = [sys.executable, "-m", "illumix.cli", "serve", "--store", store, "--host", "127.0.0.1",
            "--port", str(port), "--cache-mb", str(args.cache_mb)]
+    for flag in ("max_request_mb", "inflight_mb"):
+        if getattr(args, flag) is not None:
+            cmd += [f"--{flag.replace('_', '-')}", str(getattr(args, flag))]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=server_env(args.blas_threads))
     try:
         deadline = time.monotonic() + 60
@@ -300,6 +303,8 @@ def main() -> None:
     ap.add_argument("--max-requests", type=int, default=20000, help="request cap")
     ap.add_argument("--cache-mb", type=int, default=256)
     ap.add_argument("--rss-margin-mb", type=int, default=300, help="the goal: RSS <= cache + this")
+    ap.add_argument("--max-request-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
+    ap.add_argument("--inflight-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
     ap.add_argument("--large-share", type=float, default=0.1, help="share of all-output requests up to 4096²")
     ap.add_argument("--batch-share", type=float, default=0.2, help="share of POST /batch requests")
     ap.add_argument("--height", type=int, default=240)

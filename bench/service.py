@@ -107,7 +107,10 @@ def main() -> None:
         synthetic_store.build(store, args.height, args.width, extras=False)
         port = free_port()
         proc = subprocess.Popen([sys.executable, "-m", "illumix.cli", "serve", "--store", store,
-                                 "--host", "127.0.0.1", "--port", str(port), "--cache-mb", "2048"],
+                                 "--host", "127.0.0.1", "--port", str(port), "--cache-mb", "2048",
+                                 # full 720x960 frames with every output need ~190 MiB each, above the
+                                 # default per-request bound (sized for bench/load.py's RSS goal)
+                                 "--max-request-mb", "512", "--inflight-mb", "2048"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         url = f"http://127.0.0.1:{port}"
         try:

@@ -107,6 +107,7 @@ def demo(
     """Render the demo room (if needed), serve it on 127.0.0.1, fetch and save samples."""
     import uvicorn
 
+    from illumix.allocator import tune_for_service
     from illumix.cmd_serve import open_store
     from service.app import create_app
 
@@ -116,6 +117,7 @@ def demo(
     _ensure_rendered(store, resolution, spp, workers)
     console.rule("[bold]2. serve")
     port = _free_port(port)
+    tune_for_service()
     app = create_app(open_store(store), cache_mb=512)  # step 1 made it
     server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)

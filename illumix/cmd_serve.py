@@ -63,16 +63,30 @@ def serve(
                                      help="Bearer token required for uploads/deletes (or ILLUMIX_TOKEN); "
                                           "without one, writes are open."),
     cache_mb: int = typer.Option(1024, "--cache-mb", min=0, help="Decoded-cube LRU cache size, MiB."),
+    max_request_mb: int = typer.Option(160, "--max-request-mb", min=1,
+                                       help="Most working memory one request or batch may need, MiB "
+                                            "(priced before any work; above it: 413 with a hint)."),
+    inflight_mb: int = typer.Option(160, "--inflight-mb", min=1,
+                                    help="Working memory of all requests in flight, MiB (beyond it "
+                                         "requests wait, then 503). RSS ≈ 200 MB + --cache-mb + this."),
 ) -> None:
     """Serve samples over HTTP (OpenAPI docs at /docs)."""
     check_address(host, port)  # refuse before anything starts or is created
+    if inflight_mb < max_request_mb:
+        raise UserError(f"--inflight-mb ({inflight_mb}) must be at least --max-request-mb ({max_request_mb}), "
+                        "or the largest allowed request could never run")
     cube_store = open_store(store, create=create)
     token = resolve_token(token, host, port)
     import uvicorn
 
+    from illumix.allocator import tune_for_service
     from service.app import create_app
+    from service.limits import Limits
 
-    uvicorn.run(create_app(cube_store, token=token, cache_mb=cache_mb), host=host, port=port, log_level="info")
+    tune_for_service()
+    limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
+    uvicorn.run(create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits), host=host, port=port,
+                log_level="info")
 
 
 def register(app: typer.Typer) -> None:

@@ -114,7 +114,7 @@ def spd_from_samples(wl: np.ndarray, values: np.ndarray, grid: SpectralGrid, wha
         raise SpectralError(f"{what}: has negative power at {np.asarray(wl)[values < 0][0]:g} nm; "
                             "an SPD must be non-negative")
     peak = float(values.max()) if values.size else 0.0
-    if peak > 0:
+    if peak > 0 and not 1e-100 < peak < 1e100:
         # An SPD is relative: scaling it to peak 1 first keeps values like 1e-320 or 1e308 from
         # under- or overflowing the band integrals and the luminance sum.
         values = values / peak

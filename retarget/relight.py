@@ -91,15 +91,17 @@ def _matmul_f32(cube: np.ndarray, m: np.ndarray, bands: np.ndarray | None) -> np
     (``python bench/pareto.py``, ``band_skip.projection_sweep_min_ms``).
     """
     h, w, n = cube.shape
-    flat = cube.reshape(h * w, n)
     m32 = m.astype(np.float32)
-    if flat.dtype == np.float32 and bands is not None:
-        lo, hi = int(bands[0]), int(bands[-1]) + 1
+    if cube.dtype == np.float32:
+        lo, hi = (int(bands[0]), int(bands[-1]) + 1) if bands is not None else (0, n)
         span = np.zeros((hi - lo, m.shape[1]), np.float32)
-        span[bands - lo] = m32
-        return (flat[:, lo:hi] @ span).reshape(h, w, -1)
-    if flat.dtype == np.float32:
-        return (flat @ m32).reshape(h, w, -1)
+        span[(bands if bands is not None else np.arange(n)) - lo] = m32
+        if not cube.flags.c_contiguous:
+            # a crop of a cached cube: one product per row reads the view in place (reshaping it
+            # to (h·w, n) would copy the whole window first)
+            return cube[..., lo:hi] @ span
+        return (cube.reshape(h * w, n)[:, lo:hi] @ span).reshape(h, w, -1)
+    flat = cube.reshape(h * w, n)
     out = np.empty((h * w, m.shape[1]), dtype=np.float32)
     for s in range(0, h * w, _ROW_BLOCK):
         block = flat[s:s + _ROW_BLOCK]

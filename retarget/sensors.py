@@ -124,7 +124,7 @@ def sensor_from_samples(name: str, wl: np.ndarray, rgb: np.ndarray, grid: Spectr
     if np.any(rgb < 0):
         bad = np.asarray(wl)[np.any(rgb < 0, axis=1)][0]
         raise SpectralError(f"{what}: negative sensitivity at {bad:g} nm; sensitivities must be >= 0")
-    if rgb.size and rgb.max() > 0:
+    if rgb.size and not 1e-100 < rgb.max() < 1e100:
         rgb = rgb / rgb.max()  # relative curves: keep 1e-320 or 1e308 inputs inside float64's range
     s = resample(wl, rgb, grid, what=what)
     peak = s.max(axis=0)

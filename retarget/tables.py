@@ -73,9 +73,9 @@ def read_rawtoaces_camera(source: str | Path | bytes, what: str = "camera JSON"
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise SpectralError(f"{what}: not valid JSON ({exc}); {expected}") from None
+        raise SpectralError(f"{what}: not a rawtoaces camera JSON (invalid JSON: {exc}); {expected}") from None
     except RecursionError:
-        raise SpectralError(f"{what}: JSON nested too deeply; {expected}") from None
+        raise SpectralError(f"{what}: not a rawtoaces camera JSON (nested too deeply); {expected}") from None
     sd = doc.get("spectral_data") if isinstance(doc, dict) else None
     table = sd.get("data") if isinstance(sd, dict) else None
     table = table.get("main") if isinstance(table, dict) else None
@@ -84,8 +84,8 @@ def read_rawtoaces_camera(source: str | Path | bytes, what: str = "camera JSON"
     index = sd.get("index", {"main": ["R", "G", "B"]})
     index = index.get("main") if isinstance(index, dict) else None
     if not isinstance(index, list) or sorted(str(c).upper() for c in index) != ["B", "G", "R"]:
-        raise SpectralError(f"{what}: spectral_data.index.main must list the channels R, G, B "
-                            f"(in file order), got {str(index)[:60]}")
+        raise SpectralError(f"{what}: channel index {str(index)[:60]} is not R, G, B "
+                            "(spectral_data.index.main lists the channels in file order)")
     index = [str(c).upper() for c in index]
     header = doc.get("header", {})
     if not isinstance(header, dict):

@@ -42,7 +42,7 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     token = token or None  # an empty token would accept an empty Bearer header: treat as none
     if token is None:
         log.warning("no token set: uploads and deletes are open to anyone who can reach this service")
-    cache = LRUCache(cache_mb * 2**20, cost=nbytes_cost, on_load=_read_only)
+    cache = LRUCache(cache_mb * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
     memory = MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s, per_request=limits.max_request_mb * 2**20)
     app = FastAPI(title="illumix", version="0.1.0",
                   description="Mixed-illuminant colour-constancy samples with exact ground truth. Every error "

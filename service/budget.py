@@ -32,8 +32,8 @@ GT_BYTES = 42                 # float64 weights sum, mixed white point, gain map
 GT_BYTES_PER_GROUP = 12       # per-group weights
 SRGB_BYTES = 56               # CCM-map product, exposure, encoding curve temporaries
 NOISE_BYTES = 128             # float64 electrons, Poisson draws, read noise
-#: a lit group's window as float32 when the request alone holds it (a crop of a cached cube is
-#: copied to be contiguous; a window too big for the cache), per pixel and band
+#: a lit group's window as float32 when the request alone holds it (a cube too big for the cache is
+#: read window by window), per pixel and band
 WINDOW_BYTES_PER_BAND = 4
 #: decoding from the store, per pixel and band of one chunk-row band (the window is decoded a row of
 #: chunks at a time): float16 chunks, their assembly, the exponents
@@ -53,11 +53,13 @@ def output_bytes(outputs: Iterable[str], n_groups: int, out_px: int) -> int:
 
 
 def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: int, window_copies: int,
+                 read_width: int | None = None,
                  groups_to_read: int, n_groups: int, outputs: Iterable[str], noise: bool = False,
                  encoded: bool = True) -> int:
     """Upper bound of the bytes one sample allocates (numpy allocations, as ``tracemalloc`` counts).
 
-    window : ``(w, h)`` of the crop read from the cubes; out_size : ``(W, H)`` returned;
+    window : ``(w, h)`` of the crop read from the cubes; read_width : width of what is decoded (the
+    whole cube's when it goes to the cache; default the window's); out_size : ``(W, H)`` returned;
     window_copies : lit groups whose float32 window the request holds alone (not in the cache, whose
     bytes are bounded by ``--cache-mb``); groups_to_read : windows decoded from the store (one
     after another);
@@ -67,7 +69,7 @@ def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: i
     outputs = set(outputs)
     w, h = window
     in_px, out_px = w * h, out_size[0] * out_size[1]
-    row_band = TILE * (_round_up(w, TILE) + TILE)
+    row_band = TILE * (_round_up(read_width or w, TILE) + TILE)
     # groups are decoded one after another: one row band in flight, however many groups
     decode = window_copies * in_px * bands * WINDOW_BYTES_PER_BAND + \
         (groups_to_read > 0) * row_band * bands * DECODE_BYTES_PER_BAND

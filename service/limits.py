@@ -19,9 +19,9 @@ class Limits(BaseModel):
                                   description="largest sensor/illuminant upload (the store's registry limit)")
     max_json_bytes: int = Field(1 << 20, ge=1, description="largest JSON request body (POST /batch)")
     max_groups: int = Field(16, ge=1, description="most illuminant entries in one request")
-    max_request_mb: int = Field(256, ge=1, description="most working memory one request or batch may need, "
+    max_request_mb: int = Field(160, ge=1, description="most working memory one request or batch may need, "
                                                       "MiB (estimated before any work; above it: 413)")
-    inflight_mb: int = Field(384, ge=1, description="working memory of all requests being computed or sent "
+    inflight_mb: int = Field(160, ge=1, description="working memory of all requests being computed or sent "
                                                    "at once, MiB (above it a request waits, then 503)")
     queue_timeout_s: float = Field(30.0, gt=0, description="longest wait for working memory before a 503")
     body_timeout_s: float = Field(10.0, gt=0, description="longest pause while a request body arrives "

@@ -9,6 +9,7 @@ from service.spec import SampleSpec
 
 class CacheStats(BaseModel):
     bytes: int = Field(description="decoded cube bytes held")
+    evicted_in_use_bytes: int = Field(description="evicted cubes that requests still use (counted against the bound)")
     max_bytes: int = Field(description="the cache's bound (--cache-mb)")
     hits: int
     misses: int

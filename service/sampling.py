@@ -137,25 +137,28 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
                 (vmeta.width, vmeta.height), out_size)
 
 
+def _cube_bytes(p: Plan) -> int:
+    return p.full[0] * p.full[1] * p.metas[0].n_bands * 4
+
+
 def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     """Upper bound of the bytes :func:`build` (and encoding, when ``encoded``) will allocate.
 
-    A window the cache will hold is the cache's memory (bounded by ``--cache-mb``), not the request's.
+    A decoded cube the cache holds is the cache's memory (bounded by ``--cache-mb``), not the
+    request's; only a window of a cube too large for the cache is the request's own.
     """
     w, h = p.window[2:]
     bands = p.metas[0].n_bands
+    cacheable = _cube_bytes(p) <= ctx.cache.max_cost
     copies = to_read = 0
     for g, lit in zip(p.groups, p.reads()):
-        if not lit:
-            continue
-        if (p.scene, p.view, g, None) in ctx.cache:
-            copies += (w, h) != p.full  # a crop of the cached cube is copied to be contiguous
-        elif (p.scene, p.view, g, p.window) not in ctx.cache:
+        if lit and (p.scene, p.view, g) not in ctx.cache:
             to_read += 1
-            copies += w * h * bands * 4 > ctx.cache.max_cost
-    return budget.sample_bytes(window=(w, h), out_size=p.out_size, bands=bands, window_copies=copies,
-                               groups_to_read=to_read, n_groups=len(p.groups), outputs=p.spec.array_outputs(),
-                               noise=p.spec.noise is not None, encoded=encoded)
+            copies += not cacheable
+    read_w = p.full[0] if cacheable else w  # a cacheable cube is decoded whole
+    return budget.sample_bytes(window=(w, h), read_width=read_w, out_size=p.out_size, bands=bands,
+                               window_copies=copies, groups_to_read=to_read, n_groups=len(p.groups),
+                               outputs=p.spec.array_outputs(), noise=p.spec.noise is not None, encoded=encoded)
 
 
 def _resizer(out_w: int, out_h: int, w: int, h: int):
@@ -170,16 +173,15 @@ def _resizer(out_w: int, out_h: int, w: int, h: int):
 
 
 def read_cube(ctx: Context, p: Plan, group: str) -> np.ndarray:
-    """A crop of a cube through the LRU cache (a cached full frame serves any crop)."""
+    """The window of a cube, sliced from the decoded whole cube in the LRU cache (decoded and kept
+    on first use, so every later crop of it is a hit); a cube larger than the whole cache is read
+    window by window, uncached."""
     x, y, w, h = p.window
-    full_key = (p.scene, p.view, group, None)
-    cached = ctx.cache.peek(full_key)
-    if cached is not None:
-        return cached[y:y + h, x:x + w]
-    if (w, h) == p.full:
-        return ctx.cache.get(full_key, lambda: ctx.store.read_cube(p.scene, p.view, group))
-    return ctx.cache.get((p.scene, p.view, group, p.window),
-                         lambda: ctx.store.read_cube(p.scene, p.view, group, crop=p.window))
+    if _cube_bytes(p) > ctx.cache.max_cost:
+        return ctx.store.read_cube(p.scene, p.view, group, crop=p.window)
+    cube = ctx.cache.get((p.scene, p.view, group), lambda: ctx.store.read_cube(p.scene, p.view, group),
+                         expected_cost=_cube_bytes(p))
+    return cube[y:y + h, x:x + w]
 
 
 def exposure_for(spec: SampleSpec) -> float | str | None:

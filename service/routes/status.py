@@ -17,7 +17,8 @@ def health(request: Request, ctx: CtxDep) -> Health:
     c, m = ctx.cache, ctx.memory
     return Health(status="ok", scenes=len(ctx.store.scenes()), cache_bytes=c.total_cost, cache_hits=c.hits,
                   cache_misses=c.misses,
-                  cache=CacheStats(bytes=c.total_cost, max_bytes=c.max_cost, hits=c.hits, misses=c.misses),
+                  cache=CacheStats(bytes=c.total_cost, evicted_in_use_bytes=c.evicted_cost, max_bytes=c.max_cost,
+                                   hits=c.hits, misses=c.misses),
                   memory=MemoryStats(inflight_bytes=m.used, inflight_limit_bytes=m.capacity,
                                      request_limit_bytes=m.per_request, peak_inflight_bytes=m.peak,
                                      refused_busy=m.refused_busy),

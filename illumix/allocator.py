@@ -1,0 +1,39 @@
+"""glibc allocator settings for a long-running service process.
+
+The service allocates and frees tens of MB per request from many threads. glibc's defaults keep
+freed memory in per-thread arenas and raise the mmap threshold after each large free, so resident
+memory grows far past what is in use (measured with ``bench/load.py``: peak RSS 954 MiB with the
+defaults against 505 MiB with these settings, same load, 128 MiB cache). A fixed mmap threshold
+hands every large array straight back to the kernel when it is freed; fewer arenas bound the rest.
+Environment variables (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_ARENA_MAX``) win, as glibc reads them
+at start-up.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+
+M_MMAP_THRESHOLD = -3
+M_ARENA_MAX = -8
+MMAP_THRESHOLD = 256 * 1024
+ARENA_MAX = 2
+
+
+def tune_for_service() -> bool:
+    """Apply the settings through ``mallopt``; False where there is no glibc (nothing changes)."""
+    name = ctypes.util.find_library("c")
+    if not name:
+        return False
+    try:
+        libc = ctypes.CDLL(name)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    ok = True
+    if "MALLOC_MMAP_THRESHOLD_" not in os.environ:
+        ok &= mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1
+    if "MALLOC_ARENA_MAX" not in os.environ:
+        ok &= mallopt(M_ARENA_MAX, ARENA_MAX) == 1
+    return bool(ok)
