@@ -172,7 +172,8 @@ def phase(store: str, views, h: int, w: int, args) -> dict:
     for flag in ("max_request_mb", "inflight_mb"):
         if getattr(args, flag) is not None:
             cmd += [f"--{flag.replace('_', '-')}", str(getattr(args, flag))]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=server_env(args.blas_threads))
+    env = server_env(args.blas_threads) | ({"ILLUMIX_MALLOC_TUNING": "off"} if args.glibc_malloc else {})
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=env)
     try:
         deadline = time.monotonic() + 60
         while True:
@@ -312,6 +313,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--leak-check", type=int, default=0, metavar="N",
                     help="also run N requests in-process under tracemalloc (see leak_check)")
+    ap.add_argument("--glibc-malloc", action="store_true",
+                    help="leave glibc's allocator defaults in the server (ILLUMIX_MALLOC_TUNING=off), to compare")
     ap.add_argument("--blas-threads", type=int, default=None,
                     help="OPENBLAS/OMP/MKL_NUM_THREADS for the server (default: illumix serve's own, 1)")
     args = ap.parse_args()
@@ -351,7 +354,7 @@ def main() -> None:
         "inflight_peak_mb": round(mem["peak_inflight_bytes"] / 2**20, 1),
         "inflight_limit_mb": round(mem["inflight_limit_bytes"] / 2**20, 1),
         "request_limit_mb": round(mem["request_limit_bytes"] / 2**20, 1),
-        "blas_threads": args.blas_threads,
+        "blas_threads": args.blas_threads, "allocator": "glibc defaults" if args.glibc_malloc else "illumix serve's",
         "server_env": {k: os.environ[k] for k in ("OPENBLAS_NUM_THREADS", "MALLOC_ARENA_MAX", "MALLOC_MMAP_THRESHOLD_")
                        if k in os.environ},
         "leak_check": leak,

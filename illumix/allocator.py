@@ -6,7 +6,7 @@ memory grows far past what is in use (measured with ``bench/load.py``: peak RSS 
 defaults against 505 MiB with these settings, same load, 128 MiB cache). A fixed mmap threshold
 hands every large array straight back to the kernel when it is freed; fewer arenas bound the rest.
 Environment variables (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_ARENA_MAX``) win, as glibc reads them
-at start-up.
+at start-up; ``ILLUMIX_MALLOC_TUNING=off`` leaves glibc's defaults (for comparisons).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ ARENA_MAX = 2
 def tune_for_service() -> bool:
     """Apply the settings through ``mallopt``; False where there is no glibc (nothing changes)."""
     name = ctypes.util.find_library("c")
-    if not name:
+    if not name or os.environ.get("ILLUMIX_MALLOC_TUNING", "").lower() in ("0", "off", "no", "false"):
         return False
     try:
         libc = ctypes.CDLL(name)

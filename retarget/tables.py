@@ -10,7 +10,6 @@ Readers return raw samples; resampling to a grid is :func:`retarget.grid.resampl
 from __future__ import annotations
 
 import csv
-import io
 import json
 from pathlib import Path
 

@@ -1,5 +1,5 @@
 """Sensors and illuminants for the service: built-ins plus uploads persisted in the store registry,
-with cached sensor objects, white points and CCMs (the per-request work is then only the cubes).
+with cached sensor objects and CCMs (the per-request work is then only the cubes).
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from retarget import sensors as sen
 from retarget.ccm import fit_ccm
 from retarget.errors import SpectralError, unknown_name
 from retarget.grid import SpectralGrid
-from retarget.groundtruth import white_point
 from retarget.reflectances import DEFAULT_TRAINING_SET, get_reflectances
 from retarget.tables import read_csv_table
 
@@ -82,9 +81,6 @@ class Library:
         return parse_illuminant(name, data, grid), f"upload:{name}:{hashlib.sha1(data).hexdigest()}"
 
     # -- derived, cached ----------------------------------------------------------------------
-    def white_point(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str) -> np.ndarray:
-        return _white_point(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
-
     def ccm(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str) -> tuple[np.ndarray, float]:
         return _ccm(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
 
@@ -100,11 +96,6 @@ class _Frozen:
 
     def __eq__(self, other: object) -> bool:
         return True
-
-
-@lru_cache(maxsize=4096)
-def _white_point(skey: str, ikey: str, grid: SpectralGrid, w: _Frozen, spd: _Frozen) -> np.ndarray:
-    return white_point(w.a, spd.a, what=ikey.split(":")[1])
 
 
 @lru_cache(maxsize=4096)

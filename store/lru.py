@@ -71,16 +71,6 @@ class LRUCache(Generic[V]):
         with self._lock:
             return key in self._items
 
-    def peek(self, key: Hashable) -> V | None:
-        """The kept value (counted as a hit and made most recent), or ``None`` without counting a miss."""
-        with self._lock:
-            item = self._items.get(key)
-            if item is None:
-                return None
-            self._items.move_to_end(key)
-            self.hits += 1
-            return item[0]
-
     def get(self, key: Hashable, load: Callable[[], V], expected_cost: int | None = None) -> V:
         """The kept value, or ``load()`` kept under ``key`` (evicting the least recently used).
 

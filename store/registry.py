@@ -132,7 +132,11 @@ class Registry:
         path = self._path(name)
         if node_attrs(self._b, path) is None:
             raise StoreKeyError(self._what, name, self.names(), f"the {self.kind} registry")
-        self._b.remove(path)
+        try:
+            self._b.remove(path)
+        except OSError as exc:
+            raise StoreWriteError(f"could not delete {self._what} {name!r} from {self._b.url}: "
+                                  f"{exc.strerror or exc}", exc.errno) from None
 
     def __contains__(self, name: object) -> bool:
         try:

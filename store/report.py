@@ -176,13 +176,29 @@ def _check_cube(st: CubeStore, rep: _Report, path: str, vm: ViewMeta) -> None:
             return
 
 
+def _check_group(b, rep: _Report, path: str) -> bool:
+    """An intermediate group's ``zarr.json`` (if present) must be readable zarr v3 metadata: zarr
+    itself refuses to open anything below a corrupt one."""
+    if not b.exists(f"{path}/zarr.json"):
+        return True
+    try:
+        node_attrs(b, path)
+        return True
+    except StoreError as exc:
+        rep.bad(path, str(exc))
+        return False
+
+
 def verify(st: CubeStore) -> dict[str, Any]:
     """Check the whole store. Returns ``{ok, problems: [{where, what}], notes: [...], checked}``."""
     rep = _Report()
     b = st.backend
+    _check_group(b, rep, "scenes")
     for s in b.list_dirs("scenes"):
         if not b.exists(f"scenes/{s}/zarr.json"):
             rep.bad(f"scenes/{s}", "directory without zarr.json (not a zarr group)")
+            continue
+        if not _check_group(b, rep, f"scenes/{s}"):
             continue
         for v in b.list_dirs(f"scenes/{s}"):
             vp = layout.view_path(s, v)
@@ -197,6 +213,8 @@ def verify(st: CubeStore) -> dict[str, Any]:
                 rep.bad(vp, str(exc))
                 continue
             rep.checked["views"] += 1
+            for sub in ("cubes", "aov"):
+                _check_group(b, rep, f"{vp}/{sub}")
             for a in vm.aovs:
                 if not b.exists(f"{layout.aov_path(s, v, a)}/zarr.json"):
                     rep.bad(layout.aov_path(s, v, a), "AOV listed in the view metadata is missing")

@@ -68,3 +68,14 @@ def test_verify_missing_store_is_one_line_exit_2(tmp_path):
     r = illumix("store", "verify", str(tmp_path / "typo"), "--json")
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.startswith("illumix: error: no illumix store at") and r.stderr.count("\n") == 1
+
+
+def test_verify_reports_corrupt_group_metadata(tmp_path):
+    """A sibling of the exit-code defect: corrupt metadata of an intermediate group (which zarr
+    itself then refuses to open) is a problem too, not an OK."""
+    path = tmp_path / "store"
+    synthetic_store.build(path, extras=False)
+    (path / "scenes" / "zarr.json").write_text("{ not json")
+    r = illumix("store", "verify", str(path), "--json")
+    assert r.returncode == 1
+    assert any(p["where"] == "scenes" for p in json.loads(r.stdout)["problems"])

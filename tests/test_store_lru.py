@@ -13,7 +13,7 @@ from store.lru import LRUCache, nbytes_cost
 def test_count_bound_order_and_counters():
     c = LRUCache(2)
     assert c.get("a", lambda: 1) == 1 and c.get("b", lambda: 2) == 2
-    assert c.peek("a") == 1  # a becomes most recent
+    assert c.get("a", lambda: 0) == 1  # a hit (the loader does not run); a becomes most recent
     c.get("c", lambda: 3)  # evicts b
     assert "b" not in c and "a" in c and "c" in c and len(c) == 2
     assert (c.hits, c.misses) == (1, 3)
