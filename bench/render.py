@@ -69,7 +69,9 @@ THESIS_BAND_NOISE = 0.0067
 
 
 def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
-    aovs = mr.render_aovs(scene, args.view, mr.RenderSettings())
+    from renderer_jobs.mitsuba_aovs import render_aovs
+
+    aovs = render_aovs(scene, args.view, mr.RenderSettings())
     mask = flat_mask(aovs)
     for group in args.groups:
         for mode in args.modes:

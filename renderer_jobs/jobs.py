@@ -221,6 +221,7 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
             threads: int | None = None, overwrite: bool = False) -> dict:
     """Render one job and write it into the store. Returns a small summary dict."""
     from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.mitsuba_aovs import render_aovs
     from renderer_jobs.mitsuba_variant import select_variant
 
     if threads:
@@ -239,10 +240,10 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
     t0 = time.perf_counter()
     st = _open_store(store_path, mode="a")
     if job.group is None:
-        aovs = mr.render_aovs(scene, job.view, settings)
+        aovs = render_aovs(scene, job.view, settings)
         st.write_view(scene.name, job.view, _view_meta(scene, job.view), aovs)
         return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view"}
-    from store import CubeMeta
+    from store.schema import CubeMeta, IlluminationInfo
 
     def cube_meta(emission, emission_name: str, renderer: dict, stats: dict) -> CubeMeta:
         return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
@@ -269,11 +270,14 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
     if settings.skip_dark:
         stats["probe"] = probe.to_dict()
     meta = cube_meta(result.emission.tolist(), result.emission_name, result.renderer, stats)
+    if result.illumination is not None:
+        meta.illumination = IlluminationInfo(method=mr.ILLUMINATION_METHOD)
     if not (result.cube.max() > 0):
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
     else:
-        st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite)
+        st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
+                      illumination=result.illumination)
     return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
             "empty": not (result.cube.max() > 0), "trace_s": result.stats.get("trace_s")}
 

@@ -38,7 +38,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from renderer_jobs.mitsuba_render import RenderSettings, hash_u32, emitter_passes, group_list
+from renderer_jobs.band_schedule import hash_u32
+from renderer_jobs.mitsuba_render import RenderSettings, emitter_passes, group_list
 from renderer_jobs.mitsuba_scene import group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.scene_model import Scene

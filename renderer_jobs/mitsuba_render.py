@@ -47,6 +47,17 @@ pixels, so band counts stay exact. Measured at equal paths and CPU time: see ``b
 With ``RenderSettings.noise_target`` the total is not fixed: each pixel gets the paths the pilot
 predicts for that relative noise (``spp`` caps it), so a cube costs what its light needs.
 
+Illumination cube (default, ``RenderSettings.illumination``; DESIGN.md "Physical GT")
+-----------------------------------------------------------------------------------
+Beside ``T`` the same paths estimate ``U[v, g](x, λ_i)``: the radiance a white Lambertian surface at
+the first visible point would send to the camera (``E/π``, bounces off coloured surfaces included),
+in ``T``'s units and schedule, so it relights exactly like ``T``. Per path sample: where the first hit
+is purely diffuse (and not emitting) ``U = L/ρ`` — exact, every contribution of the path carries
+``ρ(λ)`` — at the cost of one more intersection in the same kernel; elsewhere (glossy, metal, glass,
+black or emitting first hits) a white-Lambertian estimate is traced for that sample
+(:meth:`renderer_jobs.mitsuba_trace.Tracer.white_lambertian`). Samples that hit nothing add 0; the
+view's ``mask``/``emitter`` AOVs flag pixels where illumination is undefined.
+
 Per-band sums are accumulated in float64 by ``numpy.bincount`` (no atomics), so the same seed gives
 the same cube bit for bit.
 """
@@ -60,6 +71,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from renderer_jobs import adaptive_spp
+from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, pass_sizes
 from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
@@ -67,19 +79,6 @@ from renderer_jobs.modes import WAVELENGTH_MODES
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
-
-
-def lane_stride(n_live: int) -> int:
-    """Band offset between a path's 4 wavelengths when ``n_live`` bands are sampled (16 for 63)."""
-    return max(1, round(n_live / 4))
-
-
-def live_bands(emission: np.ndarray) -> np.ndarray:
-    """Band indices the stratified schedule samples: where the cube's emission is non-zero (a band
-    the group does not emit is exactly zero in the cube, so its samples would be wasted); every band
-    if none is."""
-    live = np.flatnonzero(np.asarray(emission) > 0)
-    return live if live.size else np.arange(len(emission))
 
 
 @dataclass(frozen=True)
@@ -93,7 +92,8 @@ class RenderSettings:
     (they are exactly zero; :mod:`renderer_jobs.view_coverage`); noise_target: instead of a fixed
     budget, give each pixel the paths its pilot predicts for this relative noise of its spectral
     sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
-    (:func:`renderer_jobs.adaptive_spp.to_target`).
+    (:func:`renderer_jobs.adaptive_spp.to_target`); illumination: also render the illumination cube
+    (module docstring, "Illumination cube").
     For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first
     and record a group that sends no light into the view as empty instead of rendering it
     (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's budget is 1/probe_ratio of the
@@ -110,6 +110,7 @@ class RenderSettings:
     adaptive: bool = True
     skip_background: bool = True
     noise_target: float | None = None
+    illumination: bool = True
 
     def __post_init__(self) -> None:
         if self.spp < 1:
@@ -131,55 +132,21 @@ class RenderSettings:
                 "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
-                "skip_background": self.skip_background, "noise_target": self.noise_target}
+                "skip_background": self.skip_background, "noise_target": self.noise_target,
+                "illumination": self.illumination}
 
 
 @dataclass
 class CubeResult:
-    """A rendered cube ``(H, W, n_bands)`` float32 of band averages, with what it was rendered with."""
+    """A rendered cube ``(H, W, n_bands)`` float32 of band averages, with what it was rendered with
+    (and its illumination cube, same shape and units)."""
 
     cube: np.ndarray
     emission: np.ndarray
     emission_name: str
     renderer: dict
     stats: dict = field(default_factory=dict)
-
-
-def hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
-    """A 32-bit integer hash (lowbias32) of ``x`` with ``salt``; vectorised, uint64 → uint64 < 2³²."""
-    x = (x.astype(np.uint64) ^ np.uint64(salt & 0xFFFFFFFF)) & np.uint64(0xFFFFFFFF)
-    x ^= x >> np.uint64(16)
-    x = (x * np.uint64(0x7FEB352D)) & np.uint64(0xFFFFFFFF)
-    x ^= x >> np.uint64(15)
-    x = (x * np.uint64(0x846CA68B)) & np.uint64(0xFFFFFFFF)
-    x ^= x >> np.uint64(16)
-    return x
-
-
-def band_counts(n_pixels: int, n_bands: int, spp: int | np.ndarray, seed: int,
-                live: np.ndarray | None = None) -> np.ndarray:
-    """Exact samples per (pixel, band) of the ``"stratified"`` schedule: ``(n_pixels, n_bands)`` int.
-    ``spp``: paths per pixel, one number or ``(n_pixels,)`` (adaptive sampling); ``live``: the bands
-    sampled (:func:`live_bands`; default all), the others get none."""
-    live = np.arange(n_bands) if live is None else np.asarray(live)
-    m = live.size
-    off = (hash_u32(np.arange(n_pixels), seed ^ 0x5BD1E995) % np.uint64(m)).astype(np.int64)
-    q, r = np.divmod(np.broadcast_to(np.asarray(spp, dtype=np.int64), (n_pixels,)), m)
-    b = np.arange(m)
-    on = np.zeros((n_pixels, m), dtype=np.int64)
-    for i in range(4):
-        on += q[:, None] + (((b[None, :] - off[:, None] - lane_stride(m) * i) % m) < r[:, None])
-    counts = np.zeros((n_pixels, n_bands), dtype=np.int64)
-    counts[:, live] = on
-    return counts
-
-
-def _pass_sizes(spp: int, n_pixels: int, max_lanes: int) -> list[int]:
-    per = max(1, min(spp, max_lanes // max(n_pixels, 1)))
-    sizes = [per] * (spp // per)
-    if spp % per:
-        sizes.append(spp % per)
-    return sizes
+    illumination: np.ndarray | None = None  # (H, W, n_bands) float32, when RenderSettings.illumination
 
 
 def group_list(scene: Scene, group: str | list[str] | None) -> list[str]:
@@ -211,6 +178,10 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
                          "passes": passes, "libllvm": libllvm_path()}}
 
 
+ILLUMINATION_METHOD = ("per-sample L/rho at purely diffuse first hits; elsewhere a white-Lambertian first-hit "
+                       "estimate (light sampling + one cosine-sampled continuation) in the same paths")
+
+
 class _PathBlocks:
     """Traces blocks of paths ``(pixel, sample index)`` of one cube and accumulates per-band sums."""
 
@@ -224,8 +195,10 @@ class _PathBlocks:
         self.off = (hash_u32(np.arange(self.npix), settings.seed ^ 0x5BD1E995)
                     % np.uint64(self.live.size)).astype(np.int64)
         self.acc = np.zeros(self.npix * self.nb, dtype=np.float64)
+        self.acc_u = np.zeros(self.npix * self.nb, dtype=np.float64) if settings.illumination else None
         self.inv_emission = np.where(emission > 0, 1.0 / np.where(emission > 0, emission, 1.0), 0.0)
-        self.n_bad, self.t_trace = 0, 0.0
+        self.n_bad, self.t_trace, self.t_illum = 0, 0.0, 0.0
+        self.n_samples = self.n_demodulated = self.n_traced = 0
 
     def trace(self, pix: np.ndarray, s: np.ndarray, key: int, salt: int = 0x1C0) -> np.ndarray:
         """Trace path ``s[i]`` of pixel ``pix[i]``; add to the band sums. Returns each path's
@@ -245,18 +218,60 @@ class _PathBlocks:
             bands = np.minimum((frac * nb).astype(np.int64), nb - 1)
         idx = (pix[:, None] * nb + bands).ravel()
         total = np.zeros((len(pix), 4), dtype=np.float64)
+        lam32 = lam.astype(np.float32)
         for j, tracer in enumerate(self.tracers):
+            seed = int(hash_u32(np.array([key * 8 + j]), st.seed ^ (salt - 0x1C0))[0])
             t1 = time.perf_counter()
-            L = tracer.trace(pix, jitter, lam.astype(np.float32),
-                             seed=int(hash_u32(np.array([key * 8 + j]), st.seed ^ (salt - 0x1C0))[0]))
+            out = tracer.trace(pix, jitter, lam32, seed=seed, first_hit=self.acc_u is not None)
             self.t_trace += time.perf_counter() - t1
-            bad = ~np.isfinite(L)
-            if bad.any():
-                self.n_bad += int(bad.sum())
-                L = np.where(bad, 0.0, L)
+            L = _finite(out[0] if isinstance(out, tuple) else out, self)
             self.acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=self.npix * nb)
             total += L
+            if self.acc_u is not None:
+                U = self._illumination(tracer, out, pix, jitter, lam32, seed)
+                self.acc_u += np.bincount(idx, weights=U.ravel().astype(np.float64), minlength=self.npix * nb)
         return (total * self.inv_emission[bands]).sum(axis=1)
+
+    def _illumination(self, tracer: Tracer, out, pix, jitter, lam, seed: int) -> np.ndarray:
+        """Illumination samples of the paths just traced: ``L/ρ`` where the first hit is purely
+        diffuse, the white-Lambertian estimate where it is not (:mod:`renderer_jobs.mitsuba_trace`)."""
+        L, albedo, diffuse, hit = out
+        ok = diffuse & (albedo.min(axis=1) > RHO_MIN)
+        U = np.zeros_like(L)
+        U[ok] = L[ok] / albedo[ok]
+        need = np.flatnonzero(hit & ~ok)
+        self.n_samples += len(L)
+        self.n_demodulated += int(ok.sum())
+        if need.size:
+            # Trace at most TRACE_BUDGET × the batch's paths (each costs about two paths), each with
+            # weight 1/p so the mean stays unbiased: the cost stays bounded however much of the view
+            # is glossy or glass, at the price of more noise there.
+            p = min(1.0, TRACE_BUDGET * len(L) / need.size)
+            if p < 1.0:
+                rng = np.random.default_rng([seed, 0x5EED])
+                need = need[rng.random(need.size) < p]
+            t1 = time.perf_counter()
+            U[need] = tracer.white_lambertian(pix[need], jitter[need], lam[need], seed=seed ^ 0x5EED) / p
+            self.t_illum += time.perf_counter() - t1
+            self.n_traced += int(need.size)
+        return _finite(U, self)
+
+
+# Below this diffuse reflectance a first hit carries no usable ratio L/ρ (ρ = 0 carries nothing): its
+# illumination is traced instead. Above it L/ρ is exact whatever ρ (every contribution carries ρ).
+RHO_MIN = 1e-6
+# Most white-Lambertian estimates traced per path of a batch (bench/groundtruth.py measures the
+# resulting cost against the transport cube alone; the goal is at most 1.3x).
+TRACE_BUDGET = 0.08
+
+
+def _finite(a: np.ndarray, blocks: _PathBlocks) -> np.ndarray:
+    """``a`` with non-finite samples set to 0, counted in ``blocks.n_bad`` (none seen so far)."""
+    bad = ~np.isfinite(a)
+    if bad.any():
+        blocks.n_bad += int(bad.sum())
+        a = np.where(bad, 0.0, a)
+    return a
 
 
 def render_cube(scene: Scene, view: str, group: str | list[str] | None,
@@ -293,7 +308,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     first = pilot if adaptive else settings.spp
     s0 = 0
     ysum, ysq = np.zeros(npix), np.zeros(npix)
-    sizes = _pass_sizes(first, active.size, settings.max_lanes) if active.size else []
+    sizes = pass_sizes(first, active.size, settings.max_lanes) if active.size else []
     for k, spp_pass in enumerate(sizes):
         pix = np.repeat(active, spp_pass)
         s = s0 + np.tile(np.arange(spp_pass, dtype=np.int64), active.size)
@@ -330,11 +345,18 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
         counts = np.broadcast_to(4.0 * spp_map[:, None] / nb, acc.shape)
     cube = np.divide(acc, counts, out=np.zeros_like(acc), where=counts > 0)
     cube = cube.reshape(h, w, nb).astype(np.float32)
+    illum = None
+    if blocks.acc_u is not None:
+        illum = np.divide(blocks.acc_u.reshape(npix, nb), counts, out=np.zeros_like(acc), where=counts > 0)
+        illum = illum.reshape(h, w, nb).astype(np.float32)
     renderer = renderer_info(scene, settings, passes)
     stats = {"load_s": round(t_load, 4), "trace_s": round(blocks.t_trace, 4),
              "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": blocks.n_bad,
              "mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min()),
              "background_pixels_skipped": int(npix - active.size)}
+    if illum is not None:
+        stats["illumination"] = {"samples": blocks.n_samples, "demodulated": blocks.n_demodulated,
+                                 "traced": blocks.n_traced, "traced_s": round(blocks.t_illum, 4)}
     if adaptive and active.size:
         traced = spp_map[active]
         stats["spp_per_pixel"] = {"min": int(traced.min()), "median": float(np.median(traced)),
@@ -347,44 +369,4 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
                                      "pixels_at_max_spp": int(np.count_nonzero(traced >= settings.spp)),
                                      "fraction_predicted_on_target": round(float(np.mean(pred <= target)), 4)}
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
-                      renderer=renderer, stats=stats)
-
-
-# Broad bands (nm) whose mean reflectance forms the RGB albedo AOV.
-ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))
-
-
-def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
-    """Geometry AOVs of a view, averaged over ``aov_spp`` jittered primary rays per pixel.
-
-    albedo ``(H, W, 3)``: mean diffuse reflectance (Mitsuba's ``eval_diffuse_reflectance``) over
-    600–700, 500–600, 400–500 nm (R, G, B); normal ``(H, W, 3)``: world-space shading normal
-    (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
-    nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry. float32 except mask.
-    """
-    tracer = Tracer(scene, view, [], settings.resolution)
-    w, h = tracer.width, tracer.height
-    npix = w * h
-    k = max(1, settings.aov_spp)
-    rng = np.random.default_rng([settings.seed & 0xFFFFFFFF, 0xA0F])
-    pix = np.repeat(np.arange(npix, dtype=np.int64), k)
-    jitter = rng.random((len(pix), 2), dtype=np.float32)
-    jitter[::k] = 0.5  # the first sample of every pixel is its centre (for the mask)
-    u = rng.random((len(pix), 3))
-    lam = np.empty((len(pix), 4), dtype=np.float32)
-    for c, (a, b) in enumerate(ALBEDO_BANDS):
-        lam[:, c] = a + (b - a) * u[:, c]
-    lam[:, 3] = 550.0
-    out = tracer.first_hit(pix, jitter, lam)
-    hit = out["hit"].reshape(npix, k)
-    hitf = hit.astype(np.float64)
-    nh = np.maximum(hitf.sum(axis=1), 1)
-    albedo = (out["albedo"][:, :3].reshape(npix, k, 3) * hitf[..., None]).sum(axis=1) / nh[:, None]
-    normal = (out["normal"].reshape(npix, k, 3) * hitf[..., None]).sum(axis=1)
-    norm = np.linalg.norm(normal, axis=1, keepdims=True)
-    normal = np.where(norm > 0, normal / np.where(norm > 0, norm, 1), 0.0)
-    depth = (out["distance"].reshape(npix, k) * hitf).sum(axis=1) / nh
-    return {"albedo": albedo.reshape(h, w, 3).astype(np.float32),
-            "normal": normal.reshape(h, w, 3).astype(np.float32),
-            "depth": depth.reshape(h, w).astype(np.float32),
-            "mask": hit[:, 0].reshape(h, w)}
+                      renderer=renderer, stats=stats, illumination=illum)

@@ -4,6 +4,16 @@
 load_mitsuba_scene`) and traces batches of paths: pixel index, sub-pixel jitter and the four
 wavelengths of each path come from numpy, the radiance goes back to numpy. This is what lets
 :mod:`renderer_jobs.mitsuba_render` choose every wavelength (stratified bands) instead of Mitsuba's film.
+
+Illumination (DESIGN.md "Physical GT"): the radiance ``U`` a *white Lambertian* surface at the path's
+first hit would send back to the camera, bounces included (``U = E/π`` with ``E`` the irradiance
+there). :meth:`Tracer.trace` can also return, from the same kernel, the first hit's diffuse
+reflectance and whether its BSDF is purely diffuse: there every contribution of the path carries
+the factor ``ρ(λ)`` (BSDF ``ρ/π``, cosine sampling weight ``ρ``), so ``L/ρ`` is an unbiased sample of
+``U`` at no extra tracing. Elsewhere (glossy, metal, glass, black or emitting first hits)
+:meth:`Tracer.white_lambertian` traces it: next-event estimation at the first hit with BSDF ``1/π``,
+plus one cosine-sampled continuation whose own first emission is removed (the light sampling
+already counts direct light).
 """
 
 from __future__ import annotations
@@ -13,6 +23,11 @@ import numpy as np
 from renderer_jobs.mitsuba_scene import load_mitsuba_scene
 from renderer_jobs.mitsuba_variant import import_mitsuba
 from renderer_jobs.scene_model import Scene
+
+
+def _numpy4(spec) -> np.ndarray:
+    """A 4-wavelength Dr.Jit spectrum as ``(n, 4)`` float32."""
+    return np.stack([np.asarray(spec[i], dtype=np.float32) for i in range(4)], axis=1)
 
 
 def _aligned(a: np.ndarray) -> np.ndarray:
@@ -37,10 +52,17 @@ class Tracer:
         size = self.sensor.film().crop_size()
         self.width, self.height = int(size[0]), int(size[1])
         self.grid = scene.spectral_grid
+        self._cont = None
 
-    def trace(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int) -> np.ndarray:
+    def trace(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int,
+              first_hit: bool = False):
         """Radiance ``(n, 4)`` float32 of paths through pixels ``pix`` (flat index, row-major from the
-        top-left) at sub-pixel offsets ``jitter (n, 2)`` carrying ``wavelengths (n, 4)`` nm."""
+        top-left) at sub-pixel offsets ``jitter (n, 2)`` carrying ``wavelengths (n, 4)`` nm.
+
+        ``first_hit``: also return, computed in the same kernel, the first hit's diffuse reflectance
+        ``(n, 4)`` at the path's wavelengths, whether its BSDF is purely diffuse and not emitting
+        ``(n,)`` (so ``L/ρ`` samples the illumination, module docstring) and whether it hit ``(n,)``.
+        """
         mi, dr = self.mi, self.dr
         n = len(pix)
         sampler = self.sensor.sampler().clone()
@@ -48,9 +70,53 @@ class Tracer:
         ray = self._camera_rays(pix, jitter, wavelengths, differential=True)
         spec, valid, _ = self.integrator.sample(self.ms, sampler, ray, None, True)
         spec = mi.unpolarized_spectrum(spec)
-        dr.eval(spec)
-        out = np.stack([np.asarray(spec[i], dtype=np.float32) for i in range(4)], axis=1)
-        return out
+        if not first_hit:
+            dr.eval(spec)
+            return _numpy4(spec)
+        si = self.ms.ray_intersect(mi.Ray3f(ray))
+        hit = si.is_valid()
+        bsdf = si.bsdf()
+        albedo = bsdf.eval_diffuse_reflectance(si, hit)
+        flags = bsdf.flags()
+        diffuse = hit & mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection)
+        for other in (mi.BSDFFlags.Glossy, mi.BSDFFlags.Delta, mi.BSDFFlags.Transmission):
+            diffuse &= ~mi.has_flag(flags, other)
+        diffuse &= ~si.shape.is_emitter()
+        dr.eval(spec, albedo, diffuse, hit)
+        return (_numpy4(spec), _numpy4(albedo), np.asarray(diffuse, dtype=bool), np.asarray(hit, dtype=bool))
+
+    def white_lambertian(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int
+                         ) -> np.ndarray:
+        """Illumination samples ``(n, 4)`` float32: the radiance a white Lambertian surface at each
+        path's first hit would send back along the camera ray (module docstring); 0 where nothing
+        is hit. The continuation traces at most ``max_depth − 1`` more bounces, as the camera path."""
+        mi, dr = self.mi, self.dr
+        n = len(pix)
+        if self.scene.max_depth <= 1:  # camera paths carry no reflected light: neither does U
+            return np.zeros((n, 4), np.float32)
+        sampler = self.sensor.sampler().clone()
+        sampler.seed(dr.opaque(mi.UInt32, seed & 0xFFFFFFFF), n)
+        ray = self._camera_rays(pix, jitter, wavelengths, differential=False)
+        si = self.ms.ray_intersect(ray)
+        hit = si.is_valid()
+        normal = si.sh_frame.n
+        normal = dr.select(dr.dot(normal, -ray.d) < 0, -normal, normal)  # the side the camera sees
+        ds, weight = self.ms.sample_emitter_direction(si, sampler.next_2d(hit), True, hit)
+        direct = weight * dr.maximum(dr.dot(normal, ds.d), 0.0) / dr.pi
+        d = mi.Frame3f(normal).to_world(mi.warp.square_to_cosine_hemisphere(sampler.next_2d(hit)))
+        bounce = si.spawn_ray(d)
+        si2 = self.ms.ray_intersect(bounce, hit)
+        emitted = si2.emitter(self.ms, hit).eval(si2, hit)  # counted by the light sample above
+        scattered, _, _ = self._continuation().sample(self.ms, sampler, bounce, None, hit)
+        u = mi.unpolarized_spectrum(dr.select(hit, direct + scattered - emitted, 0.0))
+        dr.eval(u)
+        return _numpy4(u)
+
+    def _continuation(self):
+        if self._cont is None:
+            depth = self.scene.max_depth
+            self._cont = self.mi.load_dict({"type": "path", "max_depth": depth - 1})
+        return self._cont
 
     def _camera_rays(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, differential: bool):
         """Camera rays through film position ``pixel + jitter`` carrying the 4 given wavelengths."""
@@ -64,7 +130,8 @@ class Tracer:
         return ray
 
     def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> dict[str, np.ndarray]:
-        """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit ``(n,)``."""
+        """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit
+        ``(n,)``, emitter ``(n,)`` (the hit shape emits, in the groups this tracer loaded)."""
         dr = self.dr
         ray = self._camera_rays(pix, jitter, wavelengths, differential=False)
         si = self.ms.ray_intersect(ray)
@@ -75,4 +142,5 @@ class Tracer:
         return {"albedo": np.stack([np.asarray(alb[i]) for i in range(4)], axis=1),
                 "normal": np.stack([np.asarray(n[i]) for i in range(3)], axis=1),
                 "distance": np.asarray(dr.select(valid, si.t, 0.0)),
-                "hit": np.asarray(valid, dtype=bool)}
+                "hit": np.asarray(valid, dtype=bool),
+                "emitter": np.asarray(valid & si.shape.is_emitter(), dtype=bool)}

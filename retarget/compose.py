@@ -22,7 +22,8 @@ from retarget.basis import BasisCube, project_groups_any
 from retarget.relight import band_scales, raw_weights
 from retarget.sensors import Sensor
 
-OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask")
+OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture")
+GT_METHODS = ("physical", "formula")
 
 
 @dataclass
@@ -30,17 +31,23 @@ class Composition:
     """Arrays of one sample (``None`` where not requested) plus scalars for metadata.
 
     raw ``(H, W, 3)``, gain ``(H, W, 3)``, ccm ``(H, W, 3, 3)``, srgb ``(H, W, 3)`` in [0, 1],
-    weights ``(H, W, G)``, mask ``(H, W)`` bool; all float32 but the mask.
+    weights ``(H, W, G)`` (eq. 3.3, always the formula's), mask ``(H, W)`` bool, illum ``(H, W, 3)``
+    the per-pixel white point in camera RGB with G = 1 (LSMI's illumination map), mixture
+    ``(H, W, G)`` each group's share of that white point's G; all float32 but the mask. ``gt`` names
+    the ground truth that gain, ccm, srgb, illum and mixture follow.
     """
 
     white_points: np.ndarray
     exposure_gain: float
+    gt: str = "formula"
     raw: np.ndarray | None = None
     gain: np.ndarray | None = None
     ccm: np.ndarray | None = None
     srgb: np.ndarray | None = None
     weights: np.ndarray | None = None
     mask: np.ndarray | None = None
+    illum: np.ndarray | None = None
+    mixture: np.ndarray | None = None
 
     def outputs(self) -> dict[str, np.ndarray]:
         return {k: getattr(self, k) for k in OUTPUTS if getattr(self, k) is not None}
@@ -56,8 +63,18 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
             outputs: Iterable[str] = OUTPUTS, exposure: float | str | None = None,
             group_names: Sequence[str] | None = None,
             resize: Callable[[np.ndarray], np.ndarray] | None = None,
-            skip_bands: bool = True) -> Composition:
+            skip_bands: bool = True, illumination: Sequence[np.ndarray] | None = None,
+            valid: np.ndarray | None = None) -> Composition:
     """Compose one sample from per-group transport cubes.
+
+    Ground truth (DESIGN.md "Ground truth"): without ``illumination`` the formula (thesis eq. 3.3):
+    each pixel's white point mixes the groups' white points by their share of the raw's G. With
+    ``illumination`` (one illumination cube per group, shaped like ``cubes``) the physical one: the
+    per-pixel white point is the camera RGB of the relit illumination cubes,
+    ``U_k = Σ_g Σ_i C_k (a Φ̄/Ē)_g(λ_i) U_g(λ_i) Δλ``; the mixture is each group's share of ``U_G``;
+    ``gain_k = max_j U_j / U_k``; the CCM map mixes the groups' CCMs by that mixture. ``valid``:
+    optional ``(H', W')`` bool of pixels where the ground truth is defined (geometry, not an emitter),
+    and-ed into ``mask``.
 
     cubes : G arrays ``(H, W, n_bands)`` or :class:`retarget.basis.BasisCube` (spectrally compressed,
     projected in their K-dim subspace); emissions, illuminants : ``(G, n_bands)``;
@@ -100,14 +117,28 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
     out = Composition(white_points=wps, exposure_gain=gain_exp)
     if "raw" in want:
         out.raw = raw
-    if not ({"gain", "ccm", "srgb", "weights", "mask"} & want):
+    if not ({"gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"} & want):
         return out
     weights, mask = gt.illuminant_weights(group_raw[..., 1], prior=intensities)
     del group_raw
     out.weights = weights if "weights" in want else None
+    if illumination is None:
+        mixture, white = weights, (gt.mixed_white_point(weights, wps) if ({"gain", "srgb", "illum"} & want) else None)
+    else:
+        out.gt = "physical"
+        group_u = project_groups_any(illumination, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
+        if resize is not None:
+            group_u = np.ascontiguousarray(resize(group_u), dtype=np.float32)
+        mixture, mask = gt.illuminant_weights(group_u[..., 1], prior=intensities)  # lit, even if black
+        white = gt.physical_white_point(group_u.sum(axis=0), mask, gt.mixed_white_point(mixture, wps))
+        del group_u
+    if valid is not None:
+        mask = mask & valid
     out.mask = mask if "mask" in want else None
-    gain = gt.gain_map(gt.mixed_white_point(weights, wps)) if ({"gain", "srgb"} & want) else None
-    ccm = gt.ccm_map(weights, ccms) if ({"ccm", "srgb"} & want) else None
+    out.mixture = mixture if "mixture" in want else None
+    out.illum = white if "illum" in want else None
+    gain = gt.gain_map(white) if ({"gain", "srgb"} & want) else None
+    ccm = gt.ccm_map(mixture, ccms) if ({"ccm", "srgb"} & want) else None
     out.gain = gain if "gain" in want else None
     out.ccm = ccm if "ccm" in want else None
     if "srgb" in want:

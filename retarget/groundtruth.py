@@ -83,6 +83,23 @@ def mixed_white_point(weights: np.ndarray, wps: np.ndarray) -> np.ndarray:
     return (weights.astype(np.float32) @ np.asarray(wps, dtype=np.float32)).astype(np.float32)
 
 
+def physical_white_point(illum_rgb: np.ndarray, valid: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """The physical white point ``U / U_G`` (G = 1) — ``(H, W, 3)`` float32 — from the camera RGB of
+    the relit illumination cubes ``U`` ``(H, W, 3)`` (DESIGN.md "Physical GT").
+
+    Where ``valid`` is False (no light, no geometry, an emitter) or a channel is not positive (noise
+    at the edge of the light), the white point is ``fallback`` ``(H, W, 3)`` (the formula's mixed white
+    point), so every value stays finite; such pixels are flagged by the caller's mask.
+    """
+    u = np.asarray(illum_rgb, dtype=np.float64)
+    ok = valid & np.all(u > 0, axis=-1)
+    g = np.where(ok, u[..., 1], 1.0)
+    wp = np.where(ok[..., None], u / g[..., None], np.asarray(fallback, dtype=np.float64))
+    # A channel 1e10 times weaker than another has no meaningful gain (cf. MIN_CHANNEL_RATIO).
+    floor = MIN_CHANNEL_RATIO * wp.max(axis=-1, keepdims=True)
+    return np.maximum(wp, floor).astype(np.float32)
+
+
 def gain_map(mixed_wp: np.ndarray) -> np.ndarray:
     """White-balance gains ``max_j W_j / W_k`` (eq. 3.3), ``(H, W, 3)`` float32, all ≥ 1."""
     wp = np.asarray(mixed_wp, dtype=np.float64)

@@ -22,9 +22,11 @@ from collections.abc import Iterable
 from service.errors import fail
 
 #: bytes per output pixel of each output as returned (float32; ccm 3×3; mask bool; weights per group)
-OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1}
-WEIGHT_BYTES_PER_GROUP = 4
-GT_OUTPUTS = frozenset({"gain", "ccm", "srgb", "weights", "mask"})
+OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1, "illum": 12, "albedo": 12, "normal": 12,
+                "depth": 4}
+WEIGHT_BYTES_PER_GROUP = 4  # weights and mixture: one float32 per group
+SPECTRAL = frozenset({"reflectance", "illumination"})  # one float32 per band
+GT_OUTPUTS = frozenset({"gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"})
 # Working memory per pixel, measured with tracemalloc (bench/load.py --calibrate) and rounded up:
 PROJECT_BYTES_PER_GROUP = 12  # per-group raw (float32 RGB) at the window's and the output's size
 PROJECT_BYTES = 12            # the summed raw
@@ -43,19 +45,19 @@ SAFETY = 1.1  # allocator rounding and the spread between measured shapes
 BASE_BYTES = 1 << 20  # metadata, npz headers, small temporaries of any request
 
 
-def output_bytes(outputs: Iterable[str], n_groups: int, out_px: int) -> int:
+def output_bytes(outputs: Iterable[str], n_groups: int, out_px: int, bands: int = 63) -> int:
     """Bytes of the returned arrays of one sample."""
     outputs = set(outputs)
     per = sum(OUTPUT_BYTES.get(o, 0) for o in outputs)
-    if "weights" in outputs:
-        per += WEIGHT_BYTES_PER_GROUP * n_groups
+    per += WEIGHT_BYTES_PER_GROUP * n_groups * len(outputs & {"weights", "mixture"})
+    per += 4 * bands * len(outputs & SPECTRAL)
     return per * out_px
 
 
 def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: int, window_copies: int,
                  read_width: int | None = None,
                  groups_to_read: int, n_groups: int, outputs: Iterable[str], noise: bool = False,
-                 encoded: bool = True) -> int:
+                 encoded: bool = True, physical: bool = False) -> int:
     """Upper bound of the bytes one sample allocates (numpy allocations, as ``tracemalloc`` counts).
 
     window : ``(w, h)`` of the crop read from the cubes; read_width : width of what is decoded (the
@@ -64,7 +66,7 @@ def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: i
     bytes are bounded by ``--cache-mb``); groups_to_read : windows decoded from the store (one
     after another);
     n_groups : groups composed; noise : sensor noise is simulated; encoded : include the encoded
-    answer (a copy of the outputs).
+    answer (a copy of the outputs); physical : the ground truth projects the illumination cubes too.
     """
     outputs = set(outputs)
     w, h = window
@@ -73,15 +75,17 @@ def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: i
     # groups are decoded one after another: one row band in flight, however many groups
     decode = window_copies * in_px * bands * WINDOW_BYTES_PER_BAND + \
         (groups_to_read > 0) * row_band * bands * DECODE_BYTES_PER_BAND
-    per_px = PROJECT_BYTES_PER_GROUP * n_groups + PROJECT_BYTES
+    per_px = (PROJECT_BYTES_PER_GROUP * n_groups + PROJECT_BYTES) * (2 if physical else 1)
     work = per_px * (in_px + (out_px if out_px != in_px else 0))
     if outputs & GT_OUTPUTS:
-        work += (GT_BYTES + GT_BYTES_PER_GROUP * n_groups) * out_px
+        work += (GT_BYTES + GT_BYTES_PER_GROUP * n_groups) * out_px * (2 if physical else 1)
+    if outputs & SPECTRAL:  # summed cubes at the window's size, then resampled
+        work += 3 * 4 * bands * max(in_px, out_px)
     if "srgb" in outputs:
         work += SRGB_BYTES * out_px
     if noise:
         work += NOISE_BYTES * out_px
-    out = output_bytes(outputs, n_groups, out_px) if encoded else 0
+    out = output_bytes(outputs, n_groups, out_px, bands) if encoded else 0
     return int(SAFETY * (decode + work + out)) + BASE_BYTES
 
 

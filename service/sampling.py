@@ -19,10 +19,13 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from retarget.compose import OUTPUTS as COMPOSED
 from retarget.compose import compose
 from retarget.errors import SpectralError, unknown_name
+from retarget.relight import band_scales
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
+from service import extra_outputs as extra
 from service.errors import NotFound, fail
 from service.library import Library
 from service.limits import Limits
@@ -54,6 +57,9 @@ class Plan:
     window: tuple[int, int, int, int] = (0, 0, 0, 0)
     full: tuple[int, int] = (0, 0)
     out_size: tuple[int, int] = (0, 0)
+    gt: str = "formula"
+    gt_why: str = ""
+    illumination: bool = False  # the illumination cubes are read (physical GT or spectral outputs)
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -133,8 +139,32 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     window, out_size = _window(spec, vmeta.width, vmeta.height, ctx.limits)
     if any(m.spectral_grid != metas[0].spectral_grid for m in metas):
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
-    return Plan(spec, seed, scene, view, groups, metas, names, intensities, window,
-                (vmeta.width, vmeta.height), out_size)
+    p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size)
+    p.gt, p.gt_why = _ground_truth(spec, p)
+    p.illumination = p.gt == "physical" or bool(SPECTRAL_OUTPUTS_SET & set(spec.outputs))
+    return p
+
+
+SPECTRAL_OUTPUTS_SET = {"reflectance", "illumination"}
+
+
+def _ground_truth(spec: SampleSpec, p: Plan) -> tuple[str, str]:
+    """``(method, why)``: physical wherever every lit group has its illumination cube, else formula."""
+    missing = [g for g, m, r in zip(p.groups, p.metas, p.reads()) if r and not _has_illumination(m)]
+    wants_spectra = SPECTRAL_OUTPUTS_SET & set(spec.outputs)
+    if missing and (spec.gt == "physical" or wants_spectra):
+        what = "gt=physical" if spec.gt == "physical" else f"outputs {', '.join(sorted(wants_spectra))}"
+        raise SpectralError(f"{what} needs illumination cubes, which groups {missing} of {p.scene}/{p.view} do not "
+                            "have (rendered before they existed); re-render them, or use gt=formula")
+    if spec.gt == "formula":
+        return "formula", "asked for (gt=formula)"
+    if missing:
+        return "formula", f"groups {missing} have no illumination cubes (re-render them for the physical ground truth)"
+    return "physical", "default: every lit group has its illumination cube"
+
+
+def _has_illumination(meta) -> bool:
+    return meta.illumination is not None and meta.illumination.storage is not None
 
 
 def _cube_bytes(p: Plan) -> int:
@@ -151,14 +181,16 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     bands = p.metas[0].n_bands
     cacheable = _cube_bytes(p) <= ctx.cache.max_cost
     copies = to_read = 0
-    for g, lit in zip(p.groups, p.reads()):
-        if lit and (p.scene, p.view, g) not in ctx.cache:
-            to_read += 1
-            copies += not cacheable
+    for kind in ("transport", "illumination") if p.illumination else ("transport",):
+        for g, lit in zip(p.groups, p.reads()):
+            if lit and (p.scene, p.view, g, kind) not in ctx.cache:
+                to_read += 1
+                copies += not cacheable
     read_w = p.full[0] if cacheable else w  # a cacheable cube is decoded whole
     return budget.sample_bytes(window=(w, h), read_width=read_w, out_size=p.out_size, bands=bands,
                                window_copies=copies, groups_to_read=to_read, n_groups=len(p.groups),
-                               outputs=p.spec.array_outputs(), noise=p.spec.noise is not None, encoded=encoded)
+                               outputs=p.spec.array_outputs(), noise=p.spec.noise is not None, encoded=encoded,
+                               physical=p.gt == "physical")
 
 
 def _resizer(out_w: int, out_h: int, w: int, h: int):
@@ -172,16 +204,25 @@ def _resizer(out_w: int, out_h: int, w: int, h: int):
     return resize
 
 
-def read_cube(ctx: Context, p: Plan, group: str) -> np.ndarray:
-    """The window of a cube, sliced from the decoded whole cube in the LRU cache (decoded and kept
-    on first use, so every later crop of it is a hit); a cube larger than the whole cache is read
-    window by window, uncached."""
+def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.ndarray:
+    """The window of a cube (``kind`` transport or illumination), sliced from the decoded whole cube in
+    the LRU cache (decoded and kept on first use, so every later crop of it is a hit); a cube larger
+    than the whole cache is read window by window, uncached."""
     x, y, w, h = p.window
     if _cube_bytes(p) > ctx.cache.max_cost:
-        return ctx.store.read_cube(p.scene, p.view, group, crop=p.window)
-    cube = ctx.cache.get((p.scene, p.view, group), lambda: ctx.store.read_cube(p.scene, p.view, group),
-                         expected_cost=_cube_bytes(p))
+        return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind)
+    cube = ctx.cache.get((p.scene, p.view, group, kind),
+                         lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind), expected_cost=_cube_bytes(p))
     return cube[y:y + h, x:x + w]
+
+
+def _aov_reader(ctx: Context, p: Plan):
+    """``name → crop of the view's AOV`` (``None`` when the view has none of that name)."""
+    aovs = set(ctx.store.view_meta(p.scene, p.view).aovs)
+
+    def read(name: str) -> np.ndarray | None:
+        return ctx.store.read_aov(p.scene, p.view, name, crop=p.window) if name in aovs else None
+    return read
 
 
 def exposure_for(spec: SampleSpec) -> float | str | None:
@@ -204,15 +245,24 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     x, y, w, h = p.window
     zero = np.broadcast_to(np.float32(0), (h, w, grid.n_bands))
     cubes = [read_cube(ctx, p, g) if r else zero for g, r in zip(p.groups, p.reads())]
+    illum = [read_cube(ctx, p, g, "illumination") if r else zero for g, r in zip(p.groups, p.reads())] \
+        if p.illumination else None
     emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
+    aov = _aov_reader(ctx, p)
+    valid, reasons = extra.view_validity(aov, *p.out_size)
     t_read = time.perf_counter()
     want = set(spec.array_outputs())
     exposure = exposure_for(spec)
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
-                   sensor=sensor, ccms=np.stack(ccms), outputs=want | ({"raw"} if spec.noise else set()),
-                   exposure=exposure, group_names=p.groups, resize=_resizer(*p.out_size, w, h))
-    del cubes
+                   sensor=sensor, ccms=np.stack(ccms), outputs=(want & set(COMPOSED)) | ({"raw"} if spec.noise else set()),
+                   exposure=exposure, group_names=p.groups, resize=_resizer(*p.out_size, w, h),
+                   illumination=illum if p.gt == "physical" else None, valid=valid)
     arrays = {k: v for k, v in comp.outputs().items() if k in want}
+    arrays |= extra.aov_outputs(aov, want, *p.out_size)
+    if want & SPECTRAL_OUTPUTS_SET:
+        scales = band_scales(np.stack(spds), emissions, np.array(p.intensities), p.groups, grid.wavelengths)
+        arrays |= extra.spectral_outputs(cubes, illum, scales, want, *p.out_size)
+    del cubes, illum
     for k, a in arrays.items():
         if a.dtype.kind == "f" and not np.isfinite(a).all():
             raise SpectralError(f"the composed {k} overflows float32 (intensities × exposure × the stored "
@@ -232,6 +282,10 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
              "ccm": np.asarray(c).round(8).tolist(), "ccm_fit_delta_e00_mean": float(de)}
             for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms, fit_de)
         ],
+        "ground_truth": {"method": comp.gt, "why": p.gt_why, "equations": GT_EQUATIONS[comp.gt]},
+        "mask_reasons": {"meaning": extra.MASK_REASONS,
+                         "pixels": reasons | ({"no_light": int(np.count_nonzero(~comp.mask)) - sum(reasons.values())}
+                                              if comp.mask is not None and valid is not None else {})},
         "crop": list(p.window), "size": list(p.out_size), "exposure_gain": comp.exposure_gain,
         "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": spec.bayer,
         "grid": grid.to_dict(),
@@ -242,6 +296,14 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
                        "compose": 1e3 * (t_compose - t_read)},
     }
     return arrays, meta
+
+
+GT_EQUATIONS = {
+    "physical": "U_k = sum_g sum_i C_k (a Phi/E)_g U_g dlambda (relit illumination cubes); illum = U/U_G; "
+                "mixture_g = U_{g,G}/U_G; gain_k = max_j U_j/U_k; ccm = sum_g mixture_g CCM_g",
+    "formula": "w_g = R_{g,G}/sum_h R_{h,G} (thesis eq. 3.3); illum = sum_g w_g wp_g; gain_k = max_j illum_j/illum_k; "
+               "ccm = sum_g w_g CCM_g",
+}
 
 
 def build_sample(spec: SampleSpec, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:

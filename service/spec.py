@@ -22,7 +22,10 @@ from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 
 FORMATS = ("npz", "png", "tiff")
-ALL_OUTPUTS = (*OUTPUTS, "meta")
+AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
+SPECTRAL_OUTPUTS = ("reflectance", "illumination")  # per-pixel 63-band spectra
+DEFAULT_OUTPUTS = (*OUTPUTS, "meta")
+ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, *SPECTRAL_OUTPUTS, "meta")
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 
 
@@ -110,7 +113,8 @@ def _text(description: str, example: str, pattern: str | None = None) -> WithJso
 
 
 Outputs = Annotated[list[str], BeforeValidator(_names("outputs")),
-                    _text(f"comma-separated subset of {', '.join(ALL_OUTPUTS)} (default: all)", "raw,gain,meta")]
+                    _text(f"comma-separated subset of {', '.join(ALL_OUTPUTS)} (default: {', '.join(DEFAULT_OUTPUTS)})",
+                          "raw,gain,meta")]
 
 
 class SampleSpec(BaseModel):
@@ -133,7 +137,10 @@ class SampleSpec(BaseModel):
                     _text("x,y,w,h in pixels", "0,0,256,256", r"^\s*\d+\s*(,\s*\d+\s*){3}$")] = None
     size: Annotated[list[int] | None, BeforeValidator(_ints("size", 2, "256x192")),
                     _text("WxH output size in pixels (area resampling)", "256x192", r"^\s*\d+\s*[xX]\s*\d+\s*$")] = None
-    outputs: Outputs = Field(default_factory=lambda: list(ALL_OUTPUTS))
+    outputs: Outputs = Field(default_factory=lambda: list(DEFAULT_OUTPUTS))
+    gt: Literal["physical", "formula"] | None = Field(
+        None, description="ground truth: physical (from the illumination cubes, bounce light included; the "
+                          "default where the store has them) or formula (thesis eq. 3.3)")
     format: Literal["npz", "png", "tiff"] = Field("npz", description="npz (all outputs), or png/tiff (one image output)")
     exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
                                  pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")

@@ -24,18 +24,16 @@ import numpy as np
 
 from store import layout
 from store.backend import STAGING, TRASH, Backend
-from store.codec import EXPONENT_FILL, POLICIES, Policy, decode
+from store.codec import POLICIES, Policy
 from store.errors import StoreError, StoreKeyError
 from store.names import check_name
-from store.nodes import (STATE_ATTR, array_handles, band_index, crop_region, current_write_id, node_attrs,
-                         open_array, read_state)
+from store.nodes import STATE_ATTR, array_handles, current_write_id, node_attrs, read_state
 from store.schema import SCHEMA_VERSION, CubeMeta, ViewMeta, parse_stored, utc_now
-from store import writer
+from store import reader, writer
 
 ROOT_ATTR = "illumix_store"
 VIEW_ATTR = writer.VIEW_ATTR
 CUBE_ATTR = writer.CUBE_ATTR
-_RETRIES = 8
 
 Crop = tuple[int, int, int, int]
 
@@ -258,76 +256,22 @@ class CubeStore:
 
     # ---- reading -------------------------------------------------------------------------------
     def read_cube(self, scene: str, view: str, group: str, crop: Crop | None = None,
-                  bands: Sequence[int] | None = None) -> np.ndarray:
+                  bands: Sequence[int] | None = None, kind: str = "transport") -> np.ndarray:
         """The cube (or a crop of it) decoded to float32, in the renderer's radiometric units.
 
         ``crop=(x, y, w, h)`` in pixels (column, row, width, height); reads only the chunks it
-        overlaps. ``bands``: optional band indices. Returns ``(h, w, k)`` float32 (``k`` = all bands
-        or ``len(bands)``); zeros for an empty group. Raises :class:`StoreKeyError` for an unknown
-        or incomplete cube and :class:`StoreError` for corrupt data (naming the array).
+        overlaps. ``bands``: optional band indices. ``kind``: ``"transport"`` (the cube) or
+        ``"illumination"`` (its illumination cube; :class:`StoreKeyError` when the node has none).
+        Returns ``(h, w, k)`` float32 (``k`` = all bands or ``len(bands)``); zeros for an empty group.
+        Raises :class:`StoreKeyError` for an unknown or incomplete cube and :class:`StoreError` for
+        corrupt data (naming the array).
         """
-        for _ in range(_RETRIES):
-            path, st, meta = self._complete_node(scene, view, group)
-            h, w, nb = st["shape"]
-            y0, y1, x0, x1 = crop_region(crop, h, w, f"{scene}/{view}/{group}")
-            idx = band_index(bands, nb)
-            k = nb if idx is None else idx.size
-            if meta.empty:
-                return np.zeros((y1 - y0, x1 - x0, k), np.float32)
-            wid = st["write_id"]
-            f16 = meta.storage.dtype == "float16"
-            beta = meta.storage.band_exponent
-            beta = None if beta is None else (beta if idx is None else np.asarray(beta)[idx])
-            out = np.empty((y1 - y0, x1 - x0, k), np.float32)
-            try:
-                data = open_array(self._arrays, self._b, f"{path}/data", wid)
-                exp = open_array(self._arrays, self._b, f"{path}/exponent", wid) if f16 else None
-                # One chunk row at a time: the stored (float16) copy in memory is one row band,
-                # not the whole window, so a full-frame read costs little beyond its float32 result.
-                ex = exp[y0:y1, x0:x1] if f16 else None  # one byte per pixel: read it whole
-                if ex is not None and np.any(ex == EXPONENT_FILL):
-                    raise StoreError("missing exponent chunk")
-                step = max(data.chunks[0], 128)
-                edges = [y0, *range((y0 // step + 1) * step, y1, step), y1]
-                for a, b in zip(edges[:-1], edges[1:]):
-                    raw = data[a:b, x0:x1] if idx is None else data.oindex[a:b, x0:x1, idx]
-                    decode(raw, None if ex is None else ex[a - y0:b - y0], beta, out=out[a - y0:b - y0])
-            except Exception as exc:  # noqa: BLE001 - any zarr/codec/IO failure
-                if current_write_id(self._b, path) != wid:
-                    continue  # replaced while we read: retry on the new version
-                raise StoreError(f"corrupt array {self.url}/{path}/data: {type(exc).__name__}: {exc}; "
-                                 "delete and rewrite this cube") from None
-            if current_write_id(self._b, path) != wid:
-                continue
-            if np.isnan(out.sum(dtype=np.float64)):
-                raise StoreError(f"missing or corrupt chunks in {self.url}/{path}/data (crop {crop}); "
-                                 "delete and rewrite this cube")
-            return out
-        raise StoreError(f"cube {scene}/{view}/{group} was replaced {_RETRIES} times while being read; retry")
+        return reader.read_cube(self, scene, view, group, crop, bands, kind)
 
     def read_aov(self, scene: str, view: str, name: str, crop: Crop | None = None) -> np.ndarray:
         """An AOV of the view, ``(h, w)`` or ``(h, w, C)``: ``albedo`` / ``normal`` ``(h, w, 3)``
-        float32, ``depth`` ``(h, w)`` float32 (scene units), ``mask`` ``(h, w)`` bool."""
-        vm = self.view_meta(scene, view)
-        check_name(name, "AOV")
-        path = layout.aov_path(scene, view, name)
-        y0, y1, x0, x1 = crop_region(crop, vm.height, vm.width, f"{scene}/{view}")
-        for _ in range(_RETRIES):
-            wid = current_write_id(self._b, path)
-            if wid is None:
-                raise StoreKeyError("AOV", name, vm.aovs, f"{scene}/{view}")
-            try:
-                out = open_array(self._arrays, self._b, path, wid)[y0:y1, x0:x1]
-            except Exception as exc:  # noqa: BLE001
-                if current_write_id(self._b, path) != wid:
-                    continue
-                raise StoreError(f"corrupt array {self.url}/{path}: {type(exc).__name__}: {exc}; "
-                                 "rewrite the view's AOVs") from None
-            if current_write_id(self._b, path) == wid:
-                if out.dtype.kind == "f" and np.isnan(out.sum(dtype=np.float64)):
-                    raise StoreError(f"missing or corrupt chunks in {self.url}/{path}; rewrite the view's AOVs")
-                return out
-        raise StoreError(f"AOV {scene}/{view}/{name} was replaced {_RETRIES} times while being read; retry")
+        float32, ``depth`` ``(h, w)`` float32 (scene units), ``mask`` / ``emitter`` ``(h, w)`` bool."""
+        return reader.read_aov(self, scene, view, name, crop)
 
     # ---- writing -------------------------------------------------------------------------------
     def write_view(self, scene: str, view: str, meta: ViewMeta | Mapping[str, Any],
@@ -344,18 +288,21 @@ class CubeStore:
     def write_cube(self, scene: str, view: str, group: str, cube: np.ndarray,
                    meta: CubeMeta | Mapping[str, Any], *, overwrite: bool = False,
                    dtype_policy: Policy | None = None,
-                   progress: Callable[[int, int], None] | None = None) -> CubeMeta:
+                   progress: Callable[[int, int], None] | None = None,
+                   illumination: np.ndarray | None = None) -> CubeMeta:
         """Store the transport cube of (scene, view, group); visible only once complete.
 
         ``cube``: ``(H, W, bands)`` finite floats (converted to float32) with ``H, W`` of the view
         and ``bands`` of ``meta.grid``. ``meta``: :class:`CubeMeta`; ``stats``, ``storage`` and
         ``created`` are filled in. ``overwrite``: replace an existing complete cube (readers see
         the old or the new one, never a mix). ``dtype_policy``: overrides the store default.
-        ``progress(rows_done, rows_total)`` is called after each row of chunks. Returns the
-        stored metadata.
+        ``progress(rows_done, rows_total)`` is called after each row of chunks. ``illumination``:
+        the cube's illumination cube, same shape (stored in the same node, published with it;
+        ``meta.illumination`` records it). Returns the stored metadata.
         """
         return writer.write_cube(self, scene, view, group, cube, meta, overwrite=overwrite,
-                                 policy=dtype_policy or self.dtype_policy, progress=progress)
+                                 policy=dtype_policy or self.dtype_policy, progress=progress,
+                                 illumination=illumination)
 
     def mark_empty(self, scene: str, view: str, group: str, meta: CubeMeta | Mapping[str, Any], *,
                    overwrite: bool = False) -> CubeMeta:

@@ -21,6 +21,7 @@ from store.errors import StoreError
 from store.nodes import STATE_ATTR, node_attrs, read_state
 from store.registry import KINDS
 from store.schema import CubeMeta, ViewMeta, parse_stored
+from store.writer import ILLUMINATION
 
 
 def _group_info(st: CubeStore, scene: str, view: str, g: str) -> dict[str, Any]:
@@ -37,7 +38,8 @@ def _group_info(st: CubeStore, scene: str, view: str, g: str) -> dict[str, Any]:
             row.update(emission=m.emission_name, dtype=m.storage.dtype if m.storage else None, empty=m.empty,
                        bytes=m.storage.nbytes_stored if m.storage else None, spp=m.spp,
                        renderer=m.renderer.name, chunks=m.storage.chunks if m.storage else None,
-                       codec=m.storage.codec if m.storage else None)
+                       codec=m.storage.codec if m.storage else None,
+                       illumination=m.illumination is not None and m.illumination.storage is not None)
     except StoreError as exc:
         row["error"] = str(exc)
     return row
@@ -129,10 +131,18 @@ def _check_cube(st: CubeStore, rep: _Report, path: str, vm: ViewMeta) -> None:
     rep.checked["cubes"] += 1
     if meta.empty:
         return
-    f16 = meta.storage.dtype == "float16"
+    _check_encoded(st, rep, path, shape, meta.storage, meta.stats)
+    if meta.illumination is not None and meta.illumination.storage is not None:
+        _check_encoded(st, rep, f"{path}/{ILLUMINATION}", shape, meta.illumination.storage, meta.illumination.stats)
+
+
+def _check_encoded(st: CubeStore, rep: _Report, path: str, shape: tuple, storage, stats) -> None:
+    """One encoded cube (``path/data`` and, for float16, ``path/exponent``): shape, dtype, every
+    chunk present, finite after decoding, and the decoded values reproduce the stored statistics."""
+    f16 = storage.dtype == "float16"
     data = zarr.open_array(st.backend.zstore, path=f"{path}/data", mode="r")
-    if tuple(data.shape) != shape or str(data.dtype) != meta.storage.dtype:
-        rep.bad(f"{path}/data", f"array {data.shape} {data.dtype} != metadata {shape} {meta.storage.dtype}")
+    if tuple(data.shape) != shape or str(data.dtype) != storage.dtype:
+        rep.bad(f"{path}/data", f"array {data.shape} {data.dtype} != metadata {shape} {storage.dtype}")
         return
     ok = _chunks_ok(st, rep, f"{path}/data", data)
     exp = zarr.open_array(st.backend.zstore, path=f"{path}/exponent", mode="r") if f16 else None
@@ -149,7 +159,7 @@ def _check_cube(st: CubeStore, rep: _Report, path: str, vm: ViewMeta) -> None:
         if ex is not None and np.any(ex == EXPONENT_FILL):
             rep.bad(f"{path}/exponent", f"missing exponent chunk in rows {r0}-{r0 + cy}")
             return
-        blk = decode(data[r0:r0 + cy], ex, meta.storage.band_exponent)
+        blk = decode(data[r0:r0 + cy], ex, storage.band_exponent)
         fin = np.isfinite(blk)
         if not fin.all():
             y, x, b = np.argwhere(~fin)[0]
@@ -159,11 +169,10 @@ def _check_cube(st: CubeStore, rep: _Report, path: str, vm: ViewMeta) -> None:
         flat = blk.reshape(-1, nb)
         mx, mn = np.maximum(mx, flat.max(0)), np.minimum(mn, flat.min(0))
         total += flat.sum(0, dtype=np.float64)
-    s = meta.stats
-    smax, smin, smean = np.array(s.max), np.array(s.min), np.array(s.mean)
-    rel = meta.storage.rel_error_bound + 1e-9
+    smax, smin, smean = np.array(stats.max), np.array(stats.min), np.array(stats.mean)
+    rel = storage.rel_error_bound + 1e-9
     big = np.maximum(np.abs(smax), np.abs(smin))
-    slack = (2.0**-24 * big if meta.storage.underflow_values else 0) + 1e-30
+    slack = (2.0**-24 * big if storage.underflow_values else 0) + 1e-30
     mean_abs = np.where(smin >= 0, np.abs(smean), big)
     checks = (("max", mx, smax, rel * np.abs(smax) + slack), ("min", mn, smin, rel * np.abs(smin) + slack),
               ("mean", total / (shape[0] * shape[1]), smean, rel * mean_abs + 1e-12 * big + slack))

@@ -92,6 +92,19 @@ class StorageInfo(BaseModel):
     nbytes_stored: int | None = None
 
 
+class IlluminationInfo(BaseModel):
+    """The illumination cube stored beside a transport cube (DESIGN.md "Physical GT"): per pixel and
+    band, the radiance a white Lambertian surface at the first visible point would send to the
+    camera, in the transport cube's units, same grid and emission. ``method``: how it was obtained
+    (e.g. ``"demodulated + white-Lambertian first-hit estimate"``); ``stats``/``storage`` as for the
+    transport cube (filled in by the store)."""
+
+    model_config = ConfigDict(extra="allow")
+    method: str = ""
+    stats: BandStats | None = None
+    storage: StorageInfo | None = None
+
+
 def _grid_dict(v: Any) -> dict[str, float]:
     if isinstance(v, SpectralGrid):
         return v.to_dict()
@@ -113,6 +126,8 @@ class CubeMeta(BaseModel):
     ``scene_hash``: hash of the scene description. ``created``: UTC ISO time (set on write).
     ``stats`` and ``storage`` are filled in by :meth:`store.CubeStore.write_cube`.
     ``empty``: the group contributes nothing to this view (no array stored; reads give zeros).
+    ``illumination``: :class:`IlluminationInfo` when the node also holds the illumination cube
+    (``None`` in stores rendered before it existed: the service then serves the formula ground truth).
     """
 
     model_config = ConfigDict(extra="allow")
@@ -128,6 +143,7 @@ class CubeMeta(BaseModel):
     stats: BandStats | None = None
     storage: StorageInfo | None = None
     empty: bool = False
+    illumination: IlluminationInfo | None = None
 
     _v = field_validator("schema_version")(_check_version)
 
@@ -150,8 +166,7 @@ class CubeMeta(BaseModel):
             raise ValueError(f"emission has {len(self.emission)} values but the grid has {n} bands")
         if not all(math.isfinite(e) and e >= 0 for e in self.emission):
             raise ValueError("emission must be finite and non-negative (band averages, relative units)")
-        for name in ("stats",):
-            s = getattr(self, name)
+        for s in (self.stats, self.illumination.stats if self.illumination else None):
             if s is not None and not (len(s.max) == len(s.mean) == len(s.min) == n):
                 raise ValueError(f"stats must have {n} values per statistic (one per band)")
         return self

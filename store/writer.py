@@ -19,7 +19,7 @@ from store.codec import EXPONENT_FILL, Policy, encode
 from store.errors import StoreError
 from store.names import check_name
 from store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
-from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, StorageInfo, ViewMeta, utc_now
+from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, IlluminationInfo, StorageInfo, ViewMeta, utc_now
 
 if TYPE_CHECKING:
     from store.cubestore import CubeStore
@@ -27,8 +27,10 @@ if TYPE_CHECKING:
 VIEW_ATTR = "illumix_view"
 CUBE_ATTR = "illumix_cube"
 #: Known AOVs: channels (``None`` = ``(H, W)``) and storage dtype.
+ILLUMINATION = "illumination"  # sub-group of a cube node holding its illumination cube
 KNOWN_AOVS: dict[str, tuple[int | None, type]] = {
-    "albedo": (3, np.float32), "normal": (3, np.float32), "depth": (None, np.float32), "mask": (None, np.bool_)}
+    "albedo": (3, np.float32), "normal": (3, np.float32), "depth": (None, np.float32), "mask": (None, np.bool_),
+    "emitter": (None, np.bool_)}
 
 
 def _validated(model: type, meta: Any, what: str) -> Any:
@@ -170,10 +172,35 @@ def write_view(st: CubeStore, scene: str, view: str, meta: ViewMeta | Mapping[st
     return new
 
 
+def _storage(enc, policy: Policy, chunks: tuple[int, ...], codec: str) -> StorageInfo:
+    return StorageInfo(dtype=enc.dtype, encoding="f16-exp2" if enc.dtype == "float16" else "raw",
+                       policy=policy, reason=enc.reason, band_exponent=enc.band_exponent,
+                       chunks=list(chunks), codec=codec, rel_error_bound=enc.rel_error_bound,
+                       underflow_values=enc.underflow)
+
+
+def _write_encoded(st: CubeStore, path: str, enc, shape: tuple[int, int, int], chunks: tuple[int, ...],
+                   progress: Callable[[int, int], None] | None) -> None:
+    """The encoded arrays of one cube at ``path/data`` (and ``path/exponent`` for float16)."""
+    b = st.backend
+    data = create_array(b, f"{path}/data", shape, chunks, enc.data.dtype, st.codec, np.nan, ("y", "x", "band"))
+    cy = chunks[0]
+    for r0 in range(0, shape[0], cy):
+        data[r0:r0 + cy] = enc.data[r0:r0 + cy]
+        if progress is not None:
+            progress(min(r0 + cy, shape[0]), shape[0])
+    if enc.exponent is not None:
+        exp = create_array(b, f"{path}/exponent", shape[:2], layout.exponent_chunks(st.tile, *shape[:2]),
+                           np.int8, "zstd", EXPONENT_FILL, ("y", "x"))
+        exp[...] = enc.exponent
+
+
 def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarray | None,
                meta: CubeMeta | Mapping[str, Any], *, overwrite: bool, policy: Policy,
-               progress: Callable[[int, int], None] | None) -> CubeMeta:
-    """Write a cube (``cube`` array) or an empty-group record (``cube=None``)."""
+               progress: Callable[[int, int], None] | None,
+               illumination: np.ndarray | None = None) -> CubeMeta:
+    """Write a cube (``cube`` array, optionally with its ``illumination`` cube of the same shape) or
+    an empty-group record (``cube=None``). Both arrays are published together or not at all."""
     b = st.backend
     b.check_writable()
     check_name(group, "group")
@@ -200,11 +227,17 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
         stats = BandStats.of(arr)
         enc = encode(arr, policy)
         del arr
-        storage = StorageInfo(dtype=enc.dtype, encoding="f16-exp2" if enc.dtype == "float16" else "raw",
-                              policy=policy, reason=enc.reason, band_exponent=enc.band_exponent,
-                              chunks=list(chunks), codec=st.codec, rel_error_bound=enc.rel_error_bound,
-                              underflow_values=enc.underflow)
-    meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None,
+        storage = _storage(enc, policy, chunks, st.codec)
+    illum, enc_u = meta.illumination, None
+    if illumination is not None and cube is not None:
+        arr = _check_cube(illumination, shape, f"{where} (illumination)")
+        enc_u = encode(arr, policy)
+        illum = IlluminationInfo(**(illum.model_dump() if illum else {}))
+        illum.stats, illum.storage = BandStats.of(arr), _storage(enc_u, policy, chunks, st.codec)
+        del arr
+    elif cube is None:
+        illum = None
+    meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None, "illumination": illum,
                                    "created": meta.created or utc_now(), "schema_version": SCHEMA_VERSION})
     first = (prev or {}).get("first_written") or utc_now()
     b.ensure_group(f"{layout.view_path(scene, view)}/cubes")
@@ -218,18 +251,13 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             b.remove(final)  # in-place (marker) mode: the old version disappears first
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
         if enc is not None:
-            data = create_array(b, f"{wpath}/data", shape, chunks, enc.data.dtype, st.codec, np.nan,
-                                ("y", "x", "band"))
-            cy = chunks[0]
-            for r0 in range(0, shape[0], cy):
-                data[r0:r0 + cy] = enc.data[r0:r0 + cy]
-                if progress is not None:
-                    progress(min(r0 + cy, shape[0]), shape[0])
-            if enc.exponent is not None:
-                exp = create_array(b, f"{wpath}/exponent", shape[:2], layout.exponent_chunks(st.tile, *shape[:2]),
-                                   np.int8, "zstd", EXPONENT_FILL, ("y", "x"))
-                exp[...] = enc.exponent
-            meta.storage.nbytes_stored = b.size(wpath)
+            _write_encoded(st, wpath, enc, shape, chunks, progress)
+            if enc_u is not None:
+                write_group(b, f"{wpath}/{ILLUMINATION}", {})
+                _write_encoded(st, f"{wpath}/{ILLUMINATION}", enc_u, shape, chunks, None)
+                meta.illumination.storage.nbytes_stored = b.size(f"{wpath}/{ILLUMINATION}")
+            meta.storage.nbytes_stored = b.size(wpath) - (meta.illumination.storage.nbytes_stored
+                                                          if enc_u is not None else 0)
         state = {**state, "complete": True, "finished": utc_now()}
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
         try:

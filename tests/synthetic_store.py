@@ -39,8 +39,12 @@ def falloffs(h: int = H, w: int = W) -> tuple[np.ndarray, np.ndarray]:
     return window, lamp
 
 
-def build(path, h: int = H, w: int = W, extras: bool = True) -> None:
-    """Write the synthetic scenes into a store at ``path`` (``extras``: the solo and thesis views)."""
+def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool = False) -> None:
+    """Write the synthetic scenes into a store at ``path`` (``extras``: the solo and thesis views).
+
+    ``illumination``: also store the illumination cubes of synth/v0 (a white Lambertian under each
+    group: ``falloff/π`` in every band, so the transport cube is exactly reflectance × illumination),
+    and the view's hit mask (all geometry) and emitter AOV (an "emitter" in the top-left 2×2)."""
     from store import CubeMeta, CubeStore, ViewMeta
 
     st = CubeStore.open(str(path), mode="a")
@@ -50,10 +54,19 @@ def build(path, h: int = H, w: int = W, extras: bool = True) -> None:
     flat = [1.0] * n
     common = dict(grid=DEFAULT_GRID.to_dict(), renderer={"name": "synthetic", "version": "1"},
                   spp=0, seed=0, scene_hash="synthetic")
-    st.write_view("synth", "v0", ViewMeta(width=w, height=h, fov=45.0))
+    aovs = None
+    if illumination:
+        emitter = np.zeros((h, w), bool)
+        emitter[:2, :2] = True
+        aovs = {"mask": np.ones((h, w), bool), "emitter": emitter,
+                "albedo": refl[..., [50, 30, 10]].astype(np.float32),
+                "normal": np.broadcast_to(np.float32([0, 0, 1]), (h, w, 3)).copy(),
+                "depth": np.full((h, w), 2.0, np.float32)}
+    st.write_view("synth", "v0", ViewMeta(width=w, height=h, fov=45.0), aovs)
     for name, f in (("window", fw), ("lamp", fl)):
-        st.write_cube("synth", "v0", name, refl * (f / np.float32(np.pi))[..., None],
-                      CubeMeta(emission=flat, emission_name="flat", **common))
+        u = np.broadcast_to((f / np.float32(np.pi))[..., None], refl.shape).astype(np.float32)
+        st.write_cube("synth", "v0", name, refl * u, CubeMeta(emission=flat, emission_name="flat", **common),
+                      illumination=u if illumination else None)
     if not extras:
         return
     st.write_view("synth", "solo", ViewMeta(width=w, height=h, fov=45.0))

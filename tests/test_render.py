@@ -15,6 +15,7 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from renderer_jobs import demo  # noqa: E402
 from renderer_jobs import mitsuba_render as mr  # noqa: E402
+from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
 from renderer_jobs import mitsuba_scene as ms  # noqa: E402
 from renderer_jobs import mitsuba_variant as mv  # noqa: E402
 from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
@@ -171,7 +172,7 @@ def test_groups_add_up_to_all_on(box):
 
 
 def test_aovs(box):
-    a = mr.render_aovs(box, "cam", mr.RenderSettings(aov_spp=2))
+    a = render_aovs(box, "cam", mr.RenderSettings(aov_spp=2))
     h, w = RES[1], RES[0]
     assert a["albedo"].shape == (h, w, 3) and a["normal"].shape == (h, w, 3)
     assert a["depth"].shape == (h, w) and a["mask"].shape == (h, w) and a["mask"].dtype == bool
@@ -223,7 +224,7 @@ def test_envmap_sky_renders_with_mitsuba_d65_emission(tmp_path):
          "views": [{"name": "v", "origin": [0, 1, 3], "target": [0, 0, 0], "resolution": [32, 24]}]}
     s = scene_from_dict(d, base=tmp_path)
     r = mr.render_cube(s, "v", "sky", mr.RenderSettings(spp=16))
-    a = mr.render_aovs(s, "v")
+    a = render_aovs(s, "v")
     assert r.emission_name == "mitsuba-d65" and 0.5 < r.emission[0] < r.emission[30]
     seen = r.cube[~a["mask"]].mean(axis=0) / r.emission   # sky seen directly: 2 × 0.5
     np.testing.assert_allclose(seen, 1.0, rtol=0.02)

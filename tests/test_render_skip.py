@@ -14,7 +14,8 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 from illumix.cli import main  # noqa: E402
 from renderer_jobs import demo  # noqa: E402
 from renderer_jobs.light_probe import probe_group  # noqa: E402
-from renderer_jobs.mitsuba_render import RenderSettings, render_aovs, render_cube  # noqa: E402
+from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from renderer_jobs.mitsuba_render import RenderSettings, render_cube  # noqa: E402
 from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
 
 RES = (40, 30)

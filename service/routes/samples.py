@@ -67,8 +67,8 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
     plans = [plan(s, ctx) for s in body.samples]
     # Items are built one after another and their outputs kept for the archive: price the outputs
     # of all (twice: arrays and archive) plus the largest item's working memory.
-    outs = sum(budget.output_bytes(p.spec.array_outputs(), len(p.groups), p.out_size[0] * p.out_size[1])
-               for p in plans)
+    outs = sum(budget.output_bytes(p.spec.array_outputs(), len(p.groups), p.out_size[0] * p.out_size[1],
+                                   p.metas[0].n_bands) for p in plans)
     work = max(price(p, ctx, encoded=False) for p in plans)
     hold = ctx.memory.acquire(2 * outs + work, f"this batch of {len(plans)} samples")
     try:

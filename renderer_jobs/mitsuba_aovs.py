@@ -1,0 +1,53 @@
+"""Geometry AOVs of a view (albedo, normal, depth, hit mask, emitter mask): the denoising guides and
+the validity masks the service serves, from jittered primary rays (no path tracing)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderer_jobs.mitsuba_render import RenderSettings
+from renderer_jobs.mitsuba_trace import Tracer
+from renderer_jobs.scene_model import Scene
+
+# Broad bands (nm) whose mean reflectance forms the RGB albedo AOV.
+ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))
+
+
+def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
+    """Geometry AOVs of a view, averaged over ``aov_spp`` jittered primary rays per pixel.
+
+    albedo ``(H, W, 3)``: mean diffuse reflectance (Mitsuba's ``eval_diffuse_reflectance``) over
+    600–700, 500–600, 400–500 nm (R, G, B); normal ``(H, W, 3)``: world-space shading normal
+    (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
+    nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``
+    bool: most of the pixel's rays hit a light source's own surface (any group's), where the
+    illumination of a surface is not defined. float32 except mask and emitter.
+    """
+    tracer = Tracer(scene, view, None, settings.resolution)  # every emitter on: emitting shapes flagged
+    w, h = tracer.width, tracer.height
+    npix = w * h
+    k = max(1, settings.aov_spp)
+    rng = np.random.default_rng([settings.seed & 0xFFFFFFFF, 0xA0F])
+    pix = np.repeat(np.arange(npix, dtype=np.int64), k)
+    jitter = rng.random((len(pix), 2), dtype=np.float32)
+    jitter[::k] = 0.5  # the first sample of every pixel is its centre (for the mask)
+    u = rng.random((len(pix), 3))
+    lam = np.empty((len(pix), 4), dtype=np.float32)
+    for c, (a, b) in enumerate(ALBEDO_BANDS):
+        lam[:, c] = a + (b - a) * u[:, c]
+    lam[:, 3] = 550.0
+    out = tracer.first_hit(pix, jitter, lam)
+    hit = out["hit"].reshape(npix, k)
+    hitf = hit.astype(np.float64)
+    nh = np.maximum(hitf.sum(axis=1), 1)
+    albedo = (out["albedo"][:, :3].reshape(npix, k, 3) * hitf[..., None]).sum(axis=1) / nh[:, None]
+    normal = (out["normal"].reshape(npix, k, 3) * hitf[..., None]).sum(axis=1)
+    norm = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.where(norm > 0, normal / np.where(norm > 0, norm, 1), 0.0)
+    depth = (out["distance"].reshape(npix, k) * hitf).sum(axis=1) / nh
+    emitter = out["emitter"].reshape(npix, k).mean(axis=1) > 0.5
+    return {"albedo": albedo.reshape(h, w, 3).astype(np.float32),
+            "normal": normal.reshape(h, w, 3).astype(np.float32),
+            "depth": depth.reshape(h, w).astype(np.float32),
+            "mask": hit[:, 0].reshape(h, w),
+            "emitter": emitter.reshape(h, w)}

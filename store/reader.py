@@ -1,0 +1,103 @@
+"""Reading cubes and AOVs (behind :meth:`store.CubeStore.read_cube` / :meth:`~store.CubeStore.read_aov`).
+
+Reads never return torn data: the node's ``write_id`` is read before and after the data, and a
+node replaced in between is read again (see :mod:`store.nodes`). Cubes are decoded one row of
+chunks at a time, so a full-frame read costs little beyond its float32 result.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from store import layout
+from store.codec import EXPONENT_FILL, decode
+from store.errors import StoreError, StoreKeyError
+from store.names import check_name
+from store.nodes import band_index, crop_region, current_write_id, open_array
+from store.writer import ILLUMINATION
+
+if TYPE_CHECKING:
+    from store.cubestore import CubeStore
+
+RETRIES = 8
+KINDS = ("transport", "illumination")
+
+
+def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Sequence[int] | None,
+              kind: str) -> np.ndarray:
+    """See :meth:`store.CubeStore.read_cube`."""
+    if kind not in KINDS:
+        raise StoreError(f"unknown cube kind {kind!r}; use one of {', '.join(KINDS)}")
+    b = st.backend
+    for _ in range(RETRIES):
+        path, state, meta = st._complete_node(scene, view, group)
+        h, w, nb = state["shape"]
+        y0, y1, x0, x1 = crop_region(crop, h, w, f"{scene}/{view}/{group}")
+        idx = band_index(bands, nb)
+        k = nb if idx is None else idx.size
+        if meta.empty:
+            return np.zeros((y1 - y0, x1 - x0, k), np.float32)
+        storage = meta.storage
+        if kind == ILLUMINATION:
+            if meta.illumination is None or meta.illumination.storage is None:
+                raise StoreKeyError("illumination cube", group, [], f"{scene}/{view}",
+                                    detail=f"cube {scene}/{view}/{group} has no illumination cube (rendered "
+                                           "before illumination cubes existed); re-render it")
+            storage, path = meta.illumination.storage, f"{path}/{ILLUMINATION}"
+        wid = state["write_id"]
+        node = layout.cube_path(scene, view, group)
+        beta = storage.band_exponent
+        beta = None if beta is None else (beta if idx is None else np.asarray(beta)[idx])
+        out = np.empty((y1 - y0, x1 - x0, k), np.float32)
+        try:
+            data = open_array(st._arrays, b, f"{path}/data", wid)
+            exp = open_array(st._arrays, b, f"{path}/exponent", wid) if storage.dtype == "float16" else None
+            ex = exp[y0:y1, x0:x1] if exp is not None else None  # one byte per pixel: read it whole
+            if ex is not None and np.any(ex == EXPONENT_FILL):
+                raise StoreError("missing exponent chunk")
+            # One chunk row at a time: the stored (float16) copy in memory is one row band.
+            step = max(data.chunks[0], 128)
+            edges = [y0, *range((y0 // step + 1) * step, y1, step), y1]
+            for a, c in zip(edges[:-1], edges[1:]):
+                raw = data[a:c, x0:x1] if idx is None else data.oindex[a:c, x0:x1, idx]
+                decode(raw, None if ex is None else ex[a - y0:c - y0], beta, out=out[a - y0:c - y0])
+        except Exception as exc:  # noqa: BLE001 - any zarr/codec/IO failure
+            if current_write_id(b, node) != wid:
+                continue  # replaced while we read: retry on the new version
+            raise StoreError(f"corrupt array {st.url}/{path}/data: {type(exc).__name__}: {exc}; "
+                             "delete and rewrite this cube") from None
+        if current_write_id(b, node) != wid:
+            continue
+        if np.isnan(out.sum(dtype=np.float64)):
+            raise StoreError(f"missing or corrupt chunks in {st.url}/{path}/data (crop {crop}); "
+                             "delete and rewrite this cube")
+        return out
+    raise StoreError(f"cube {scene}/{view}/{group} was replaced {RETRIES} times while being read; retry")
+
+
+def read_aov(st: CubeStore, scene: str, view: str, name: str, crop) -> np.ndarray:
+    """See :meth:`store.CubeStore.read_aov`."""
+    b = st.backend
+    vm = st.view_meta(scene, view)
+    check_name(name, "AOV")
+    path = layout.aov_path(scene, view, name)
+    y0, y1, x0, x1 = crop_region(crop, vm.height, vm.width, f"{scene}/{view}")
+    for _ in range(RETRIES):
+        wid = current_write_id(b, path)
+        if wid is None:
+            raise StoreKeyError("AOV", name, vm.aovs, f"{scene}/{view}")
+        try:
+            out = open_array(st._arrays, b, path, wid)[y0:y1, x0:x1]
+        except Exception as exc:  # noqa: BLE001
+            if current_write_id(b, path) != wid:
+                continue
+            raise StoreError(f"corrupt array {st.url}/{path}: {type(exc).__name__}: {exc}; "
+                             "rewrite the view's AOVs") from None
+        if current_write_id(b, path) == wid:
+            if out.dtype.kind == "f" and np.isnan(out.sum(dtype=np.float64)):
+                raise StoreError(f"missing or corrupt chunks in {st.url}/{path}; rewrite the view's AOVs")
+            return out
+    raise StoreError(f"AOV {scene}/{view}/{name} was replaced {RETRIES} times while being read; retry")
