@@ -133,6 +133,9 @@ def demo(
         written = _save_samples(url, out)
         console.print(f"wrote {len(written)} PNGs into {out}/ (raw preview, gain map, sRGB)")
         console.rule("[bold]4. get more")
+        if not serve:  # the server stops with this command: point at one that stays
+            print(f"illumix serve --store {store}   # then fetch samples as shown in the README")
+            return
         print(f"curl -o sample.npz '{url}/sample?sensor=XYZ&pair=A,D65'")
         print(f"curl -o srgb.png '{url}/sample?pair=FL11,D50&outputs=srgb&format=png'")
         print("python -c \"import httpx, numpy as np, io; "

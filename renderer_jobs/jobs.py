@@ -22,6 +22,7 @@ or at another resolution is a conflict: the run refuses to start unless ``overwr
 from __future__ import annotations
 
 import os
+import socket
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -333,6 +334,19 @@ def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
     return results
 
 
+def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
+    """Fail fast on a ``HOST:PORT`` cluster address nobody listens at: ``ray.init`` would retry it
+    without limit (measured: still retrying after 5 minutes)."""
+    host, sep, port = (address or "").rpartition(":")
+    if not sep or not host or not port.isdigit() or "://" in address:
+        return  # "auto", "ray://…" or no address: Ray's own resolution
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise JobError(f"cannot reach the Ray cluster at {address}: {exc.strerror or exc}; start its head "
+                       f"(`ray start --head --node-ip-address {host} --port {port}`) or give the right --address")
+
+
 def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | None,
              on_done: ProgressFn, ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
     try:
@@ -340,6 +354,7 @@ def _run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | N
     except ImportError:
         raise JobError("the ray executor needs Ray: pip install 'illumix[ray]'") from None
     if not ray.is_initialized():
+        _check_reachable(address)
         try:
             ray.init(address=address, ignore_reinit_error=True, log_to_driver=False, **(ray_init or {}))
         except Exception as exc:  # ConnectionError, or ValueError for a malformed address

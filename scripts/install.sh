@@ -9,7 +9,10 @@ cd "$(dirname "$0")/.."
 extras="render"
 # Tests also exercise the Ray executor against a local Ray instance; "bench" adds the benchmarks' plots.
 [ "${1:-}" = "--test" ] && extras="render,ray,test,bench"
-if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* >/dev/null 2>&1; then
+# Debian's libllvm19 puts libLLVM-19.so under /usr/lib/<triplet>/, LLVM's own packages under /usr/lib/llvm-N/.
+if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* \
+        /usr/lib/*-linux-gnu/libLLVM-1[6-9]*.so* /usr/lib/*-linux-gnu/libLLVM-2*.so* \
+        /usr/lib/*-linux-gnu/libLLVM.so.1[6-9]* /usr/lib/*-linux-gnu/libLLVM.so.2* >/dev/null 2>&1; then
   if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "install: adding libllvm19 (Mitsuba LLVM backend)" >&2
     (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19) >&2 \

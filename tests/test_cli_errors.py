@@ -83,7 +83,21 @@ def test_unreachable_ray_cluster_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(ray, "is_initialized", lambda: False)
     monkeypatch.setattr(ray, "init", refuse)
     code, out, err = run_cli(capsys, "render", "--demo", "--store", str(tmp_path / "st"), "--executor", "ray",
-                             "--address", "127.0.0.1:1", "--resolution", "8x6", "--spp", "16")
+                             "--address", "auto", "--resolution", "8x6", "--spp", "16")
     last = err.strip("\n").split("\n")[-1]  # after the progress bar's line
     assert code == 2 and "Traceback" not in err and last.startswith("illumix: error: render failed: ")
-    assert "cannot start or reach the Ray cluster at 127.0.0.1:1: ConnectionError: could not connect" in last
+    assert "cannot start or reach the Ray cluster at auto: ConnectionError: could not connect" in last
+
+
+def test_ray_address_nobody_listens_at_fails_fast(tmp_path, capsys):
+    """Ray's own init retries an unreachable HOST:PORT without limit (seen: > 5 min): checked first."""
+    pytest.importorskip("ray")
+    import socket
+
+    with socket.socket() as s:  # a loopback port nobody listens at
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    code, out, err = run_cli(capsys, "render", "--demo", "--store", str(tmp_path / "st"), "--executor", "ray",
+                             "--address", f"127.0.0.1:{port}", "--resolution", "8x6", "--spp", "16")
+    last = err.strip("\n").split("\n")[-1]
+    assert code == 2 and f"cannot reach the Ray cluster at 127.0.0.1:{port}" in last, err
