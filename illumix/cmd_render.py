@@ -73,6 +73,10 @@ def render(
         None, "--noise-target",
         help="Render each pixel to this relative noise of its spectral sum as the pilot predicts it (e.g. "
              "0.05 = 5 %); --spp becomes the per-pixel maximum, so a cube costs what its light needs."),
+    illumination: bool = typer.Option(True, "--illumination/--no-illumination",
+                                      help="Also render each cube's illumination cube (what a white surface would "
+                                           "show, bounce light included): the physical ground truth the service "
+                                           "serves; --no-illumination: transport only (the formula ground truth)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -109,7 +113,7 @@ def render(
             raise UserError("--noise-target spreads the paths by the adaptive pilot, which --no-adaptive turns off; "
                             "give one of the two")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
-                                  adaptive=adaptive, noise_target=noise_target)
+                                  adaptive=adaptive, noise_target=noise_target, illumination=illumination)
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
                       overwrite=overwrite)
     except SceneError as exc:
@@ -127,7 +131,7 @@ def render(
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
-               "adaptive": adaptive, "noise_target": noise_target,
+               "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
                "executor": executor}
     if dry_run:
         for j in p.jobs:

@@ -199,6 +199,9 @@ class _PathBlocks:
         self.inv_emission = np.where(emission > 0, 1.0 / np.where(emission > 0, emission, 1.0), 0.0)
         self.n_bad, self.t_trace, self.t_illum = 0, 0.0, 0.0
         self.n_samples = self.n_demodulated = self.n_traced = 0
+        # samples whose illumination must be traced, per tracer: (pix, jitter, lam, idx, weight);
+        # traced together at the end (each Dr.Jit call has a fixed cost that small batches pay)
+        self.pending: list[list[tuple]] = [[] for _ in tracers]
 
     def trace(self, pix: np.ndarray, s: np.ndarray, key: int, salt: int = 0x1C0) -> np.ndarray:
         """Trace path ``s[i]`` of pixel ``pix[i]``; add to the band sums. Returns each path's
@@ -228,17 +231,16 @@ class _PathBlocks:
             self.acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=self.npix * nb)
             total += L
             if self.acc_u is not None:
-                U = self._illumination(tracer, out, pix, jitter, lam32, seed)
+                U = self._illumination(j, out, pix, jitter, lam32, idx, seed)
                 self.acc_u += np.bincount(idx, weights=U.ravel().astype(np.float64), minlength=self.npix * nb)
         return (total * self.inv_emission[bands]).sum(axis=1)
 
-    def _illumination(self, tracer: Tracer, out, pix, jitter, lam, seed: int) -> np.ndarray:
+    def _illumination(self, j: int, out, pix, jitter, lam, idx, seed: int) -> np.ndarray:
         """Illumination samples of the paths just traced: ``L/ρ`` where the first hit is purely
-        diffuse, the white-Lambertian estimate where it is not (:mod:`renderer_jobs.mitsuba_trace`)."""
+        diffuse; where it is not, the sample is queued for :meth:`trace_pending`."""
         L, albedo, diffuse, hit = out
         ok = diffuse & (albedo.min(axis=1) > RHO_MIN)
-        U = np.zeros_like(L)
-        U[ok] = L[ok] / albedo[ok]
+        U = np.divide(L, albedo, out=np.zeros_like(L), where=ok[:, None])
         need = np.flatnonzero(hit & ~ok)
         self.n_samples += len(L)
         self.n_demodulated += int(ok.sum())
@@ -250,11 +252,28 @@ class _PathBlocks:
             if p < 1.0:
                 rng = np.random.default_rng([seed, 0x5EED])
                 need = need[rng.random(need.size) < p]
-            t1 = time.perf_counter()
-            U[need] = tracer.white_lambertian(pix[need], jitter[need], lam[need], seed=seed ^ 0x5EED) / p
-            self.t_illum += time.perf_counter() - t1
-            self.n_traced += int(need.size)
+            rows = idx.reshape(-1, 4)[need]
+            self.pending[j].append((pix[need], jitter[need], lam[need], rows, np.float64(1.0 / p)))
         return _finite(U, self)
+
+    def trace_pending(self, seed: int) -> None:
+        """Trace the queued white-Lambertian estimates, one Dr.Jit call per tracer and lane block."""
+        lanes = self.settings.max_lanes
+        for j, (tracer, queue) in enumerate(zip(self.tracers, self.pending)):
+            if not queue:
+                continue
+            pix, jitter, lam, rows = (np.concatenate([q[k] for q in queue]) for k in range(4))
+            weight = np.concatenate([np.full(len(q[0]), q[4]) for q in queue])
+            self.pending[j] = []
+            t1 = time.perf_counter()
+            for c, a in enumerate(range(0, len(pix), lanes)):
+                part = slice(a, a + lanes)
+                key = int(hash_u32(np.array([j * 4096 + c]), seed ^ 0x5EED)[0])
+                U = _finite(tracer.white_lambertian(pix[part], jitter[part], lam[part], seed=key), self)
+                self.acc_u += np.bincount(rows[part].ravel(), weights=(U * weight[part, None]).ravel(),
+                                          minlength=self.npix * self.nb)
+            self.t_illum += time.perf_counter() - t1
+            self.n_traced += len(pix)
 
 
 # Below this diffuse reflectance a first hit carries no usable ratio L/ρ (ρ = 0 carries nothing): its
@@ -262,7 +281,7 @@ class _PathBlocks:
 RHO_MIN = 1e-6
 # Most white-Lambertian estimates traced per path of a batch (bench/groundtruth.py measures the
 # resulting cost against the transport cube alone; the goal is at most 1.3x).
-TRACE_BUDGET = 0.08
+TRACE_BUDGET = 0.04
 
 
 def _finite(a: np.ndarray, blocks: _PathBlocks) -> np.ndarray:
@@ -338,6 +357,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
         s = pilot + np.arange(len(pix), dtype=np.int64) - np.repeat(np.cumsum(more) - more, more)
         for c, a in enumerate(range(0, len(pix), settings.max_lanes)):
             blocks.trace(pix[a:a + settings.max_lanes], s[a:a + settings.max_lanes], c, salt=0xADA)
+    if blocks.acc_u is not None:
+        blocks.trace_pending(settings.seed)
     acc = blocks.acc.reshape(npix, nb)
     if settings.wavelengths == "stratified":
         counts = band_counts(npix, nb, spp_map, settings.seed, blocks.live).astype(np.float64)

@@ -171,7 +171,7 @@ class SpecSampler:
                  *, intensity_range: tuple[float, float] = (0.25, 1.0), crop=None, size=None,
                  outputs: Sequence[str] = ("raw", "gain", "mask"), exposure: str | float | None = None,
                  noise: str | Mapping[str, float] | None = None, bayer: str | None = None,
-                 distinct: bool = True) -> None:
+                 distinct: bool = True, gt: str | None = None) -> None:
         if not views:
             raise ValueError("no views to draw from (check the scene filter, min_groups and crop size)")
         if not sensors or isinstance(sensors, str):
@@ -183,7 +183,7 @@ class SpecSampler:
         self.intensity_range = (lo, hi)
         self.crop, self.size = _pair(crop, "crop"), _pair(size, "size")
         self.outputs = [o for o in outputs if o != "meta"] + ["meta"]
-        self.exposure, self.noise, self.bayer, self.distinct = exposure, noise, bayer, distinct
+        self.exposure, self.noise, self.bayer, self.distinct, self.gt = exposure, noise, bayer, distinct, gt
 
     def spec(self, rng: np.random.Generator) -> dict[str, Any]:
         """One /batch item (a dict of :data:`illumix_client.sample.SPEC_KEYS`)."""
@@ -198,6 +198,8 @@ class SpecSampler:
             "illuminants": names, "intensities": [round(float(x), 6) for x in a],
             "outputs": self.outputs,
         }
+        if self.gt is not None:
+            spec["gt"] = self.gt
         if self.crop is not None:
             w, h = self.crop
             spec["crop"] = [int(rng.integers(v.width - w + 1)), int(rng.integers(v.height - h + 1)), w, h]

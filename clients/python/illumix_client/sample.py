@@ -16,11 +16,12 @@ import numpy as np
 
 from illumix_client.errors import IllumixError
 
-OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask")
+OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture", "albedo", "normal", "depth",
+           "reflectance", "illumination")
 """Array outputs the service can return (plus ``meta``)."""
 
 SPEC_KEYS = ("scene", "view", "seed", "sensor", "pair", "illuminants", "intensities", "crop", "size",
-             "outputs", "exposure", "noise", "bayer")
+             "outputs", "gt", "exposure", "noise", "bayer")
 """Parameters of one sample request (GET /sample query parameters, POST /batch items)."""
 
 
@@ -37,9 +38,18 @@ class Sample:
     - ``srgb``: ``(H, W, 3)`` float32 rendered sRGB in [0, 1].
     - ``weights``: ``(H, W, G)`` float32 illuminant weights per light group, in ``meta["groups"]``
       order; they sum to 1 where ``mask`` is True.
-    - ``mask``: ``(H, W)`` bool, True where the pixel receives light (ground truth defined).
+    - ``mask``: ``(H, W)`` bool, True where the ground truth is defined (a lit surface; not sky, not a
+      light source's own surface); ``meta["mask_reasons"]`` counts the others by reason.
+    - ``illum``: ``(H, W, 3)`` float32 per-pixel white point in camera RGB, G = 1 (LSMI's
+      illumination map) — physical (bounce light included) where the store has illumination cubes,
+      else the formula's; ``meta["ground_truth"]`` says which.
+    - ``mixture``: ``(H, W, G)`` float32 each light group's share of that white point (≥ 0, sum 1).
+    - ``albedo`` / ``normal`` ``(H, W, 3)``, ``depth`` ``(H, W)``: the view's geometry AOVs.
+    - ``reflectance`` / ``illumination``: ``(H, W, bands)`` float32 per-pixel spectra (the first hit's
+      reflectance; the radiance a white Lambertian surface there sends under this lighting).
     - ``meta``: the service's metadata (scene, view, groups, illuminants with sensor white points and
-      CCMs, intensities, exposure gain, seed, provenance, timings); ``{}`` when not requested.
+      CCMs, intensities, exposure gain, seed, ground truth, provenance, timings); ``{}`` when not
+      requested.
     """
 
     raw: np.ndarray | None = None
@@ -48,6 +58,13 @@ class Sample:
     srgb: np.ndarray | None = None
     weights: np.ndarray | None = None
     mask: np.ndarray | None = None
+    illum: np.ndarray | None = None
+    mixture: np.ndarray | None = None
+    albedo: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    reflectance: np.ndarray | None = None
+    illumination: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
 
     @property

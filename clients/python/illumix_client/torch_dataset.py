@@ -16,7 +16,11 @@ gain        (3, H, W)        white-balance gain map ``max_j W_j / W_k`` (≥ 1; 
 mask        (1, H, W) bool   True where ground truth is defined (the pixel receives light).
 srgb        (3, H, W)        sRGB rendering in [0, 1]               (only if in ``outputs``)
 ccm         (3, 3, H, W)     per-pixel CCM, ``ccm[:, :, y, x] @ rgb`` (only if in ``outputs``)
-weights     (G, H, W)        illuminant weight per light group       (only if in ``outputs``)
+weights     (G, H, W)        illuminant weight per light group (eq. 3.3) (only if in ``outputs``)
+illum       (3, H, W)        per-pixel white point, G = 1 (physical GT where the store has it)
+mixture     (G, H, W)        each group's share of that white point   (only if in ``outputs``)
+albedo      (3, H, W)        view AOVs: albedo, unit normal (3, H, W), depth (1, H, W)
+reflectance (B, H, W)        per-pixel spectra over the B bands: reflectance, illumination
 index       int              the item's index in the epoch, ``0 … epoch_length − 1``
 meta        str              the service's metadata as JSON (``json.loads`` it): scene, view,
                              groups, illuminants with sensor white points and CCMs, intensities,
@@ -84,7 +88,10 @@ class IllumixDataset(IterableDataset):
         ``(w, h)`` crop placed uniformly in the frame (an int for a square), optional ``(W, H)``
         resample after it; ``None`` = full frame.
     outputs
-        Tensors to fetch: any of raw, gain, mask, srgb, ccm, weights.
+        Tensors to fetch: any of raw, gain, mask, srgb, ccm, weights, illum, mixture, albedo, normal,
+        depth, reflectance, illumination (layout above).
+    gt
+        ``"physical"`` or ``"formula"`` ground truth (default: physical where the store has it).
     exposure, noise, bayer
         Passed to the service (``noise`` a preset like ``"phone"`` or a parameter mapping).
     raw_norm
@@ -113,7 +120,8 @@ class IllumixDataset(IterableDataset):
                  noise: str | Mapping[str, float] | None = None, bayer: str | None = None,
                  raw_norm: str = "max", epoch_length: int = 1024, batch_size: int = 16, prefetch: int = 2,
                  seed: int | None = None, min_groups: int = 1, distinct_illuminants: bool = True,
-                 cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None) -> None:
+                 cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None,
+                 gt: str | None = None) -> None:
         super().__init__()
         if raw_norm not in RAW_NORMS:
             raise ValueError(f"raw_norm must be one of {', '.join(RAW_NORMS)}, got {raw_norm!r}")
@@ -141,7 +149,7 @@ class IllumixDataset(IterableDataset):
             _check_names(c, pool, sensors)
         self.sampler = SpecSampler(views, pool, sensors, intensity_range=intensity_range, crop=crop_wh,
                                    size=size, outputs=outputs, exposure=exposure, noise=noise,
-                                   bayer=bayer, distinct=distinct_illuminants)
+                                   bayer=bayer, distinct=distinct_illuminants, gt=gt)
 
     # -- indices ---------------------------------------------------------------------------------
     def set_epoch(self, epoch: int) -> None:
@@ -210,10 +218,12 @@ class IllumixDataset(IterableDataset):
         item: dict[str, Any] = {}
         if s.raw is not None:
             item["raw"] = torch.from_numpy(self._norm_raw(s))
-        for k in ("gain", "srgb", "weights"):
+        for k in ("gain", "srgb", "weights", "illum", "mixture", "albedo", "normal", "reflectance", "illumination"):
             a = getattr(s, k)
             if a is not None:
                 item[k] = torch.from_numpy(np.ascontiguousarray(a.transpose(2, 0, 1), dtype=np.float32))
+        if s.depth is not None:
+            item["depth"] = torch.from_numpy(np.ascontiguousarray(s.depth[None], dtype=np.float32))
         if s.ccm is not None:
             item["ccm"] = torch.from_numpy(np.ascontiguousarray(s.ccm.transpose(2, 3, 0, 1), dtype=np.float32))
         if s.mask is not None:
