@@ -202,6 +202,7 @@ class _PathBlocks:
         # samples whose illumination must be traced, per tracer: (pix, jitter, lam, idx, weight);
         # traced together at the end (each Dr.Jit call has a fixed cost that small batches pay)
         self.pending: list[list[tuple]] = [[] for _ in tracers]
+        self.flushes = 0
 
     def trace(self, pix: np.ndarray, s: np.ndarray, key: int, salt: int = 0x1C0) -> np.ndarray:
         """Trace path ``s[i]`` of pixel ``pix[i]``; add to the band sums. Returns each path's
@@ -230,8 +231,8 @@ class _PathBlocks:
             L = _finite(out[0] if isinstance(out, tuple) else out, self)
             self.acc += np.bincount(idx, weights=L.ravel().astype(np.float64), minlength=self.npix * nb)
             total += L
-            if self.acc_u is not None:
-                U = self._illumination(j, out, pix, jitter, lam32, idx, seed)
+            if self.acc_u is not None:  # from the sanitised L: a bad sample is counted once
+                U = self._illumination(j, (L, *out[1:]), pix, jitter, lam32, idx, seed)
                 self.acc_u += np.bincount(idx, weights=U.ravel().astype(np.float64), minlength=self.npix * nb)
         return (total * self.inv_emission[bands]).sum(axis=1)
 
@@ -254,14 +255,19 @@ class _PathBlocks:
                 need = need[rng.random(need.size) < p]
             rows = idx.reshape(-1, 4)[need]
             self.pending[j].append((pix[need], jitter[need], lam[need], rows, np.float64(1.0 / p)))
+            if sum(len(q[0]) for q in self.pending[j]) >= self.settings.max_lanes:
+                self.trace_pending(seed, only=j)  # bounded memory: at most one lane block queued
         return _finite(U, self)
 
-    def trace_pending(self, seed: int) -> None:
-        """Trace the queued white-Lambertian estimates, one Dr.Jit call per tracer and lane block."""
+    def trace_pending(self, seed: int, only: int | None = None) -> None:
+        """Trace the queued white-Lambertian estimates, one Dr.Jit call per tracer and lane block
+        (of tracer ``only``, or of all)."""
         lanes = self.settings.max_lanes
         for j, (tracer, queue) in enumerate(zip(self.tracers, self.pending)):
-            if not queue:
+            if not queue or (only is not None and j != only):
                 continue
+            self.flushes += 1
+            seed = int(hash_u32(np.array([self.flushes]), seed)[0])  # each flush its own random numbers
             pix, jitter, lam, rows = (np.concatenate([q[k] for q in queue]) for k in range(4))
             weight = np.concatenate([np.full(len(q[0]), q[4]) for q in queue])
             self.pending[j] = []

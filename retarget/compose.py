@@ -23,7 +23,7 @@ from retarget.relight import band_scales, raw_weights
 from retarget.sensors import Sensor
 
 OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture")
-GT_METHODS = ("physical", "formula")
+GT_OUTPUTS = frozenset(OUTPUTS) - {"raw"}  # everything the ground truth is computed for
 
 
 @dataclass
@@ -117,9 +117,11 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
     out = Composition(white_points=wps, exposure_gain=gain_exp)
     if "raw" in want:
         out.raw = raw
-    if not ({"gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"} & want):
+    if not (GT_OUTPUTS & want):
         return out
-    weights, mask = gt.illuminant_weights(group_raw[..., 1], prior=intensities)
+    weights = mask = None
+    if illumination is None or "weights" in want:  # the physical ground truth needs no eq. 3.3 weights
+        weights, mask = gt.illuminant_weights(group_raw[..., 1], prior=intensities)
     del group_raw
     out.weights = weights if "weights" in want else None
     if illumination is None:
@@ -130,7 +132,7 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
         if resize is not None:
             group_u = np.ascontiguousarray(resize(group_u), dtype=np.float32)
         mixture, mask = gt.illuminant_weights(group_u[..., 1], prior=intensities)  # lit, even if black
-        white = gt.physical_white_point(group_u.sum(axis=0), mask, gt.mixed_white_point(mixture, wps))
+        white, mask = gt.physical_white_point(group_u.sum(axis=0), mask, gt.mixed_white_point(mixture, wps))
         del group_u
     if valid is not None:
         mask = mask & valid

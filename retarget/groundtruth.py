@@ -83,21 +83,21 @@ def mixed_white_point(weights: np.ndarray, wps: np.ndarray) -> np.ndarray:
     return (weights.astype(np.float32) @ np.asarray(wps, dtype=np.float32)).astype(np.float32)
 
 
-def physical_white_point(illum_rgb: np.ndarray, valid: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+def physical_white_point(illum_rgb: np.ndarray, valid: np.ndarray, fallback: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
     """The physical white point ``U / U_G`` (G = 1) — ``(H, W, 3)`` float32 — from the camera RGB of
-    the relit illumination cubes ``U`` ``(H, W, 3)`` (DESIGN.md "Physical GT").
+    the relit illumination cubes ``U`` ``(H, W, 3)`` (DESIGN.md "Physical GT"), and the validity mask.
 
     Where ``valid`` is False (no light, no geometry, an emitter) or a channel is not positive (noise
     at the edge of the light), the white point is ``fallback`` ``(H, W, 3)`` (the formula's mixed white
-    point), so every value stays finite; such pixels are flagged by the caller's mask.
+    point), so every value stays finite, and the returned mask is False there.
     """
-    u = np.asarray(illum_rgb, dtype=np.float64)
+    u = np.asarray(illum_rgb, dtype=np.float32)  # ratios of positive float32 sums: float32 is exact enough
     ok = valid & np.all(u > 0, axis=-1)
-    g = np.where(ok, u[..., 1], 1.0)
-    wp = np.where(ok[..., None], u / g[..., None], np.asarray(fallback, dtype=np.float64))
+    wp = np.divide(u, u[..., 1:2], out=np.array(fallback, dtype=np.float32), where=ok[..., None])
     # A channel 1e10 times weaker than another has no meaningful gain (cf. MIN_CHANNEL_RATIO).
-    floor = MIN_CHANNEL_RATIO * wp.max(axis=-1, keepdims=True)
-    return np.maximum(wp, floor).astype(np.float32)
+    np.maximum(wp, np.float32(MIN_CHANNEL_RATIO) * wp.max(axis=-1, keepdims=True), out=wp)
+    return wp, ok
 
 
 def gain_map(mixed_wp: np.ndarray) -> np.ndarray:

@@ -56,7 +56,8 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
         app.include_router(router)
     # every concrete route, for the Allow header of a 405 (FastAPI wraps included routers)
     app.state.routes = [r for r in app.routes if hasattr(r, "methods")] + [r for x in routers for r in x.routes]
-    app.add_middleware(BodyGuard, limit_for=_body_limits(limits), timeout=limits.body_timeout_s)
+    app.add_middleware(BodyGuard, limit_for=_body_limits(limits), timeout=limits.body_timeout_s,
+                       total=limits.body_total_s)
     return app
 
 

@@ -19,15 +19,15 @@ import threading
 import time
 from collections.abc import Iterable
 
+from retarget.compose import GT_OUTPUTS
 from service.errors import fail
+from service.spec import SPECTRAL_OUTPUTS as SPECTRAL  # one float32 per band each
 
 #: bytes per output pixel of each output as returned (float32; ccm 3×3; mask bool; weights per group)
 OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1, "illum": 12, "albedo": 12, "normal": 12,
                 "depth": 4}
 WEIGHT_BYTES_PER_GROUP = 4  # weights and mixture: one float32 per group
-SPECTRAL = frozenset({"reflectance", "illumination"})  # one float32 per band
-GT_OUTPUTS = frozenset({"gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"})
-# Working memory per pixel, measured with tracemalloc (bench/load.py --calibrate) and rounded up:
+# Working memory per pixel, measured with tracemalloc (tests/test_service_limits.py checks the bound):
 PROJECT_BYTES_PER_GROUP = 12  # per-group raw (float32 RGB) at the window's and the output's size
 PROJECT_BYTES = 12            # the summed raw
 GT_BYTES = 42                 # float64 weights sum, mixed white point, gain map, mask …
@@ -66,7 +66,7 @@ def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: i
     bytes are bounded by ``--cache-mb``); groups_to_read : windows decoded from the store (one
     after another);
     n_groups : groups composed; noise : sensor noise is simulated; encoded : include the encoded
-    answer (a copy of the outputs); physical : the ground truth projects the illumination cubes too.
+    answer (a copy of the outputs); physical : the ground truth comes from the illumination cubes.
     """
     outputs = set(outputs)
     w, h = window
@@ -75,12 +75,14 @@ def sample_bytes(*, window: tuple[int, int], out_size: tuple[int, int], bands: i
     # groups are decoded one after another: one row band in flight, however many groups
     decode = window_copies * in_px * bands * WINDOW_BYTES_PER_BAND + \
         (groups_to_read > 0) * row_band * bands * DECODE_BYTES_PER_BAND
-    per_px = (PROJECT_BYTES_PER_GROUP * n_groups + PROJECT_BYTES) * (2 if physical else 1)
+    # The physical ground truth projects the illumination cubes once the raw's per-group arrays
+    # are freed: the same peak, plus the formula's weights when those are asked for too.
+    per_px = PROJECT_BYTES_PER_GROUP * n_groups + PROJECT_BYTES
     work = per_px * (in_px + (out_px if out_px != in_px else 0))
     if outputs & GT_OUTPUTS:
-        work += (GT_BYTES + GT_BYTES_PER_GROUP * n_groups) * out_px * (2 if physical else 1)
-    if outputs & SPECTRAL:  # summed cubes at the window's size, then resampled
-        work += 3 * 4 * bands * max(in_px, out_px)
+        work += int((GT_BYTES + GT_BYTES_PER_GROUP * n_groups) * out_px * (1.25 if physical else 1))
+    if outputs & SPECTRAL:  # summed windows (transport, illumination), one scaled copy, resampled
+        work += 5 * 4 * bands * max(in_px, out_px)
     if "srgb" in outputs:
         work += SRGB_BYTES * out_px
     if noise:

@@ -61,6 +61,7 @@ _DESCRIPTIONS = {
     413: "The request, its body or its answer would be larger than the service's limits; `detail` "
          "says which limit and how to ask for less.",
     422: "A parameter is invalid or unknown; `detail` says which and how to fix it.",
+    500: "A bug in the service (logged); `detail` names the error type.",
     503: "The service is busy (retry after `Retry-After` seconds) or its store is damaged or "
          "unreachable (`detail` says to run `illumix store verify`).",
     507: "The store's disk is full: the upload was not written.",
@@ -151,6 +152,13 @@ def install(app: FastAPI, known_parameters: dict[str, list[str]]) -> None:
     @app.exception_handler(SpectralError)
     async def _bad_input(request: Request, exc: SpectralError):
         return error_response(422, "invalid_parameter", str(exc))
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception):
+        # A bug, not the client's fault: logged with its traceback, answered in the common shape.
+        log.exception("unexpected error on %s %s", request.method, request.url.path)
+        return error_response(500, "internal", f"internal error ({type(exc).__name__}); the service log has the "
+                                               "details — please report it")
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException):

@@ -84,14 +84,22 @@ def spectral_outputs(cubes: list[np.ndarray], illum: list[np.ndarray], scales: n
     """
     out = {}
     if "reflectance" in names:
-        t = np.sum([np.asarray(c, np.float32) for c in cubes], axis=0)
-        u = np.sum([np.asarray(c, np.float32) for c in illum], axis=0)
+        t, u = _sum(cubes), _sum(illum)  # in place: one window each, whatever the number of groups
         t, u = resize_image(t, out_w, out_h), resize_image(u, out_w, out_h)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out["reflectance"] = np.where(u > 0, t / np.where(u > 0, u, 1), 0.0).astype(np.float32)
+        out["reflectance"] = np.divide(t, u, out=np.zeros_like(t), where=u > 0)
+        del t, u
     if "illumination" in names:
         s = np.asarray(scales, np.float32)
-        spec = np.sum([c * s[g] for g, c in enumerate(illum) if np.any(s[g])], axis=0) if np.any(s) else \
-            np.zeros(illum[0].shape, np.float32)
-        out["illumination"] = resize_image(np.asarray(spec, np.float32), out_w, out_h)
+        out["illumination"] = resize_image(_sum(illum, s), out_w, out_h)
     return out
+
+
+def _sum(windows: list[np.ndarray], scales: np.ndarray | None = None) -> np.ndarray:
+    """``Σ_g scales_g · windows_g`` ``(h, w, bands)`` float32, accumulated in one array."""
+    acc = np.zeros(windows[0].shape, np.float32)
+    for g, c in enumerate(windows):
+        if scales is None:
+            acc += c
+        elif np.any(scales[g]):
+            acc += c * scales[g]  # one window-sized temporary at a time
+    return acc

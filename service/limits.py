@@ -26,6 +26,7 @@ class Limits(BaseModel):
     queue_timeout_s: float = Field(30.0, gt=0, description="longest wait for working memory before a 503")
     body_timeout_s: float = Field(10.0, gt=0, description="longest pause while a request body arrives "
                                                          "before a 408")
+    body_total_s: float = Field(60.0, gt=0, description="longest time a whole request body may take before a 408")
 
     @model_validator(mode="after")
     def _consistent(self) -> Limits:

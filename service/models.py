@@ -37,6 +37,8 @@ class Health(BaseModel):
 class GroupInfo(BaseModel):
     name: str
     emission: str = Field(description="emission the cube was rendered with ('flat' = unit, relightable)")
+    illumination: bool = Field(False, description="the cube has its illumination cube: the physical ground truth "
+                                                  "is served (else the formula's)")
 
 
 class ViewInfo(BaseModel):

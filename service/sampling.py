@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from retarget.compose import GT_OUTPUTS, compose
 from retarget.compose import OUTPUTS as COMPOSED
-from retarget.compose import compose
 from retarget.errors import SpectralError, unknown_name
 from retarget.relight import band_scales
 from retarget.sensor_model import mosaic, simulate_raw
@@ -29,7 +29,7 @@ from service import extra_outputs as extra
 from service.errors import NotFound, fail
 from service.library import Library
 from service.limits import Limits
-from service.spec import SampleSpec
+from service.spec import SPECTRAL_OUTPUTS, SampleSpec
 from store.lru import LRUCache
 
 
@@ -60,6 +60,7 @@ class Plan:
     gt: str = "formula"
     gt_why: str = ""
     illumination: bool = False  # the illumination cubes are read (physical GT or spectral outputs)
+    held: dict = field(default_factory=dict, repr=False)  # (group, kind) → cached cube, kept from price to build
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -141,25 +142,29 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size)
     p.gt, p.gt_why = _ground_truth(spec, p)
-    p.illumination = p.gt == "physical" or bool(SPECTRAL_OUTPUTS_SET & set(spec.outputs))
+    wanted = set(spec.outputs)
+    p.illumination = bool(SPECTRAL_OUTPUTS & wanted) or (p.gt == "physical" and bool(PHYSICAL_OUTPUTS & wanted))
     return p
 
 
-SPECTRAL_OUTPUTS_SET = {"reflectance", "illumination"}
+# Outputs the physical ground truth changes (the formula's weights are eq. 3.3's whatever gt is).
+PHYSICAL_OUTPUTS = GT_OUTPUTS - {"weights"}
 
 
 def _ground_truth(spec: SampleSpec, p: Plan) -> tuple[str, str]:
     """``(method, why)``: physical wherever every lit group has its illumination cube, else formula."""
     missing = [g for g, m, r in zip(p.groups, p.metas, p.reads()) if r and not _has_illumination(m)]
-    wants_spectra = SPECTRAL_OUTPUTS_SET & set(spec.outputs)
+    wants_spectra = SPECTRAL_OUTPUTS & set(spec.outputs)
     if missing and (spec.gt == "physical" or wants_spectra):
         what = "gt=physical" if spec.gt == "physical" else f"outputs {', '.join(sorted(wants_spectra))}"
         raise SpectralError(f"{what} needs illumination cubes, which groups {missing} of {p.scene}/{p.view} do not "
-                            "have (rendered before they existed); re-render them, or use gt=formula")
+                            "have (rendered before they existed); re-render them with `illumix render … --overwrite`, "
+                            "or use gt=formula")
     if spec.gt == "formula":
         return "formula", "asked for (gt=formula)"
     if missing:
-        return "formula", f"groups {missing} have no illumination cubes (re-render them for the physical ground truth)"
+        return "formula", (f"groups {missing} have no illumination cubes (re-render them with `illumix render … "
+                           "--overwrite` for the physical ground truth)")
     return "physical", "default: every lit group has its illumination cube"
 
 
@@ -171,11 +176,20 @@ def _cube_bytes(p: Plan) -> int:
     return p.full[0] * p.full[1] * p.metas[0].n_bands * 4
 
 
+def _key(p: Plan, group: str, kind: str) -> tuple:
+    # ``created`` names the render: a cube re-rendered while the service runs is a new entry, so the
+    # transport and illumination cubes of one sample always come from the same render
+    meta = p.metas[p.groups.index(group)]
+    return (p.scene, p.view, group, kind, meta.created)
+
+
 def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     """Upper bound of the bytes :func:`build` (and encoding, when ``encoded``) will allocate.
 
     A decoded cube the cache holds is the cache's memory (bounded by ``--cache-mb``), not the
-    request's; only a window of a cube too large for the cache is the request's own.
+    request's; only a window of a cube too large for the cache is the request's own. A cube found
+    in the cache here is held by the plan until :func:`build` uses it, so it cannot be evicted in
+    between and decoded unpaid.
     """
     w, h = p.window[2:]
     bands = p.metas[0].n_bands
@@ -183,14 +197,19 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     copies = to_read = 0
     for kind in ("transport", "illumination") if p.illumination else ("transport",):
         for g, lit in zip(p.groups, p.reads()):
-            if lit and (p.scene, p.view, g, kind) not in ctx.cache:
-                to_read += 1
-                copies += not cacheable
+            if not lit:
+                continue
+            cube = ctx.cache.lookup(_key(p, g, kind)) if cacheable else None
+            if cube is not None:
+                p.held[(g, kind)] = cube
+                continue
+            to_read += 1
+            copies += not cacheable
     read_w = p.full[0] if cacheable else w  # a cacheable cube is decoded whole
     return budget.sample_bytes(window=(w, h), read_width=read_w, out_size=p.out_size, bands=bands,
                                window_copies=copies, groups_to_read=to_read, n_groups=len(p.groups),
                                outputs=p.spec.array_outputs(), noise=p.spec.noise is not None, encoded=encoded,
-                               physical=p.gt == "physical")
+                               physical=p.illumination and p.gt == "physical")
 
 
 def _resizer(out_w: int, out_h: int, w: int, h: int):
@@ -209,10 +228,12 @@ def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.
     the LRU cache (decoded and kept on first use, so every later crop of it is a hit); a cube larger
     than the whole cache is read window by window, uncached."""
     x, y, w, h = p.window
-    if _cube_bytes(p) > ctx.cache.max_cost:
-        return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind)
-    cube = ctx.cache.get((p.scene, p.view, group, kind),
-                         lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind), expected_cost=_cube_bytes(p))
+    cube = p.held.pop((group, kind), None)
+    if cube is None:
+        if _cube_bytes(p) > ctx.cache.max_cost:
+            return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind)
+        cube = ctx.cache.get(_key(p, group, kind), lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind),
+                             expected_cost=_cube_bytes(p))
     return cube[y:y + h, x:x + w]
 
 
@@ -256,10 +277,10 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
                    sensor=sensor, ccms=np.stack(ccms), outputs=(want & set(COMPOSED)) | ({"raw"} if spec.noise else set()),
                    exposure=exposure, group_names=p.groups, resize=_resizer(*p.out_size, w, h),
-                   illumination=illum if p.gt == "physical" else None, valid=valid)
+                   illumination=illum if p.gt == "physical" and illum is not None else None, valid=valid)
     arrays = {k: v for k, v in comp.outputs().items() if k in want}
     arrays |= extra.aov_outputs(aov, want, *p.out_size)
-    if want & SPECTRAL_OUTPUTS_SET:
+    if want & SPECTRAL_OUTPUTS:
         scales = band_scales(np.stack(spds), emissions, np.array(p.intensities), p.groups, grid.wavelengths)
         arrays |= extra.spectral_outputs(cubes, illum, scales, want, *p.out_size)
     del cubes, illum
@@ -282,7 +303,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
              "ccm": np.asarray(c).round(8).tolist(), "ccm_fit_delta_e00_mean": float(de)}
             for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms, fit_de)
         ],
-        "ground_truth": {"method": comp.gt, "why": p.gt_why, "equations": GT_EQUATIONS[comp.gt]},
+        "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "mask_reasons": {"meaning": extra.MASK_REASONS,
                          "pixels": reasons | ({"no_light": int(np.count_nonzero(~comp.mask)) - sum(reasons.values())}
                                               if comp.mask is not None and valid is not None else {})},

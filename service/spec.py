@@ -14,18 +14,19 @@ import re
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, WithJsonSchema, field_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
 
 from retarget.compose import OUTPUTS
 from retarget.errors import SpectralError, UnknownName
 from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
+from service.encoding import IMAGE_OUTPUTS
 
 FORMATS = ("npz", "png", "tiff")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
-SPECTRAL_OUTPUTS = ("reflectance", "illumination")  # per-pixel 63-band spectra
+SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spectra over the bands
 DEFAULT_OUTPUTS = (*OUTPUTS, "meta")
-ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, *SPECTRAL_OUTPUTS, "meta")
+ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, "reflectance", "illumination", "meta")
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 
 
@@ -138,7 +139,7 @@ class SampleSpec(BaseModel):
     size: Annotated[list[int] | None, BeforeValidator(_ints("size", 2, "256x192")),
                     _text("WxH output size in pixels (area resampling)", "256x192", r"^\s*\d+\s*[xX]\s*\d+\s*$")] = None
     outputs: Outputs = Field(default_factory=lambda: list(DEFAULT_OUTPUTS))
-    gt: Literal["physical", "formula"] | None = Field(
+    gt: Annotated[Literal["physical", "formula"] | None, BeforeValidator(lambda v: v.lower() if isinstance(v, str) else v)] = Field(
         None, description="ground truth: physical (from the illumination cubes, bounce light included; the "
                           "default where the store has them) or formula (thesis eq. 3.3)")
     format: Literal["npz", "png", "tiff"] = Field("npz", description="npz (all outputs), or png/tiff (one image output)")
@@ -156,6 +157,15 @@ class SampleSpec(BaseModel):
         if bad or not v:
             raise ValueError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
         return list(dict.fromkeys(v))
+
+    @model_validator(mode="after")
+    def _one_image(self) -> SampleSpec:
+        if self.format != "npz":
+            images = [o for o in self.outputs if o != "meta"]
+            if len(images) != 1 or images[0] not in IMAGE_OUTPUTS[self.format]:
+                raise ValueError(f"format={self.format} returns exactly one image output, one of "
+                                 f"{', '.join(IMAGE_OUTPUTS[self.format])}; ask e.g. outputs=srgb&format={self.format}")
+        return self
 
     @field_validator("bayer")
     @classmethod

@@ -4,10 +4,12 @@ Layout (every directory is a zarr v3 group or array, so any zarr reader can open
 
     ROOT/                                    group; attrs illumix_store {schema_version, created}
       scenes/<scene>/<view>/                 group; attrs illumix_view (ViewMeta)
-        aov/<name>                           array (H, W[, C]): albedo, normal, depth, mask, …
+        aov/<name>                           array (H, W[, C]): albedo, normal, depth, mask, emitter, …
         cubes/<group>/                       group; attrs illumix_cube (CubeMeta), illumix_state
           data                               array (H, W, B) float16 (scaled) or float32
           exponent                           array (H, W) int8 per-pixel exponents (float16 only)
+          illumination/                      group: the illumination cube (CubeMeta.illumination)
+            data, exponent                   as above
       _registry/<kind>/<name>/               group; attrs illumix_registry (payload base64)
       _staging/<id>/                         writes in progress (local directories only)
       _trash/<id>/                           replaced nodes awaiting deletion

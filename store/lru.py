@@ -71,6 +71,16 @@ class LRUCache(Generic[V]):
         with self._lock:
             return key in self._items
 
+    def lookup(self, key: Hashable) -> V | None:
+        """The kept value (a hit, made most recent), or ``None`` (not counted: a :meth:`get` follows)."""
+        with self._lock:
+            item = self._items.get(key)
+            if item is None:
+                return None
+            self._items.move_to_end(key)
+            self.hits += 1
+            return item[0]
+
     def get(self, key: Hashable, load: Callable[[], V], expected_cost: int | None = None) -> V:
         """The kept value, or ``load()`` kept under ``key`` (evicting the least recently used).
 
@@ -100,13 +110,13 @@ class LRUCache(Generic[V]):
             value = load()
             if self._on_load is not None:
                 self._on_load(value)
+            cost = int(self._cost(value))
         except BaseException as exc:
             with self._lock:
                 self._reserved -= flight.reserved
                 del self._loading[key]
             flight.fail(exc)
             raise
-        cost = int(self._cost(value))
         with self._lock:
             self.misses += 1
             self._reserved -= flight.reserved

@@ -96,8 +96,8 @@ class IlluminationInfo(BaseModel):
     """The illumination cube stored beside a transport cube (DESIGN.md "Physical GT"): per pixel and
     band, the radiance a white Lambertian surface at the first visible point would send to the
     camera, in the transport cube's units, same grid and emission. ``method``: how it was obtained
-    (e.g. ``"demodulated + white-Lambertian first-hit estimate"``); ``stats``/``storage`` as for the
-    transport cube (filled in by the store)."""
+    (the renderer's ``ILLUMINATION_METHOD``); ``stats``/``storage`` as for the transport cube (filled
+    in by the store from the array it is given)."""
 
     model_config = ConfigDict(extra="allow")
     method: str = ""

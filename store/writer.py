@@ -228,15 +228,14 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
         enc = encode(arr, policy)
         del arr
         storage = _storage(enc, policy, chunks, st.codec)
-    illum, enc_u = meta.illumination, None
+    illum, enc_u = None, None  # metadata copied from another cube must not claim arrays this node lacks
     if illumination is not None and cube is not None:
         arr = _check_cube(illumination, shape, f"{where} (illumination)")
         enc_u = encode(arr, policy)
-        illum = IlluminationInfo(**(illum.model_dump() if illum else {}))
+        given = meta.illumination.model_dump(exclude={"stats", "storage"}) if meta.illumination else {}
+        illum = IlluminationInfo(**given)
         illum.stats, illum.storage = BandStats.of(arr), _storage(enc_u, policy, chunks, st.codec)
         del arr
-    elif cube is None:
-        illum = None
     meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None, "illumination": illum,
                                    "created": meta.created or utc_now(), "schema_version": SCHEMA_VERSION})
     first = (prev or {}).get("first_written") or utc_now()

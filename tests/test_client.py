@@ -241,6 +241,10 @@ def test_uploads_deletes_and_auth(client, server, tmp_path):
         client.delete_sensor("XYZ")
     assert e.value.status == 403 and isinstance(e.value, ic.AuthError)
     assert client.delete_sensor("cam1") == {"deleted": "cam1"}
+    assert client.upload_illuminant("flat1", b"wavelength,value\n380,1\n780,1\n")["name"] == "flat1"
+    assert client.delete_illuminant("flat1") == {"deleted": "flat1"}
+    with pytest.raises(ic.ForbiddenError):
+        client.delete_illuminant("D65")
     with pytest.raises(ic.NotFoundError):
         client.delete_sensor("cam1")
     with pytest.raises(ic.InvalidRequestError):
@@ -380,3 +384,16 @@ def test_dataset_sharding_options_and_validation(server):
         _dataset(server, illuminants=["daylight:1000-5000"])
     with pytest.raises(ValueError, match="no views"):
         _dataset(server, crop=(500, 500))
+
+
+def test_new_ground_truth_outputs_through_client_and_dataset(client, server):
+    s = client.sample("synth", "v0", seed=3, sensor="XYZ", pair=("A", "D65"), outputs=["illum", "mixture", "meta"],
+                      gt="formula")
+    assert s.illum.shape == (48, 64, 3) and s.mixture.shape == (48, 64, 2) and s.raw is None
+    assert s.meta["ground_truth"]["method"] == "formula"
+    np.testing.assert_allclose(s.mixture.sum(-1), 1.0, atol=1e-5)
+    torch, ds = _dataset(server, epoch_length=4, prefetch=0, outputs=("raw", "illum", "mixture", "mask"),
+                         gt="formula", scenes=["synth/v0"])
+    for it in ds:
+        assert it["illum"].shape == (3, 16, 16) and it["mixture"].shape == (2, 16, 16)
+        assert torch.isfinite(it["illum"]).all() and (it["mixture"] >= 0).all()

@@ -58,6 +58,10 @@ def test_traced_estimate_matches_the_closed_form_on_glossy_patches(monkeypatch):
     u = np.stack([r.illumination[m].mean(axis=0) for m in patch_masks(s)])
     # delta light: the light sample is exact; the continuation escapes (nothing else in the scene)
     np.testing.assert_allclose(u, math.cos(math.radians(30)) / math.pi, rtol=1e-5)
+    # small lane blocks: the queue of estimates is traced as it fills (bounded memory), same result
+    small = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2, max_lanes=4096))
+    u = np.stack([small.illumination[m].mean(axis=0) for m in patch_masks(s)])
+    np.testing.assert_allclose(u, math.cos(math.radians(30)) / math.pi, rtol=1e-5)
 
 
 def test_grey_plane_illumination_is_transport_over_albedo_and_tinted_by_a_coloured_wall():

@@ -95,6 +95,25 @@ def test_batch_items_accept_json_lists_and_query_strings_alike(client):
     np.testing.assert_array_equal(za["0/raw"], zb["0/raw"])
 
 
+@pytest.mark.parametrize("params", [{"format": "png", "outputs": "meta"}, {"format": "png", "outputs": "raw,gain"},
+                                    {"format": "tiff", "outputs": "ccm"}])
+def test_image_formats_need_exactly_one_image_output(client, params):
+    assert "exactly one image output" in error(client.get("/sample", params=V0 | params), 422)["detail"]
+
+
+def test_unexpected_errors_are_500_in_the_common_shape(store_path, monkeypatch):
+    import service.routes.samples as routes
+
+    def boom(*a, **k):
+        raise RuntimeError("synthetic bug")
+
+    monkeypatch.setattr(routes, "build", boom)
+    with TestClient(create_app(CubeStore.open(str(store_path), mode="r")), raise_server_exceptions=False) as c:
+        body = error(c.get("/sample", params=V0 | {"outputs": "raw"}), 500)
+        assert body["code"] == "internal" and "RuntimeError" in body["detail"]
+        assert c.get("/health").json()["memory"]["inflight_bytes"] == 0  # the reservation came back
+
+
 def test_405_names_the_allowed_methods(client):
     r = client.put("/sample")
     body = error(r, 405)

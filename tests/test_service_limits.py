@@ -39,6 +39,37 @@ def store_path(tmp_path_factory):
     return path
 
 
+@pytest.fixture(scope="module")
+def store_with_illumination(tmp_path_factory):
+    path = tmp_path_factory.mktemp("limits_u") / "store"
+    synth.build(path, H, W, extras=False, illumination=True)
+    return path
+
+
+@pytest.mark.parametrize("cache", ["cold", "warm"])
+def test_price_bounds_the_physical_ground_truth_and_spectra(store_with_illumination, cache):
+    ctx = create_app(CubeStore.open(str(store_with_illumination), mode="r"), cache_mb=64).state.ctx
+    for outs, size in itertools.product(["gain", "raw,gain,ccm,srgb,mask,illum,mixture,meta", "reflectance",
+                                         "illumination", "reflectance,illumination,raw,mask", "albedo,normal,depth"],
+                                        [None, f"{2 * W}x{2 * H}", "16x12"]):
+        spec = SampleSpec(scene="synth", view="v0", pair="FL11,D65", outputs=outs, size=size, seed=1)
+        p = plan(spec, ctx)
+        if cache == "warm":
+            build(p, ctx)
+            p = plan(spec, ctx)
+        else:
+            ctx.cache.clear()
+        bound = price(p, ctx)
+        cached_before = ctx.cache.total_cost
+        tracemalloc.start()
+        arrays, meta = build(p, ctx)
+        body = encode_npz(arrays, meta)
+        del arrays, body
+        peak = tracemalloc.get_traced_memory()[1] - (ctx.cache.total_cost - cached_before)
+        tracemalloc.stop()
+        assert peak <= bound, (outs, size, cache, peak, bound)
+
+
 @pytest.mark.parametrize("cache", ["none", "cold", "warm"])
 def test_price_bounds_what_a_sample_allocates(store_path, cache):
     """The admission price is an upper bound of the numpy memory a sample allocates (tracemalloc
@@ -125,7 +156,7 @@ def _length(data: bytes) -> int:
 
 def test_huge_declared_body_is_413_at_once_and_slow_body_408(store_path):
     app = create_app(CubeStore.open(str(store_path), mode="a"), token="t",
-                     limits=Limits(body_timeout_s=1.0))
+                     limits=Limits(body_timeout_s=1.0, body_total_s=2.5))
     with ThreadServer(app) as url:
         port = int(url.rsplit(":", 1)[1])
         head = (b"POST /illuminants HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer t\r\n"
@@ -136,6 +167,22 @@ def test_huge_declared_body_is_413_at_once_and_slow_body_408(store_path):
                 b"Content-Length: 100\r\n\r\n")
         data, dt = _raw_http(port, head, b'{"samples": [')  # then nothing more
         assert data.startswith(b"HTTP/1.1 408") and b"stopped arriving" in data and dt < 8
+        # a trickle (one byte every 0.5 s, never a 1 s pause) is cut at the total deadline
+        t = time.monotonic()
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+            sock.sendall(head)
+            reply = b""
+            while time.monotonic() - t < 8 and (b"\r\n\r\n" not in reply
+                                                 or len(reply) < reply.find(b"\r\n\r\n") + 4 + _length(reply)):
+                if not reply:
+                    sock.sendall(b" ")
+                sock.settimeout(0.5)
+                try:
+                    reply += sock.recv(65536)
+                except TimeoutError:
+                    pass
+        assert reply.startswith(b"HTTP/1.1 408") and b"not arrived whole" in reply, reply[:200]
+        assert time.monotonic() - t < 6
         data, _ = _raw_http(port, b"GET /health HTTP/1.1\r\nHost: x\r\n\r\n")  # still serving
         assert data.startswith(b"HTTP/1.1 200")
 

@@ -8,17 +8,31 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
-from starlette.background import BackgroundTask
 
 from service import budget
 from service.deps import CtxDep
-from service.encoding import MEDIA, encode_image, encode_npz, meta_json, png_scale
+from service.encoding import MEDIA, encode_image, encode_npz, image_output, meta_json, png_scale
 from service.errors import error_responses, fail
 from service.models import BatchRequest
 from service.sampling import build, plan, price
 from service.spec import SampleSpec
 
 router = APIRouter(tags=["samples"])
+
+
+class _HeldResponse(Response):
+    """A response that gives its working-memory reservation back once it is sent — or once sending
+    failed (a client that hangs up must not leak the reservation, as a background task would)."""
+
+    def __init__(self, content, hold, **kw) -> None:
+        super().__init__(content, **kw)
+        self._hold = hold
+
+    async def __call__(self, scope, receive, send) -> None:
+        try:
+            await super().__call__(scope, receive, send)
+        finally:
+            self._hold.release()
 
 _NPZ = {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}
 _SAMPLE_CONTENT = {**_NPZ, "image/png": {"schema": {"type": "string", "format": "binary"}},
@@ -28,7 +42,7 @@ _SAMPLE_CONTENT = {**_NPZ, "image/png": {"schema": {"type": "string", "format": 
 @router.get("/sample", response_class=Response,
             responses={200: {"content": _SAMPLE_CONTENT,
                              "description": "npz with one array per output (+ meta JSON), or one PNG/TIFF image"},
-                       **error_responses(404, 413, 422, 503)})
+                       **error_responses(404, 413, 422, 500, 503)})
 def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One sample: the view lit by the given illuminants, projected through the sensor, with exact
     pixel-wise ground truth. Unknown parameters are refused with the close match."""
@@ -40,21 +54,22 @@ def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
             body = encode_npz(arrays, meta if "meta" in params.outputs else None)
             headers = {}
         else:
-            noise = params.noise_model() if "raw" in arrays else None
-            meta["encoding"] = png_scale(next(iter(arrays)), noise) if params.format == "png" else None
+            name = image_output(arrays, params.format)
+            noise = params.noise_model() if name == "raw" else None
+            meta["encoding"] = png_scale(name, noise) if params.format == "png" else None
             body, headers = encode_image(arrays, params.format, noise=noise, meta=meta)
             headers["X-Illumix-Meta"] = meta_json({k: meta[k] for k in ("scene", "view", "seed", "size",
                                                                          "exposure_gain")})
         del arrays
+        return _HeldResponse(body, hold, media_type=MEDIA[params.format], headers=headers)
     except BaseException:
         hold.release()
         raise
-    return Response(body, media_type=MEDIA[params.format], headers=headers, background=BackgroundTask(hold.release))
 
 
 @router.post("/batch", response_class=Response,
              responses={200: {"content": _NPZ, "description": "npz with keys '{i}/{output}' and '{i}/meta'"},
-                        **error_responses(400, 404, 408, 413, 422, 503)})
+                        **error_responses(400, 404, 408, 413, 422, 500, 503)})
 def batch(body: BatchRequest, ctx: CtxDep) -> Response:
     """Many samples in one npz (keys ``"{i}/{output}"`` and ``"{i}/meta"``); each item takes the
     ``GET /sample`` parameters (``format`` must stay npz). Priced as a whole before any work."""
@@ -80,10 +95,10 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
                 arrays[f"{i}/meta"] = np.array(json.dumps(meta, allow_nan=False))
         payload = encode_npz(arrays, None)
         del arrays
+        return _HeldResponse(payload, hold, media_type=MEDIA["npz"])
     except BaseException:
         hold.release()
         raise
-    return Response(payload, media_type=MEDIA["npz"], background=BackgroundTask(hold.release))
 
 
 def _describe(spec: SampleSpec, p) -> str:

@@ -12,8 +12,9 @@ router = APIRouter(tags=["status"])
 
 
 @router.get("/health", response_model=Health)
-def health(request: Request, ctx: CtxDep) -> Health:
-    """Liveness plus cache and working-memory figures."""
+async def health(request: Request, ctx: CtxDep) -> Health:
+    """Liveness plus cache and working-memory figures. Runs on the event loop, not in the worker
+    threads, so it answers even while every worker waits for working memory."""
     c, m = ctx.cache, ctx.memory
     return Health(status="ok", scenes=len(ctx.store.scenes()), cache_bytes=c.total_cost, cache_hits=c.hits,
                   cache_misses=c.misses,
@@ -35,7 +36,10 @@ def scenes(ctx: CtxDep) -> Scenes:
         views = []
         for v in store.views(s):
             vm = store.view_meta(s, v)
-            groups = [GroupInfo(name=g, emission=store.cube_meta(s, v, g).emission_name) for g in store.groups(s, v)]
+            metas = [(g, store.cube_meta(s, v, g)) for g in store.groups(s, v)]
+            groups = [GroupInfo(name=g, emission=m.emission_name,
+                                illumination=m.illumination is not None and m.illumination.storage is not None)
+                      for g, m in metas]
             views.append(ViewInfo(name=v, width=vm.width, height=vm.height, groups=groups))
         out.append(SceneInfo(name=s, views=views))
     return Scenes(scenes=out)

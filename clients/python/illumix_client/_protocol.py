@@ -255,8 +255,9 @@ def upload(kind: str, name: str, file: str | Path | bytes, overwrite: bool) -> C
                 files={"file": _file(file, default)}, idempotent=False)
 
 
-def delete_sensor(name: str) -> Call:
-    return Call("DELETE", f"/sensors/{quote(name, safe='')}", _json, idempotent=False)
+def delete(kind: str, name: str) -> Call:
+    """``DELETE /sensors/{name}`` or ``/illuminants/{name}``."""
+    return Call("DELETE", f"/{kind}/{quote(name, safe='')}", _json, idempotent=False)
 
 
 def sample(spec: dict[str, Any]) -> Call:

@@ -82,7 +82,10 @@ class AsyncClient:
         return await self._run(P.upload("sensors", name, path, overwrite))
 
     async def delete_sensor(self, name: str) -> dict:
-        return await self._run(P.delete_sensor(name))
+        return await self._run(P.delete("sensors", name))
 
     async def upload_illuminant(self, name: str, path: str | Path | bytes, overwrite: bool = False) -> dict:
         return await self._run(P.upload("illuminants", name, path, overwrite))
+
+    async def delete_illuminant(self, name: str) -> dict:
+        return await self._run(P.delete("illuminants", name))

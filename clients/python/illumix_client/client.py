@@ -111,11 +111,15 @@ class Client:
 
     def delete_sensor(self, name: str) -> dict:
         """Delete an uploaded sensor (built-ins raise :class:`ForbiddenError`)."""
-        return self._run(P.delete_sensor(name))
+        return self._run(P.delete("sensors", name))
 
     def upload_illuminant(self, name: str, path: str | Path | bytes, overwrite: bool = False) -> dict:
         """Register an illuminant from an SPD CSV ``wavelength,value`` (a path or bytes)."""
         return self._run(P.upload("illuminants", name, path, overwrite))
+
+    def delete_illuminant(self, name: str) -> dict:
+        """Delete an uploaded illuminant (built-ins raise :class:`ForbiddenError`)."""
+        return self._run(P.delete("illuminants", name))
 
 
 def _spec(local: dict[str, Any]) -> dict[str, Any]:
