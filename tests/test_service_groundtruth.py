@@ -52,7 +52,7 @@ def closed_form():
     total = u[0] + u[1]
     lit = total[..., 1] > 0
     share = np.stack([x[..., 1] for x in u], -1) / np.where(lit, total[..., 1], 1)[..., None]
-    wp = total / np.where(lit, total[..., 1], 1)[..., None]
+    wp = np.where(lit[..., None], total / np.where(lit, total[..., 1], 1)[..., None], 1.0)
     return wp, share, lit
 
 
