@@ -23,6 +23,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # plain click help: rendering rich tables cost ~0.2 s of every --help
 )
 
 
@@ -77,7 +78,9 @@ def main(argv: list[str] | None = None) -> None:
         # recognise them by what they can do rather than by class.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
             message = exc.format_message()
-            if message:  # empty for `illumix` / `illumix store` alone: the help is already printed
+            if type(exc).__name__ == "NoArgsIsHelpError":  # `illumix` / `illumix store` alone: the help
+                print(message)
+            elif message:
                 print(f"illumix: error: {message}", file=sys.stderr)
             sys.exit(2)
         raise
