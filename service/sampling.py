@@ -16,7 +16,6 @@ import random
 import time
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from retarget.compose import GT_OUTPUTS, compose
@@ -61,6 +60,7 @@ class Plan:
     gt_why: str = ""
     illumination: bool = False  # the illumination cubes are read (physical GT or spectral outputs)
     held: dict = field(default_factory=dict, repr=False)  # (group, kind) → cached cube, kept from price to build
+    aovs: list[str] = field(default_factory=list)  # the view's stored AOVs
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -140,7 +140,8 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     window, out_size = _window(spec, vmeta.width, vmeta.height, ctx.limits)
     if any(m.spectral_grid != metas[0].spectral_grid for m in metas):
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
-    p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size)
+    p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
+             aovs=list(vmeta.aovs))
     p.gt, p.gt_why = _ground_truth(spec, p)
     wanted = set(spec.outputs)
     p.illumination = bool(SPECTRAL_OUTPUTS & wanted) or (p.gt == "physical" and bool(PHYSICAL_OUTPUTS & wanted))
@@ -215,10 +216,9 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
 def _resizer(out_w: int, out_h: int, w: int, h: int):
     if (out_w, out_h) == (w, h):
         return None
-    interp = cv2.INTER_AREA if out_w <= w and out_h <= h else cv2.INTER_LINEAR
 
     def resize(group_raw: np.ndarray) -> np.ndarray:
-        return np.stack([cv2.resize(g, (out_w, out_h), interpolation=interp) for g in group_raw])
+        return np.stack([extra.resize_image(g, out_w, out_h) for g in group_raw])
 
     return resize
 
@@ -238,11 +238,21 @@ def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.
 
 
 def _aov_reader(ctx: Context, p: Plan):
-    """``name → crop of the view's AOV`` (``None`` when the view has none of that name)."""
-    aovs = set(ctx.store.view_meta(p.scene, p.view).aovs)
+    """``name → crop of the view's AOV`` (``None`` when the view has none of that name).
+
+    The whole AOV is kept in the LRU cache: every request reads the ``mask`` and ``emitter`` AOVs
+    for its validity, and decoding them from the store cost ~10 ms of a 256² crop's ~28 ms. A view
+    is re-rendered with its cubes, so the cubes' render stamps name the AOVs' version too.
+    """
+    stamp = tuple(m.created for m in p.metas)
+    x, y, w, h = p.window
 
     def read(name: str) -> np.ndarray | None:
-        return ctx.store.read_aov(p.scene, p.view, name, crop=p.window) if name in aovs else None
+        if name not in p.aovs:
+            return None
+        full = ctx.cache.get((p.scene, p.view, "aov", name, stamp),
+                             lambda: ctx.store.read_aov(p.scene, p.view, name))
+        return full[y:y + h, x:x + w]
     return read
 
 
