@@ -1,0 +1,223 @@
+"""Denoising of transport and illumination cubes that keeps relighting exact (DESIGN.md "Denoising").
+
+Every method here is a *linear* operator ``D`` on a cube ``T (H, W, bands)`` whose weights are
+computed from the view's noise-free geometry AOVs alone (the guides: albedo, normal, depth, the hit
+and emitter masks), never from the cube. ``D`` is the same for every band and every light group, so
+
+    D(Σ_g a_g Φ̄_g/Ē_g T_g) = Σ_g a_g Φ̄_g/Ē_g D(T_g)        (relighting and composition stay exact)
+    P(D(T)) = D(P(T))                                          (P: projection to camera raw, a band sum)
+
+up to float32 rounding. The thesis' DT filter (§4.2) took its edges from the image it filtered (a
+5000-spp render), which makes it non-linear in the cubes; here the domain transform's edges come
+from the guides.
+
+Methods (case-insensitive registry :data:`DENOISE_METHODS`, ``method="DT Guides"``):
+
+- ``"dt-guides"`` (default, alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
+  2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
+  OpenCV ``ximgproc.dtFilter``, joint image = 4 guide channels: albedo R, G, B / ``sigma_albedo`` and
+  the normal's component along a fixed oblique axis / ``sigma_normal``. Emitter and background
+  pixels are pushed far away in guide space, so they neither bleed nor receive light.
+- ``"atrous-guides"`` (alias ``"atrous"``): edge-avoiding à-trous wavelet (Dammertz et al. 2010,
+  "Edge-Avoiding À-Trous Wavelet Transform for fast Global Illumination Filtering") with weights
+  from albedo, normal and relative depth only (no colour term); compact support (``levels`` of 5×5
+  taps at strides 1, 2, 4, …), so a crop with a halo of ``2·(2^levels − 1)`` pixels filters exactly
+  as the full frame does.
+
+Neither sees illumination edges the guides do not show (a shadow's boundary on a flat wall): it is
+smoothed over by ``sigma_spatial``. ``bench/denoise.py`` measures that cost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from retarget.errors import SpectralError
+from retarget.registry import MethodRegistry
+
+#: Normal axis the DT guide projects onto: oblique, so the six axis-aligned normals of a room (and
+#: most others) map to distinct values.
+_NORMAL_AXIS = np.array([0.53, 0.71, 0.46]) / np.linalg.norm([0.53, 0.71, 0.46])
+_FAR = 1e4  # guide offset separating emitter / background pixels from surfaces
+
+
+@dataclass(frozen=True)
+class Guides:
+    """A view's denoising guides, all ``(H, W, …)`` float32/bool from the geometry AOV pass.
+
+    albedo ``(H, W, 3)`` diffuse reflectance (R, G, B broad bands); normal ``(H, W, 3)`` unit world
+    normal; depth ``(H, W)`` metres (0 = no hit); hit ``(H, W)`` bool; emitter ``(H, W)`` bool.
+    """
+
+    albedo: np.ndarray
+    normal: np.ndarray
+    depth: np.ndarray
+    hit: np.ndarray
+    emitter: np.ndarray
+
+    @classmethod
+    def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
+        """From a view's AOVs (``albedo``, ``normal``, ``depth``; ``mask`` and ``emitter`` optional)."""
+        missing = [k for k in ("albedo", "normal", "depth") if k not in aovs]
+        if missing:
+            raise SpectralError(f"denoising needs the view's AOVs {missing}; re-render the view "
+                                "(`illumix render … --overwrite`) to store them")
+        depth = np.asarray(aovs["depth"], np.float32)
+        hit = np.asarray(aovs["mask"], bool) if "mask" in aovs else depth > 0
+        emitter = np.asarray(aovs["emitter"], bool) if "emitter" in aovs else np.zeros_like(hit)
+        return cls(np.asarray(aovs["albedo"], np.float32), np.asarray(aovs["normal"], np.float32),
+                   depth, hit, emitter)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.depth.shape[:2]
+
+    def pixel_class(self) -> np.ndarray:
+        """``(H, W)`` int8: 0 surface, 1 background (no hit), 2 emitter. Filters never mix classes."""
+        return np.where(self.emitter, 2, np.where(self.hit, 0, 1)).astype(np.int8)
+
+
+# ---------------------------------------------------------------------------------------------
+# Domain transform with a guide-only joint image
+
+
+def dt_guide_image(guides: Guides, sigma_albedo: float, sigma_normal: float) -> np.ndarray:
+    """The DT filter's joint image ``(H, W, 4)`` float32 (OpenCV's limit is 4 channels)."""
+    g = np.empty((*guides.shape, 4), np.float32)
+    g[..., :3] = guides.albedo / sigma_albedo
+    g[..., 3] = (guides.normal @ _NORMAL_AXIS) / sigma_normal
+    g[..., 3] += _FAR * guides.pixel_class()
+    return g
+
+
+def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_albedo: float = 0.05,
+        sigma_normal: float = 0.2, iterations: int = 3) -> np.ndarray:
+    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+
+    joint = dt_guide_image(guides, sigma_albedo, sigma_normal)
+    out = np.empty(cube.shape, np.float32)
+    for k in range(0, cube.shape[-1], 4):  # dtFilter takes at most 4 source channels
+        src = np.ascontiguousarray(cube[..., k:k + 4], dtype=np.float32)
+        res = cv2.ximgproc.dtFilter(joint, src, sigmaSpatial=float(sigma_spatial), sigmaColor=1.0,
+                                    mode=cv2.ximgproc.DTF_RF, numIters=int(iterations))
+        out[..., k:k + 4] = res.reshape(src.shape)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Edge-avoiding à-trous with guide-only weights
+
+_B3 = np.array([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0  # B3-spline taps of each level
+
+
+def _shifted(a: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """``out[y, x] = a[clamp(y + dy), clamp(x + dx)]`` (edge replicated)."""
+    h, w = a.shape[:2]
+    ys = np.clip(np.arange(h) + dy, 0, h - 1)
+    xs = np.clip(np.arange(w) + dx, 0, w - 1)
+    return a[ys][:, xs]
+
+
+def atrous_weights(guides: Guides, levels: int, sigma_albedo: float, sigma_normal: float,
+                   sigma_depth: float) -> list[np.ndarray]:
+    """Per level, the normalised tap weights ``(25, H, W)`` float32 (Dammertz et al. 2010, eq. 4–6
+    without the colour term): ``h(tap) · exp(−|Δalbedo|²/2σa²) · exp(−max(0, 1 − n·n')/σn) ·
+    exp(−|Δz|/(z σz))``, zero between pixel classes."""
+    cls = guides.pixel_class()
+    z = np.maximum(guides.depth, 1e-3)
+    out = []
+    for level in range(levels):
+        s = 1 << level
+        taps = []
+        for i, dy in enumerate(range(-2, 3)):
+            for j, dx in enumerate(range(-2, 3)):
+                da = np.sum((_shifted(guides.albedo, dy * s, dx * s) - guides.albedo) ** 2, axis=-1)
+                dn = np.maximum(0.0, 1.0 - np.sum(_shifted(guides.normal, dy * s, dx * s) * guides.normal, axis=-1))
+                dz = np.abs(_shifted(guides.depth, dy * s, dx * s) - guides.depth) / z
+                w = _B3[i] * _B3[j] * np.exp(-da / (2 * sigma_albedo ** 2) - dn / sigma_normal - dz / sigma_depth)
+                taps.append(np.where(_shifted(cls, dy * s, dx * s) == cls, w, 0.0))
+        t = np.stack(taps)
+        out.append((t / t.sum(axis=0, keepdims=True)).astype(np.float32))  # the centre tap keeps it > 0
+    return out
+
+
+def _atrous(cube: np.ndarray, guides: Guides, *, levels: int = 3, sigma_albedo: float = 0.02,
+            sigma_normal: float = 0.05, sigma_depth: float = 0.02) -> np.ndarray:
+    img = np.asarray(cube, np.float32)
+    for level, taps in enumerate(atrous_weights(guides, levels, sigma_albedo, sigma_normal, sigma_depth)):
+        s = 1 << level
+        acc = np.zeros(img.shape, np.float32)
+        t = 0
+        for dy in range(-2, 3):
+            for dx in range(-2, 3):
+                acc += taps[t][..., None] * _shifted(img, dy * s, dx * s)
+                t += 1
+        img = acc
+    return img
+
+
+@dataclass(frozen=True)
+class DenoiseMethod:
+    """A registered method: its filter and default parameters (all overridable by keyword)."""
+
+    run: Callable[..., np.ndarray]
+    defaults: Mapping[str, Any]
+    reference: str
+
+
+DENOISE_METHODS: MethodRegistry[DenoiseMethod] = MethodRegistry(
+    "denoise method",
+    {"dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2,
+                                      "iterations": 3},
+                                "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides"),
+     "atrous-guides": DenoiseMethod(_atrous, {"levels": 3, "sigma_albedo": 0.02, "sigma_normal": 0.05,
+                                              "sigma_depth": 0.02},
+                                    "Dammertz et al. 2010 (edge-avoiding à-trous), guide-only weights")},
+    aliases={"dt": "dt-guides", "domain transform": "dt-guides", "atrous": "atrous-guides"})
+
+DEFAULT_METHOD = "dt-guides"
+
+
+def method_params(method: str, **params: Any) -> tuple[str, dict[str, Any]]:
+    """``(canonical name, full parameter dict)``; an unknown parameter raises :class:`SpectralError`."""
+    name = DENOISE_METHODS.canonical(method)
+    defaults = DENOISE_METHODS[name].defaults
+    unknown = set(params) - set(defaults)
+    if unknown:
+        raise SpectralError(f"denoise method {name!r} has no parameter(s) {sorted(unknown)}; "
+                            f"it takes {', '.join(defaults)}")
+    full = {**defaults, **params}
+    for k, v in full.items():
+        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            raise SpectralError(f"denoise parameter {k} must be a positive number, got {v!r}")
+    return name, full
+
+
+def denoise(cube: np.ndarray, guides: Guides, method: str = DEFAULT_METHOD, **params: Any) -> np.ndarray:
+    """Denoise a transport or illumination cube ``(H, W, bands)`` (or any ``(H, W, C)`` linear
+    image of the view, e.g. per-group raw) with guide-only weights; returns float32, same shape.
+
+    Linear in ``cube`` and the same operator for every channel (module docstring). Raises
+    :class:`SpectralError` for an unknown method/parameter or a shape that does not match the guides.
+    """
+    name, full = method_params(method, **params)
+    arr = np.asarray(cube)
+    if arr.ndim != 3 or arr.shape[:2] != guides.shape:
+        raise SpectralError(f"denoise: cube shape {arr.shape} does not match the guides' {guides.shape} (H, W, C)")
+    if not np.isfinite(arr).all():
+        raise SpectralError("denoise: the cube has NaN or inf values")
+    return DENOISE_METHODS[name].run(arr, guides, **full)
+
+
+def describe(method: str, **params: Any) -> dict[str, Any]:
+    """The metadata record of a denoising: method, parameters, guides and reference."""
+    name, full = method_params(method, **params)
+    return {"method": name, "params": full, "guides": ["albedo", "normal", "depth", "mask", "emitter"],
+            "linear": True, "reference": DENOISE_METHODS[name].reference}
+
+
+__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_params"]
