@@ -18,6 +18,7 @@ from rich.console import Console
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
 from renderer_jobs.modes import EXECUTORS
+from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 
 console = Console(stderr=True)
 
@@ -77,6 +78,10 @@ def render(
                                       help="Also render each cube's illumination cube (what a white surface would "
                                            "show, bounce light included): the physical ground truth the service "
                                            "serves; --no-illumination: transport only (the formula ground truth)."),
+    denoise: str = choice_option(DENOISE_CHOICES, "--denoise",
+                                 "Also store a denoised copy of every cube and illumination cube, made with this "
+                                 f"guide-only linear filter (relighting stays exact) — {described(DENOISE_CHOICES)}. "
+                                 "The raw cubes stay; /sample?denoise= picks.", default=DEFAULT_METHOD),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -113,7 +118,8 @@ def render(
             raise UserError("--noise-target spreads the paths by the adaptive pilot, which --no-adaptive turns off; "
                             "give one of the two")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
-                                  adaptive=adaptive, noise_target=noise_target, illumination=illumination)
+                                  adaptive=adaptive, noise_target=noise_target, illumination=illumination,
+                                  denoise=denoise)
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
                       overwrite=overwrite)
     except SceneError as exc:
@@ -132,7 +138,7 @@ def render(
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
                "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
-               "executor": executor}
+               "denoise": denoise, "executor": executor}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")

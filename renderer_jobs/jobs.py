@@ -249,7 +249,7 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
         return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
                         renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
                         view_hash=scene.view_hash(job.view), render_stats=stats,
-                        units="radiance per unit emission (band averages)", denoiser="none")
+                        units="radiance per unit emission (band averages)")
 
     if settings.skip_dark:
         from renderer_jobs.light_probe import probe_group
@@ -276,10 +276,29 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
     else:
+        denoised = _denoise(st, scene.name, job.view, result, settings.denoise, meta)
         st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
-                      illumination=result.illumination)
+                      illumination=result.illumination, denoised=denoised)
     return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
             "empty": not (result.cube.max() > 0), "trace_s": result.stats.get("trace_s")}
+
+
+def _denoise(st, scene: str, view: str, result, method: str | None, meta) -> dict | None:
+    """Denoised copies of a rendered cube (and its illumination cube) with the view's stored AOVs as
+    guides (:mod:`retarget.denoise`); records the method in ``meta.denoised``. ``None`` when off."""
+    if method is None:
+        return None
+    from retarget.denoise import Guides, denoise, describe
+    from store.schema import DenoisedInfo
+
+    names = ("albedo", "normal", "depth", "mask", "emitter")
+    guides = Guides.from_aovs({n: st.read_aov(scene, view, n) for n in names if n in st.view_meta(scene, view).aovs})
+    t = time.perf_counter()
+    out = {"transport": denoise(result.cube, guides, method)}
+    if result.illumination is not None:
+        out["illumination"] = denoise(result.illumination, guides, method)
+    meta.denoised = DenoisedInfo(**describe(method), cost_ms=round(1e3 * (time.perf_counter() - t), 2))
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

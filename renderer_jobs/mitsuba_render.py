@@ -93,7 +93,8 @@ class RenderSettings:
     budget, give each pixel the paths its pilot predicts for this relative noise of its spectral
     sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
     (:func:`renderer_jobs.adaptive_spp.to_target`); illumination: also render the illumination cube
-    (module docstring, "Illumination cube").
+    (module docstring, "Illumination cube"); denoise: the :mod:`retarget.denoise` method whose
+    denoised copies the job runner stores beside each cube (``None``/``"none"``: no copies).
     For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first
     and record a group that sends no light into the view as empty instead of rendering it
     (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's budget is 1/probe_ratio of the
@@ -111,6 +112,7 @@ class RenderSettings:
     skip_background: bool = True
     noise_target: float | None = None
     illumination: bool = True
+    denoise: str | None = "dt-guides"
 
     def __post_init__(self) -> None:
         if self.spp < 1:
@@ -121,6 +123,15 @@ class RenderSettings:
         object.__setattr__(self, "wavelengths", WAVELENGTH_MODES.canonical(self.wavelengths))
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
+        if self.denoise is not None:
+            from retarget.denoise import DENOISE_METHODS  # noqa: PLC0415
+            from retarget.errors import UnknownName  # noqa: PLC0415
+
+            try:
+                name = None if str(self.denoise).lower() == "none" else DENOISE_METHODS.canonical(self.denoise)
+            except UnknownName as exc:
+                raise SceneError(f"{exc} (or none)") from None
+            object.__setattr__(self, "denoise", name)
         if self.probe_ratio < 1:
             raise SceneError("probe_ratio must be >= 1")
         if self.noise_target is not None and not 0 < self.noise_target < 1:
@@ -133,7 +144,7 @@ class RenderSettings:
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
                 "skip_background": self.skip_background, "noise_target": self.noise_target,
-                "illumination": self.illumination}
+                "illumination": self.illumination, "denoise": self.denoise}
 
 
 @dataclass

@@ -11,7 +11,7 @@ up to float32 rounding. The thesis' DT filter (§4.2) took its edges from the im
 5000-spp render), which makes it non-linear in the cubes; here the domain transform's edges come
 from the guides.
 
-Methods (case-insensitive registry :data:`DENOISE_METHODS`, ``method="DT Guides"``):
+Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHODS`, ``method="DT Guides"``):
 
 - ``"dt-guides"`` (default, alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
 from retarget.errors import SpectralError
-from retarget.registry import MethodRegistry
 
 #: Normal axis the DT guide projects onto: oblique, so the six axis-aligned normals of a room (and
 #: most others) map to distinct values.
@@ -167,25 +167,25 @@ class DenoiseMethod:
     run: Callable[..., np.ndarray]
     defaults: Mapping[str, Any]
     reference: str
+    guides: tuple[str, ...] = ("albedo", "normal", "depth", "mask", "emitter")
 
 
-DENOISE_METHODS: MethodRegistry[DenoiseMethod] = MethodRegistry(
-    "denoise method",
-    {"dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2,
-                                      "iterations": 3},
-                                "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides"),
-     "atrous-guides": DenoiseMethod(_atrous, {"levels": 3, "sigma_albedo": 0.02, "sigma_normal": 0.05,
-                                              "sigma_depth": 0.02},
-                                    "Dammertz et al. 2010 (edge-avoiding à-trous), guide-only weights")},
-    aliases={"dt": "dt-guides", "domain transform": "dt-guides", "atrous": "atrous-guides"})
-
-DEFAULT_METHOD = "dt-guides"
+#: Implementation of every name of :data:`DENOISE_METHODS`.
+IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
+    "dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2, "iterations": 3},
+                               "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides",
+                               ("albedo", "normal", "mask", "emitter")),
+    "atrous-guides": DenoiseMethod(_atrous, {"levels": 3, "sigma_albedo": 0.02, "sigma_normal": 0.05,
+                                             "sigma_depth": 0.02},
+                                   "Dammertz et al. 2010 (edge-avoiding a-trous), guide-only weights"),
+}
+assert set(IMPLEMENTATIONS) == set(DENOISE_METHODS.names)
 
 
 def method_params(method: str, **params: Any) -> tuple[str, dict[str, Any]]:
     """``(canonical name, full parameter dict)``; an unknown parameter raises :class:`SpectralError`."""
     name = DENOISE_METHODS.canonical(method)
-    defaults = DENOISE_METHODS[name].defaults
+    defaults = IMPLEMENTATIONS[name].defaults
     unknown = set(params) - set(defaults)
     if unknown:
         raise SpectralError(f"denoise method {name!r} has no parameter(s) {sorted(unknown)}; "
@@ -210,14 +210,26 @@ def denoise(cube: np.ndarray, guides: Guides, method: str = DEFAULT_METHOD, **pa
         raise SpectralError(f"denoise: cube shape {arr.shape} does not match the guides' {guides.shape} (H, W, C)")
     if not np.isfinite(arr).all():
         raise SpectralError("denoise: the cube has NaN or inf values")
-    return DENOISE_METHODS[name].run(arr, guides, **full)
+    return _flush_tails(IMPLEMENTATIONS[name].run(arr, guides, **full))
+
+
+def _flush_tails(out: np.ndarray) -> np.ndarray:
+    """Zero values below 2⁻²⁴ of their pixel's largest channel, in place.
+
+    Recursive filters leave exponentially decayed tails (1e-30 next to 1e-3) where the input was
+    exactly zero; below float32 rounding of any band sum they change no projection, but a pixel
+    spanning more than 2²⁹ would force the store's float16 encoding to fall back to float32.
+    """
+    top = np.abs(out).max(axis=-1, keepdims=True)
+    out[np.abs(out) < top * np.float32(2.0 ** -24)] = 0.0
+    return out
 
 
 def describe(method: str, **params: Any) -> dict[str, Any]:
     """The metadata record of a denoising: method, parameters, guides and reference."""
     name, full = method_params(method, **params)
-    return {"method": name, "params": full, "guides": ["albedo", "normal", "depth", "mask", "emitter"],
-            "linear": True, "reference": DENOISE_METHODS[name].reference}
+    return {"method": name, "params": full, "guides": list(IMPLEMENTATIONS[name].guides),
+            "linear": True, "reference": IMPLEMENTATIONS[name].reference}
 
 
 __all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_params"]

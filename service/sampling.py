@@ -61,6 +61,8 @@ class Plan:
     illumination: bool = False  # the illumination cubes are read (physical GT or spectral outputs)
     held: dict = field(default_factory=dict, repr=False)  # (group, kind) → cached cube, kept from price to build
     aovs: list[str] = field(default_factory=list)  # the view's stored AOVs
+    denoise: str = "none"  # the denoise method whose stored copies are read ("none": the raw cubes)
+    denoise_why: str = ""
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -143,6 +145,7 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
              aovs=list(vmeta.aovs))
     p.gt, p.gt_why = _ground_truth(spec, p)
+    p.denoise, p.denoise_why = _denoising(spec, p)
     wanted = set(spec.outputs)
     p.illumination = bool(SPECTRAL_OUTPUTS & wanted) or (p.gt == "physical" and bool(PHYSICAL_OUTPUTS & wanted))
     return p
@@ -169,6 +172,34 @@ def _ground_truth(spec: SampleSpec, p: Plan) -> tuple[str, str]:
     return "physical", "default: every lit group has its illumination cube"
 
 
+def _denoising(spec: SampleSpec, p: Plan) -> tuple[str, str]:
+    """``(method, why)``: the stored denoised copies named (or, by default, whichever every lit group
+    has, when they agree), else ``"none"``."""
+    if spec.denoise == "none":
+        return "none", "asked for (denoise=none)"
+    lit = [(g, m) for g, m, r in zip(p.groups, p.metas, p.reads()) if r]
+    stored = {g: (m.denoised.method if m.denoised is not None and m.denoised.storage is not None else None)
+              for g, m in lit}
+    if spec.denoise is not None:
+        lacking = [g for g, meth in stored.items() if meth != spec.denoise]
+        if lacking:
+            have = sorted({f"{meth or 'none'}" for meth in stored.values()})
+            raise SpectralError(f"denoise={spec.denoise}: groups {lacking} of {p.scene}/{p.view} have no copies denoised "
+                                f"with it (stored: {', '.join(have)}); re-render them with `illumix render … --denoise "
+                                f"{spec.denoise} --overwrite`, or ask denoise=none")
+        return spec.denoise, f"asked for (denoise={spec.denoise})"
+    methods = set(stored.values())
+    if not lit:
+        return "none", "no group is lit"
+    if None in methods:
+        return "none", (f"groups {[g for g, m in stored.items() if m is None]} have no denoised copies (re-render "
+                        "them with `illumix render … --overwrite` to store them)")
+    if len(methods) > 1:
+        return "none", f"the lit groups were denoised with different methods {sorted(methods)}; ask one by name"
+    (method,) = methods
+    return method, f"default: every lit group has copies denoised with {method}"
+
+
 def _has_illumination(meta) -> bool:
     return meta.illumination is not None and meta.illumination.storage is not None
 
@@ -181,7 +212,7 @@ def _key(p: Plan, group: str, kind: str) -> tuple:
     # ``created`` names the render: a cube re-rendered while the service runs is a new entry, so the
     # transport and illumination cubes of one sample always come from the same render
     meta = p.metas[p.groups.index(group)]
-    return (p.scene, p.view, group, kind, meta.created)
+    return (p.scene, p.view, group, kind, p.denoise, meta.created)
 
 
 def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
@@ -230,9 +261,11 @@ def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.
     x, y, w, h = p.window
     cube = p.held.pop((group, kind), None)
     if cube is None:
+        dn = p.denoise != "none"
         if _cube_bytes(p) > ctx.cache.max_cost:
-            return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind)
-        cube = ctx.cache.get(_key(p, group, kind), lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind),
+            return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind, denoised=dn)
+        cube = ctx.cache.get(_key(p, group, kind),
+                             lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind, denoised=dn),
                              expected_cost=_cube_bytes(p))
     return cube[y:y + h, x:x + w]
 
@@ -314,6 +347,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
             for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms, fit_de)
         ],
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
+        "denoise": _denoise_meta(p),
         "mask_reasons": {"meaning": extra.MASK_REASONS,
                          "pixels": reasons | ({"no_light": int(np.count_nonzero(~comp.mask)) - sum(reasons.values())}
                                               if comp.mask is not None and valid is not None else {})},
@@ -322,11 +356,22 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
         "grid": grid.to_dict(),
         "provenance": [{"group": g, "emission": m.emission_name, "renderer": m.renderer.model_dump(),
                         "spp": m.spp, "seed": m.seed, "scene_hash": m.scene_hash, "created": m.created,
-                        "empty": m.empty} for g, m in zip(p.groups, p.metas)],
+                        "empty": m.empty,
+                        "denoised": None if m.denoised is None else m.denoised.model_dump(
+                            include={"method", "params", "cost_ms"})} for g, m in zip(p.groups, p.metas)],
         "timings_ms": {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
                        "compose": 1e3 * (t_compose - t_read)},
     }
     return arrays, meta
+
+
+def _denoise_meta(p: Plan) -> dict:
+    """``{method, why, params, guides, linear, reference}`` of what was read (params of the first lit group)."""
+    out = {"method": p.denoise, "why": p.denoise_why}
+    if p.denoise != "none":
+        dn = next(m.denoised for m, r in zip(p.metas, p.reads()) if r)
+        out |= dn.model_dump(include={"params", "guides", "linear", "reference"})
+    return out
 
 
 GT_EQUATIONS = {

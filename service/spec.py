@@ -17,6 +17,7 @@ import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, WithJsonSchema, field_validator, model_validator
 
 from retarget.compose import OUTPUTS
+from retarget.denoise_methods import DENOISE_CHOICES
 from retarget.errors import SpectralError, UnknownName
 from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
@@ -142,6 +143,11 @@ class SampleSpec(BaseModel):
     gt: Annotated[Literal["physical", "formula"] | None, BeforeValidator(lambda v: v.lower() if isinstance(v, str) else v)] = Field(
         None, description="ground truth: physical (from the illumination cubes, bounce light included; the "
                           "default where the store has them) or formula (thesis eq. 3.3)")
+    denoise: str | None = Field(
+        None, max_length=MAX_NAME,
+        description=f"none (the cubes as rendered) or a denoise method ({', '.join(DENOISE_CHOICES.names[1:])}): "
+                    "the cubes' stored denoised copies (guide-only, linear: relighting stays exact). Default: the "
+                    "stored copies where every lit group has them, else none")
     format: Literal["npz", "png", "tiff"] = Field("npz", description="npz (all outputs), or png/tiff (one image output)")
     exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
                                  pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
@@ -166,6 +172,11 @@ class SampleSpec(BaseModel):
                 raise ValueError(f"format={self.format} returns exactly one image output, one of "
                                  f"{', '.join(IMAGE_OUTPUTS[self.format])}; ask e.g. outputs=srgb&format={self.format}")
         return self
+
+    @field_validator("denoise")
+    @classmethod
+    def _denoise(cls, v: str | None) -> str | None:
+        return None if v is None else _known(DENOISE_CHOICES, v)
 
     @field_validator("bayer")
     @classmethod

@@ -256,17 +256,18 @@ class CubeStore:
 
     # ---- reading -------------------------------------------------------------------------------
     def read_cube(self, scene: str, view: str, group: str, crop: Crop | None = None,
-                  bands: Sequence[int] | None = None, kind: str = "transport") -> np.ndarray:
+                  bands: Sequence[int] | None = None, kind: str = "transport", denoised: bool = False) -> np.ndarray:
         """The cube (or a crop of it) decoded to float32, in the renderer's radiometric units.
 
         ``crop=(x, y, w, h)`` in pixels (column, row, width, height); reads only the chunks it
         overlaps. ``bands``: optional band indices. ``kind``: ``"transport"`` (the cube) or
         ``"illumination"`` (its illumination cube; :class:`StoreKeyError` when the node has none).
-        Returns ``(h, w, k)`` float32 (``k`` = all bands or ``len(bands)``); zeros for an empty group.
+        ``denoised``: the stored denoised copy instead (``meta.denoised`` says how it was made;
+        :class:`StoreKeyError` when the node has none). Returns ``(h, w, k)`` float32 (``k`` = all bands or ``len(bands)``); zeros for an empty group.
         Raises :class:`StoreKeyError` for an unknown or incomplete cube and :class:`StoreError` for
         corrupt data (naming the array).
         """
-        return reader.read_cube(self, scene, view, group, crop, bands, kind)
+        return reader.read_cube(self, scene, view, group, crop, bands, kind, denoised)
 
     def read_aov(self, scene: str, view: str, name: str, crop: Crop | None = None) -> np.ndarray:
         """An AOV of the view, ``(h, w)`` or ``(h, w, C)``: ``albedo`` / ``normal`` ``(h, w, 3)``
@@ -289,7 +290,8 @@ class CubeStore:
                    meta: CubeMeta | Mapping[str, Any], *, overwrite: bool = False,
                    dtype_policy: Policy | None = None,
                    progress: Callable[[int, int], None] | None = None,
-                   illumination: np.ndarray | None = None) -> CubeMeta:
+                   illumination: np.ndarray | None = None,
+                   denoised: Mapping[str, np.ndarray] | None = None) -> CubeMeta:
         """Store the transport cube of (scene, view, group); visible only once complete.
 
         ``cube``: ``(H, W, bands)`` finite floats (converted to float32) with ``H, W`` of the view
@@ -298,11 +300,13 @@ class CubeStore:
         the old or the new one, never a mix). ``dtype_policy``: overrides the store default.
         ``progress(rows_done, rows_total)`` is called after each row of chunks. ``illumination``:
         the cube's illumination cube, same shape (stored in the same node, published with it;
-        ``meta.illumination`` records it). Returns the stored metadata.
+        ``meta.illumination`` records it). ``denoised``: ``{"transport": …, "illumination": …}``
+        denoised copies (same shapes; ``meta.denoised`` names the method; published with the rest).
+        Returns the stored metadata.
         """
         return writer.write_cube(self, scene, view, group, cube, meta, overwrite=overwrite,
                                  policy=dtype_policy or self.dtype_policy, progress=progress,
-                                 illumination=illumination)
+                                 illumination=illumination, denoised=denoised)
 
     def mark_empty(self, scene: str, view: str, group: str, meta: CubeMeta | Mapping[str, Any], *,
                    overwrite: bool = False) -> CubeMeta:

@@ -17,7 +17,7 @@ from store.codec import EXPONENT_FILL, decode
 from store.errors import StoreError, StoreKeyError
 from store.names import check_name
 from store.nodes import band_index, crop_region, current_write_id, open_array
-from store.writer import ILLUMINATION
+from store.writer import DENOISED, ILLUMINATION
 
 if TYPE_CHECKING:
     from store.cubestore import CubeStore
@@ -27,7 +27,7 @@ KINDS = ("transport", "illumination")
 
 
 def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Sequence[int] | None,
-              kind: str) -> np.ndarray:
+              kind: str, denoised: bool = False) -> np.ndarray:
     """See :meth:`store.CubeStore.read_cube`."""
     if kind not in KINDS:
         raise StoreError(f"unknown cube kind {kind!r}; use one of {', '.join(KINDS)}")
@@ -41,7 +41,9 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
         if meta.empty:
             return np.zeros((y1 - y0, x1 - x0, k), np.float32)
         storage = meta.storage
-        if kind == ILLUMINATION:
+        if denoised:
+            storage, path = _denoised(meta, kind, path, f"{scene}/{view}/{group}")
+        elif kind == ILLUMINATION:
             if meta.illumination is None or meta.illumination.storage is None:
                 raise StoreKeyError("illumination cube", group, [], f"{scene}/{view}",
                                     detail=f"cube {scene}/{view}/{group} has no illumination cube (rendered "
@@ -76,6 +78,17 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
                              "delete and rewrite this cube")
         return out
     raise StoreError(f"cube {scene}/{view}/{group} was replaced {RETRIES} times while being read; retry")
+
+
+def _denoised(meta, kind: str, path: str, where: str):
+    """``(storage, array group path)`` of a node's denoised copy of ``kind``."""
+    dn = meta.denoised
+    storage = None if dn is None else (dn.storage if kind == "transport" else dn.illumination_storage)
+    if storage is None:
+        raise StoreKeyError(f"denoised {kind} cube", where, [], where,
+                            detail=f"cube {where} has no denoised {kind} copy; denoise it with `illumix store denoise` "
+                                   "or re-render it")
+    return storage, f"{path}/{DENOISED}" + (f"/{ILLUMINATION}" if kind == ILLUMINATION else "")
 
 
 def read_aov(st: CubeStore, scene: str, view: str, name: str, crop) -> np.ndarray:

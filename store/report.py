@@ -21,7 +21,7 @@ from store.errors import StoreError
 from store.nodes import STATE_ATTR, node_attrs, read_state
 from store.registry import KINDS
 from store.schema import CubeMeta, ViewMeta, parse_stored
-from store.writer import ILLUMINATION
+from store.writer import DENOISED, ILLUMINATION
 
 
 def _group_info(st: CubeStore, scene: str, view: str, g: str) -> dict[str, Any]:
@@ -39,7 +39,8 @@ def _group_info(st: CubeStore, scene: str, view: str, g: str) -> dict[str, Any]:
                        bytes=m.storage.nbytes_stored if m.storage else None, spp=m.spp,
                        renderer=m.renderer.name, chunks=m.storage.chunks if m.storage else None,
                        codec=m.storage.codec if m.storage else None,
-                       illumination=m.illumination is not None and m.illumination.storage is not None)
+                       illumination=m.illumination is not None and m.illumination.storage is not None,
+                       denoised=m.denoised.method if m.denoised is not None and m.denoised.storage else None)
     except StoreError as exc:
         row["error"] = str(exc)
     return row
@@ -134,6 +135,12 @@ def _check_cube(st: CubeStore, rep: _Report, path: str, vm: ViewMeta) -> None:
     _check_encoded(st, rep, path, shape, meta.storage, meta.stats)
     if meta.illumination is not None and meta.illumination.storage is not None:
         _check_encoded(st, rep, f"{path}/{ILLUMINATION}", shape, meta.illumination.storage, meta.illumination.stats)
+    dn = meta.denoised
+    if dn is not None and dn.storage is not None:
+        _check_encoded(st, rep, f"{path}/{DENOISED}", shape, dn.storage, dn.stats)
+    if dn is not None and dn.illumination_storage is not None:
+        _check_encoded(st, rep, f"{path}/{DENOISED}/{ILLUMINATION}", shape, dn.illumination_storage,
+                       dn.illumination_stats)
 
 
 def _check_encoded(st: CubeStore, rep: _Report, path: str, shape: tuple, storage, stats) -> None:

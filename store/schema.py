@@ -105,6 +105,26 @@ class IlluminationInfo(BaseModel):
     storage: StorageInfo | None = None
 
 
+class DenoisedInfo(BaseModel):
+    """The denoised copies stored beside a cube (:mod:`retarget.denoise`): ``method``, ``params``,
+    ``guides`` (the AOVs its weights come from), ``linear`` (relighting stays exact), ``reference``
+    (paper), ``cost_ms`` (filter time for this node's cubes); ``stats``/``storage`` of the denoised
+    transport cube and ``illumination_stats``/``illumination_storage`` of the denoised illumination
+    cube (filled in by the store). The raw cubes stay as they were rendered."""
+
+    model_config = ConfigDict(extra="allow")
+    method: str = ""
+    params: dict[str, Any] = Field(default_factory=dict)
+    guides: list[str] = Field(default_factory=list)
+    linear: bool = True
+    reference: str = ""
+    cost_ms: float | None = None
+    stats: BandStats | None = None
+    storage: StorageInfo | None = None
+    illumination_stats: BandStats | None = None
+    illumination_storage: StorageInfo | None = None
+
+
 def _grid_dict(v: Any) -> dict[str, float]:
     if isinstance(v, SpectralGrid):
         return v.to_dict()
@@ -128,6 +148,7 @@ class CubeMeta(BaseModel):
     ``empty``: the group contributes nothing to this view (no array stored; reads give zeros).
     ``illumination``: :class:`IlluminationInfo` when the node also holds the illumination cube
     (``None`` in stores rendered before it existed: the service then serves the formula ground truth).
+    ``denoised``: :class:`DenoisedInfo` when the node also holds denoised copies of its cubes.
     """
 
     model_config = ConfigDict(extra="allow")
@@ -144,6 +165,7 @@ class CubeMeta(BaseModel):
     storage: StorageInfo | None = None
     empty: bool = False
     illumination: IlluminationInfo | None = None
+    denoised: DenoisedInfo | None = None
 
     _v = field_validator("schema_version")(_check_version)
 
@@ -166,7 +188,9 @@ class CubeMeta(BaseModel):
             raise ValueError(f"emission has {len(self.emission)} values but the grid has {n} bands")
         if not all(math.isfinite(e) and e >= 0 for e in self.emission):
             raise ValueError("emission must be finite and non-negative (band averages, relative units)")
-        for s in (self.stats, self.illumination.stats if self.illumination else None):
+        dn = self.denoised
+        for s in (self.stats, self.illumination.stats if self.illumination else None,
+                  dn.stats if dn else None, dn.illumination_stats if dn else None):
             if s is not None and not (len(s.max) == len(s.mean) == len(s.min) == n):
                 raise ValueError(f"stats must have {n} values per statistic (one per band)")
         return self

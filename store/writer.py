@@ -19,7 +19,8 @@ from store.codec import EXPONENT_FILL, Policy, encode
 from store.errors import StoreError
 from store.names import check_name
 from store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
-from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, IlluminationInfo, StorageInfo, ViewMeta, utc_now
+from store.schema import (SCHEMA_VERSION, BandStats, CubeMeta, DenoisedInfo, IlluminationInfo, StorageInfo, ViewMeta,
+                          utc_now)
 
 if TYPE_CHECKING:
     from store.cubestore import CubeStore
@@ -28,6 +29,7 @@ VIEW_ATTR = "illumix_view"
 CUBE_ATTR = "illumix_cube"
 #: Known AOVs: channels (``None`` = ``(H, W)``) and storage dtype.
 ILLUMINATION = "illumination"  # sub-group of a cube node holding its illumination cube
+DENOISED = "denoised"  # sub-group holding the denoised transport cube (and DENOISED/ILLUMINATION)
 KNOWN_AOVS: dict[str, tuple[int | None, type]] = {
     "albedo": (3, np.float32), "normal": (3, np.float32), "depth": (None, np.float32), "mask": (None, np.bool_),
     "emitter": (None, np.bool_)}
@@ -198,9 +200,11 @@ def _write_encoded(st: CubeStore, path: str, enc, shape: tuple[int, int, int], c
 def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarray | None,
                meta: CubeMeta | Mapping[str, Any], *, overwrite: bool, policy: Policy,
                progress: Callable[[int, int], None] | None,
-               illumination: np.ndarray | None = None) -> CubeMeta:
-    """Write a cube (``cube`` array, optionally with its ``illumination`` cube of the same shape) or
-    an empty-group record (``cube=None``). Both arrays are published together or not at all."""
+               illumination: np.ndarray | None = None,
+               denoised: Mapping[str, np.ndarray] | None = None) -> CubeMeta:
+    """Write a cube (``cube`` array, optionally with its ``illumination`` cube of the same shape and
+    ``denoised`` copies ``{"transport": …, "illumination": …}``, described by ``meta.denoised``) or an
+    empty-group record (``cube=None``). All arrays are published together or not at all."""
     b = st.backend
     b.check_writable()
     check_name(group, "group")
@@ -236,7 +240,10 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
         illum = IlluminationInfo(**given)
         illum.stats, illum.storage = BandStats.of(arr), _storage(enc_u, policy, chunks, st.codec)
         del arr
+    dn, enc_d = _encode_denoised(meta, denoised if cube is not None else None, illum is not None, shape, chunks,
+                                 policy, st.codec, where)
     meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None, "illumination": illum,
+                                   "denoised": dn,
                                    "created": meta.created or utc_now(), "schema_version": SCHEMA_VERSION})
     first = (prev or {}).get("first_written") or utc_now()
     b.ensure_group(f"{layout.view_path(scene, view)}/cubes")
@@ -255,8 +262,20 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
                 write_group(b, f"{wpath}/{ILLUMINATION}", {})
                 _write_encoded(st, f"{wpath}/{ILLUMINATION}", enc_u, shape, chunks, None)
                 meta.illumination.storage.nbytes_stored = b.size(f"{wpath}/{ILLUMINATION}")
-            meta.storage.nbytes_stored = b.size(wpath) - (meta.illumination.storage.nbytes_stored
-                                                          if enc_u is not None else 0)
+            own = 0
+            for kind, e in enc_d.items():
+                sub = f"{wpath}/{DENOISED}" + (f"/{ILLUMINATION}" if kind == ILLUMINATION else "")
+                write_group(b, sub, {})
+                _write_encoded(st, sub, e, shape, chunks, None)
+            if enc_d:
+                dn_size = b.size(f"{wpath}/{DENOISED}")
+                u_size = b.size(f"{wpath}/{DENOISED}/{ILLUMINATION}") if ILLUMINATION in enc_d else 0
+                meta.denoised.storage.nbytes_stored = dn_size - u_size
+                if u_size:
+                    meta.denoised.illumination_storage.nbytes_stored = u_size
+                own += dn_size
+            meta.storage.nbytes_stored = b.size(wpath) - own - (meta.illumination.storage.nbytes_stored
+                                                                if enc_u is not None else 0)
         state = {**state, "complete": True, "finished": utc_now()}
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
         try:
@@ -269,6 +288,34 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             b.discard(wpath)
         raise
     return meta
+
+
+def _encode_denoised(meta: CubeMeta, denoised: Mapping[str, np.ndarray] | None, has_illumination: bool,
+                     shape: tuple[int, int, int], chunks: tuple[int, ...], policy: Policy, codec: str,
+                     where: str) -> tuple[DenoisedInfo | None, dict]:
+    """``(meta.denoised filled in, {kind: encoded})`` for the denoised copies (none: ``(None, {})``)."""
+    if not denoised:
+        return None, {}
+    unknown = set(denoised) - {"transport", ILLUMINATION}
+    if unknown or "transport" not in denoised:
+        raise StoreError(f"denoised copies of {where} must be {{'transport': …, 'illumination': …}}, got {sorted(denoised)}")
+    if (ILLUMINATION in denoised) != has_illumination:
+        raise StoreError(f"{where}: a denoised illumination cube needs the illumination cube, and vice versa")
+    if meta.denoised is None or not meta.denoised.method:
+        raise StoreError(f"{where}: denoised copies need meta.denoised naming the method")
+    info = DenoisedInfo(**meta.denoised.model_dump(exclude={"stats", "storage", "illumination_stats",
+                                                            "illumination_storage"}))
+    enc = {}
+    for kind, arr in denoised.items():
+        a = _check_cube(arr, shape, f"{where} (denoised {kind})")
+        enc[kind] = encode(a, policy)
+        st_, sto = BandStats.of(a), _storage(enc[kind], policy, chunks, codec)
+        if kind == "transport":
+            info.stats, info.storage = st_, sto
+        else:
+            info.illumination_stats, info.illumination_storage = st_, sto
+        del a
+    return info, enc
 
 
 __all__ = ["write_view", "write_cube", "write_array_node", "KNOWN_AOVS"]

@@ -39,12 +39,15 @@ def falloffs(h: int = H, w: int = W) -> tuple[np.ndarray, np.ndarray]:
     return window, lamp
 
 
-def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool = False) -> None:
+def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool = False,
+          denoised: bool = False) -> None:
     """Write the synthetic scenes into a store at ``path`` (``extras``: the solo and thesis views).
 
     ``illumination``: also store the illumination cubes of synth/v0 (a white Lambertian under each
     group: ``falloff/π`` in every band, so the transport cube is exactly reflectance × illumination),
-    and the view's hit mask (all geometry) and emitter AOV (an "emitter" in the top-left 2×2)."""
+    and the view's hit mask (all geometry) and emitter AOV (an "emitter" in the top-left 2×2).
+    ``denoised`` (implies ``illumination``): synth/v0's cubes carry 10 % noise per band (seeded) and
+    their copies denoised with the default method are stored beside them."""
     from store import CubeMeta, CubeStore, ViewMeta
 
     st = CubeStore.open(str(path), mode="a")
@@ -55,6 +58,7 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
     common = dict(grid=DEFAULT_GRID.to_dict(), renderer={"name": "synthetic", "version": "1"},
                   spp=0, seed=0, scene_hash="synthetic")
     aovs = None
+    illumination = illumination or denoised
     if illumination:
         emitter = np.zeros((h, w), bool)
         emitter[:2, :2] = True
@@ -63,10 +67,21 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
                 "normal": np.broadcast_to(np.float32([0, 0, 1]), (h, w, 3)).copy(),
                 "depth": np.full((h, w), 2.0, np.float32)}
     st.write_view("synth", "v0", ViewMeta(width=w, height=h, fov=45.0), aovs)
+    rng = np.random.default_rng(11)
     for name, f in (("window", fw), ("lamp", fl)):
         u = np.broadcast_to((f / np.float32(np.pi))[..., None], refl.shape).astype(np.float32)
-        st.write_cube("synth", "v0", name, refl * u, CubeMeta(emission=flat, emission_name="flat", **common),
-                      illumination=u if illumination else None)
+        meta = CubeMeta(emission=flat, emission_name="flat", **common)
+        cube, copies = refl * u, None
+        if denoised:
+            from retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
+            from store.schema import DenoisedInfo
+
+            noisy = [(x * (1 + 0.1 * rng.standard_normal(x.shape))).astype(np.float32) for x in (cube, u)]
+            cube, u = noisy
+            guides = Guides.from_aovs(aovs)
+            copies = {"transport": denoise(cube, guides), "illumination": denoise(u, guides)}
+            meta.denoised = DenoisedInfo(**describe(DEFAULT_METHOD))
+        st.write_cube("synth", "v0", name, cube, meta, illumination=u if illumination else None, denoised=copies)
     if not extras:
         return
     st.write_view("synth", "solo", ViewMeta(width=w, height=h, fov=45.0))

@@ -66,6 +66,12 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
             assert meta.scene_hash and len(meta.emission) == 63
             cube = st.read_cube(scene, view, g)
             assert cube.shape == (16, 24, 63) and np.all(np.isfinite(cube))
+            # the default stores denoised copies (issue 15), made from the view's AOVs
+            assert meta.denoised.method == "dt-guides" and meta.denoised.cost_ms >= 0
+            for kind in ("transport", "illumination"):
+                dn = st.read_cube(scene, view, g, kind=kind, denoised=True)
+                assert dn.shape == cube.shape and np.all(np.isfinite(dn))
+    assert summary["denoise"] == "dt-guides"
     code, out, err = run_cli(capsys, "render", "--demo", "--store", store, *TINY, "--json")
     assert code == 0 and json.loads(out.strip().splitlines()[-1])["rendered"] == []
     assert "nothing to do" in err
@@ -121,6 +127,7 @@ def test_changed_description_is_a_conflict(tmp_path, capsys):
     (["render", "--demo", "--views", "nope"], "no view 'nope'"),
     (["render", "--demo", "--executor", "slurm"], "executor"),
     (["render", "--demo", "--noise-target", "5"], "--noise-target 5.0 must lie in (0, 1)"),
+    (["render", "--demo", "--denoise", "dt-guide"], "did you mean 'dt-guides'"),
     (["render"], "either a scene file"),
 ])
 def test_bad_arguments_exit_2_and_write_nothing(tmp_path, capsys, argv, needle):

@@ -68,6 +68,7 @@ class AsyncClient:
                      intensities: str | Sequence[float] | None = None,
                      crop: str | Sequence[int] | None = None, size: str | Sequence[int] | None = None,
                      outputs: str | Sequence[str] | None = None, gt: str | None = None,
+                     denoise: str | None = None,
                      exposure: str | float | None = None,
                      noise: str | Mapping[str, float] | None = None, bayer: str | None = None) -> Sample:
         return await self._run(P.sample(_spec(locals())))

@@ -79,6 +79,7 @@ class Client:
                intensities: str | Sequence[float] | None = None,
                crop: str | Sequence[int] | None = None, size: str | Sequence[int] | None = None,
                outputs: str | Sequence[str] | None = None, gt: str | None = None,
+               denoise: str | None = None,
                exposure: str | float | None = None,
                noise: str | Mapping[str, float] | None = None, bayer: str | None = None) -> Sample:
         """One sample (GET /sample, npz) as a :class:`Sample`.
@@ -88,7 +89,8 @@ class Client:
         ``size=(W, H)`` in pixels; ``outputs`` a subset of raw, gain, ccm, srgb, weights, mask, illum,
         mixture, albedo, normal, depth, reflectance, illumination, meta (default: raw … mixture and
         meta); ``gt`` ``"physical"`` (bounce light included; the default where the store has
-        illumination cubes) or ``"formula"`` (thesis eq. 3.3); ``exposure`` ``"auto"``/``"adaptive"``/a gain; ``noise`` a preset
+        illumination cubes) or ``"formula"`` (thesis eq. 3.3); ``denoise`` ``"none"`` or a method
+        (``"dt-guides"``): the store's denoised cube copies (default: those where stored); ``exposure`` ``"auto"``/``"adaptive"``/a gain; ``noise`` a preset
         (low, phone, high) or a mapping of sensor parameters; ``bayer`` RGGB/BGGR/GRBG/GBRG.
         ``scene``/``view`` omitted are drawn by the service, reproducibly given ``seed``.
         """

@@ -21,7 +21,7 @@ OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture", 
 """Array outputs the service can return (plus ``meta``)."""
 
 SPEC_KEYS = ("scene", "view", "seed", "sensor", "pair", "illuminants", "intensities", "crop", "size",
-             "outputs", "gt", "exposure", "noise", "bayer")
+             "outputs", "gt", "denoise", "exposure", "noise", "bayer")
 """Parameters of one sample request (GET /sample query parameters, POST /batch items)."""
 
 

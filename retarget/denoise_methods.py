@@ -1,0 +1,26 @@
+"""The denoising method family by name (implementations: :mod:`retarget.denoise`).
+
+Pure Python, like :mod:`retarget.ccm_methods`: the command line lists these names in ``--help``
+before it imports numpy or OpenCV.
+"""
+
+from __future__ import annotations
+
+from retarget.registry import MethodRegistry
+
+_ALIASES = {"dt": "dt-guides", "domain transform": "dt-guides", "atrous": "atrous-guides"}
+
+#: name → one-line description of each guide-only linear cube denoiser.
+DENOISE_METHODS: MethodRegistry[str] = MethodRegistry("denoise method", {
+    "dt-guides": "domain-transform recursive filter (Gastal & Oliveira 2011), edges from the albedo and "
+                 "normal AOVs",
+    "atrous-guides": "edge-avoiding a-trous wavelet (Dammertz et al. 2010), weights from albedo, normal, depth",
+}, aliases=_ALIASES)
+
+#: The same family plus ``none`` (no denoising), for options that may switch it off.
+DENOISE_CHOICES: MethodRegistry[str] = MethodRegistry(
+    "denoise method", {"none": "no denoising (the cubes as rendered)", **dict(DENOISE_METHODS.items())},
+    aliases={**_ALIASES, "off": "none"})
+
+#: What the renderer stores and the service serves unless told otherwise.
+DEFAULT_METHOD = "dt-guides"
