@@ -184,9 +184,9 @@ def _denoising(spec: SampleSpec, p: Plan) -> tuple[str, str]:
         lacking = [g for g, meth in stored.items() if meth != spec.denoise]
         if lacking:
             have = sorted({f"{meth or 'none'}" for meth in stored.values()})
-            raise SpectralError(f"denoise={spec.denoise}: groups {lacking} of {p.scene}/{p.view} have no copies denoised "
-                                f"with it (stored: {', '.join(have)}); re-render them with `illumix render … --denoise "
-                                f"{spec.denoise} --overwrite`, or ask denoise=none")
+            raise SpectralError(f"denoise={spec.denoise}: groups {lacking} of {p.scene}/{p.view} have no copies "
+                                f"denoised with it (stored: {', '.join(have)}); re-render them with `illumix render … "
+                                f"--denoise {spec.denoise} --overwrite`, or ask denoise=none")
         return spec.denoise, f"asked for (denoise={spec.denoise})"
     methods = set(stored.values())
     if not lit:

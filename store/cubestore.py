@@ -263,7 +263,8 @@ class CubeStore:
         overlaps. ``bands``: optional band indices. ``kind``: ``"transport"`` (the cube) or
         ``"illumination"`` (its illumination cube; :class:`StoreKeyError` when the node has none).
         ``denoised``: the stored denoised copy instead (``meta.denoised`` says how it was made;
-        :class:`StoreKeyError` when the node has none). Returns ``(h, w, k)`` float32 (``k`` = all bands or ``len(bands)``); zeros for an empty group.
+        :class:`StoreKeyError` when the node has none). Returns ``(h, w, k)`` float32 (``k`` = all
+        bands or ``len(bands)``); zeros for an empty group.
         Raises :class:`StoreKeyError` for an unknown or incomplete cube and :class:`StoreError` for
         corrupt data (naming the array).
         """

@@ -86,8 +86,8 @@ def _denoised(meta, kind: str, path: str, where: str):
     storage = None if dn is None else (dn.storage if kind == "transport" else dn.illumination_storage)
     if storage is None:
         raise StoreKeyError(f"denoised {kind} cube", where, [], where,
-                            detail=f"cube {where} has no denoised {kind} copy; denoise it with `illumix store denoise` "
-                                   "or re-render it")
+                            detail=f"cube {where} has no denoised {kind} copy; re-render it with "
+                                   "`illumix render … --denoise dt-guides --overwrite`")
     return storage, f"{path}/{DENOISED}" + (f"/{ILLUMINATION}" if kind == ILLUMINATION else "")
 
 

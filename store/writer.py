@@ -298,7 +298,8 @@ def _encode_denoised(meta: CubeMeta, denoised: Mapping[str, np.ndarray] | None, 
         return None, {}
     unknown = set(denoised) - {"transport", ILLUMINATION}
     if unknown or "transport" not in denoised:
-        raise StoreError(f"denoised copies of {where} must be {{'transport': …, 'illumination': …}}, got {sorted(denoised)}")
+        raise StoreError(f"denoised copies of {where} must be {{'transport': …, 'illumination': …}}, "
+                         f"got {sorted(denoised)}")
     if (ILLUMINATION in denoised) != has_illumination:
         raise StoreError(f"{where}: a denoised illumination cube needs the illumination cube, and vice versa")
     if meta.denoised is None or not meta.denoised.method:

@@ -55,7 +55,8 @@ def test_denoised_raw_equals_denoising_the_raw(client):
     _, dn, _ = get(c)
     _, raw, meta = get(c, denoise="none")
     assert meta["denoise"] == {"method": "none", "why": "asked for (denoise=none)"}
-    guides = Guides.from_aovs({n: st.read_aov("synth", "v0", n) for n in ("albedo", "normal", "depth", "mask", "emitter")})
+    names = ("albedo", "normal", "depth", "mask", "emitter")
+    guides = Guides.from_aovs({n: st.read_aov("synth", "v0", n) for n in names})
     ref = denoise(raw["raw"], guides)
     lit = ref[..., 1] > 1e-3 * ref[..., 1].max()
     rel = np.abs(dn["raw"] - ref)[lit] / ref[lit]
