@@ -39,6 +39,8 @@ class GroupInfo(BaseModel):
     emission: str = Field(description="emission the cube was rendered with ('flat' = unit, relightable)")
     illumination: bool = Field(False, description="the cube has its illumination cube: the physical ground truth "
                                                   "is served (else the formula's)")
+    denoised: str | None = Field(None, description="method of the cube's stored denoised copies (served by default), "
+                                                   "null when it has none")
 
 
 class ViewInfo(BaseModel):

@@ -38,7 +38,8 @@ def scenes(ctx: CtxDep) -> Scenes:
             vm = store.view_meta(s, v)
             metas = [(g, store.cube_meta(s, v, g)) for g in store.groups(s, v)]
             groups = [GroupInfo(name=g, emission=m.emission_name,
-                                illumination=m.illumination is not None and m.illumination.storage is not None)
+                                illumination=m.illumination is not None and m.illumination.storage is not None,
+                                denoised=m.denoised.method if m.denoised is not None and m.denoised.storage else None)
                       for g, m in metas]
             views.append(ViewInfo(name=v, width=vm.width, height=vm.height, groups=groups))
         out.append(SceneInfo(name=s, views=views))
