@@ -52,21 +52,24 @@ def info(path: str = typer.Argument(..., help=PATH_HELP),
     if as_json:
         print(json.dumps(rep))
         return
-    table = Table("scene", "view", "size", "group", "emission", "dtype", "illumination", "denoised", "complete",
-                  "on disk",
+    table = Table("scene", "view", "size", "group", "emission", "dtype", "illumination", "complete", "on disk",
                   title=f"illumix store {rep['store']}")
     for s in rep["scenes"]:
         for v in s["views"]:
             size = f"{v['width']}x{v['height']}" if v["width"] else "[red]?[/]"
             if not v["groups"]:
-                table.add_row(s["name"], v["name"], size, "[dim](no groups)[/]", "", "", "", "", "", "")
+                table.add_row(s["name"], v["name"], size, "[dim](no groups)[/]", "", "", "", "", "")
             for g in v["groups"]:
                 done = "yes" if g["complete"] else "[yellow]no[/]"
                 dtype = "empty" if g.get("empty") else (g["dtype"] or "")
                 illum = "yes" if g.get("illumination") else ("" if g.get("empty") else "[yellow]no[/]")
-                table.add_row(s["name"], v["name"], size, g["name"], g["emission"] or "", dtype, illum,
-                              g.get("denoised") or "", done, _size(g.get("bytes")))
+                table.add_row(s["name"], v["name"], size, g["name"], g["emission"] or "", dtype, illum, done,
+                              _size(g.get("bytes")))
     console.print(table)
+    cubes = [g for s in rep["scenes"] for v in s["views"] for g in v["groups"] if g["complete"] and not g.get("empty")]
+    methods = sorted({g["denoised"] for g in cubes if g.get("denoised")})
+    n_dn = sum(bool(g.get("denoised")) for g in cubes)
+    console.print(f"denoised copies: {', '.join(methods) or 'none'} ({n_dn} of {len(cubes)} cubes)")
     regs = ", ".join(f"{k}: {len(v)}" for k, v in rep["registries"].items())
     console.print(f"registries — {regs}; pending writes: {rep['pending_writes']}")
 
