@@ -104,7 +104,7 @@ class RenderSettings:
     seed: int = 0
     wavelengths: str = "stratified"
     max_lanes: int = 1 << 20
-    aov_spp: int = 4
+    aov_spp: int = 16  # the denoising guides: bench/denoise.py measures them at 16 rays per pixel
     resolution: tuple[int, int] | None = None
     skip_dark: bool = True
     probe_ratio: int = 16
