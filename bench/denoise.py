@@ -71,7 +71,7 @@ What is reported (JSON keys)
    the measured spp range. Same for the p99.3 (``equivalent_spp_factor_p99_3``), per method
    (``equivalent_spp.<method>``), and with floor-corrected errors (``*_floor_corrected``: the
    reference floor flattens the undenoised curve at high spp, which makes the plain fit's slope
-   shallower and ``M`` larger).
+   shallower and ``M`` larger). ``undenoised_spp_to_goal``: the same power law solved for the goals.
 4. ``bias``: image mean of raw G over valid pixels, relative to the reference's, for the undenoised
    and every method; ``noise_of_mean_rel`` = the expected noise of the undenoised image mean,
    ``√Σ(x − ref)² / N / mean(ref)`` (pixels are independent); ``reference_noise_of_mean_rel`` =
@@ -571,7 +571,9 @@ def main(argv: list[str] | None = None) -> dict:
     doc.update({"equivalent_spp_factor": e_med["factor"], "equivalent_spp_factor_p99_3": e_p99["factor"],
                 "equivalent_spp_factor_floor_corrected": e_med["floor_corrected"]["factor"],
                 "equivalent_spp_factor_p99_3_floor_corrected": e_p99["floor_corrected"]["factor"],
-                "equivalent_spp": eq, "curve": curve})
+                "equivalent_spp": eq, "curve": curve,
+                "undenoised_spp_to_goal": {k: dl.equivalent_spp([c["spp"] for c in curve], [c[k] for c in curve],
+                                                                GOALS[k]) for k in STATS}})
     log(f"  equivalent spp factor ({DEFAULT_METHOD}): median {doc['equivalent_spp_factor']}x, "
         f"p99.3 {doc['equivalent_spp_factor_p99_3']}x")
 
