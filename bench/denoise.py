@@ -611,7 +611,8 @@ def main(argv: list[str] | None = None) -> dict:
         "maps": dl.plot_maps(OUT / "denoise_maps.png", ref["raw"], maps["none"]["raw"], maps[DEFAULT_METHOD]["raw"],
                              maps["none"]["err"], maps[DEFAULT_METHOD]["err"], ref["floor_map"], valid, titles),
         "curve": dl.plot_curve(OUT / "denoise_curve.png", curve, den, floor, GOALS, args.spp, fits)}
-    doc["renders"] = {"cache": str(cache) if cache else None,
+    doc["plots"] = {k: (str(Path(v).relative_to(ROOT)) if v else None) for k, v in doc["plots"].items()}
+    doc["renders"] = {"cache": str(cache.relative_to(ROOT)) if cache else None,
                       "rendered_this_run": sum(not r["cached"] for r in _all_renders(R)),
                       "read_from_cache": sum(r["cached"] for r in _all_renders(R)),
                       "render_cpu_s_this_run": round(sum(r["cpu_s"] for r in _all_renders(R) if not r["cached"]), 1)}
