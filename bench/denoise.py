@@ -108,7 +108,7 @@ What is reported (JSON keys)
 
 Usage::
 
-    python bench/denoise.py              # default: 160x120, 64 spp, reference 4 × 1024 spp (~13 min on 2 vCPUs)
+    python bench/denoise.py              # default: 160x120, 64 spp, reference 4 × 1024 spp (~10 min on 2 vCPUs; ~1.5 min cached)
     python bench/denoise.py --quick      # smoke test: 64x48, reference 2 × 256 spp, curve 64/128 (~1-2 min)
 
 Progress lines go to stderr; the JSON object is printed last on stdout (also ``--out FILE``).
