@@ -370,10 +370,10 @@ def worse(rows: dict, maps: dict, classes: dict) -> dict:
 
 def ablation(R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 8: the DT with a shading channel in its joint image (module docstring)."""
-    from retarget.denoise import DENOISE_METHODS, denoise, dt_guide_image
+    from retarget.denoise import denoise, dt_guide_image, method_params
 
     groups = [g for g, _ in PAIR]
-    p = DENOISE_METHODS["dt-guides"].defaults
+    p = method_params("dt-guides")[1]  # the default parameters
     T = [R["test"][g]["cube"] for g in groups]
     same = dl.dt_joint(T[0], dt_guide_image(guides, p["sigma_albedo"], p["sigma_normal"]), p["sigma_spatial"],
                        p["iterations"])
