@@ -51,11 +51,12 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> None:
     from illumix.cmd_render import render
+    from retarget.denoise_methods import DEFAULT_METHOD
 
     render(config=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
            wavelengths="stratified", views=None, groups=None, workers=workers, executor="local",
-           address=None, skip_dark=True, adaptive=True, noise_target=None, overwrite=False, dry_run=False,
-           as_json=False)
+           address=None, skip_dark=True, adaptive=True, noise_target=None, illumination=True,
+           denoise=DEFAULT_METHOD, overwrite=False, dry_run=False, as_json=False)
 
 
 def _save_samples(url: str, out: Path) -> list[str]:

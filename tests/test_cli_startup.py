@@ -112,3 +112,21 @@ def test_render_settings_and_executor_accept_registry_spellings():
     with pytest.raises(SceneError, match=r"unknown executor 'slurm' \(valid: local, ray\)"):
         jobs.execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="slurm")
     assert jobs.execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="RAY") == []
+
+
+def test_demo_passes_every_render_option():
+    """`illumix demo` calls the render command as a function: an option it leaves out arrives as
+    typer's OptionInfo object, not its default (a missing --denoise broke the demo once)."""
+    import ast
+    import inspect
+    from pathlib import Path
+
+    from illumix import cmd_demo
+    from illumix.cmd_render import render
+
+    tree = ast.parse(Path(cmd_demo.__file__).read_text())
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "render"]
+    assert calls, "cmd_demo no longer calls render()"
+    for call in calls:
+        given = {k.arg for k in call.keywords}
+        assert set(inspect.signature(render).parameters) <= given, set(inspect.signature(render).parameters) - given
