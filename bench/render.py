@@ -39,6 +39,10 @@ Six parts (``--parts``, all by default), on the seeded demo room (``renderer_job
   open scene (~2/3 background) and in the demo room (closed: nothing to skip), and that the full
   render is exactly zero in every skipped pixel.
 
+``backends`` — Mitsuba against Cycles run the thesis way, same scenes, one run (``bench/render_backends.py``):
+  CPU time, raw noise on the lit region and the image, 550 nm band noise, mean raw per region against
+  a Mitsuba reference (the cross-check), and the closed-form validation on both.
+
 ``narrowband`` — a group emitting in 5 of the 63 bands: the stratified schedule samples only those
   (``mitsuba_render.live_bands``); lit-band noise and CPU time against the full 63-band schedule.
 
@@ -311,7 +315,7 @@ def part_background(args, size, mr, log) -> list:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="curve,adaptive,target,skip,background,narrowband",
+    ap.add_argument("--parts", default="curve,adaptive,target,skip,background,narrowband,backends",
                     help="curve, adaptive, target, skip, background, narrowband")
     ap.add_argument("--sizes", default="160x120", help="WIDTHxHEIGHT list (e.g. 320x240,960x720)")
     ap.add_argument("--spp", default="16,32,64,128", help="spp list")
@@ -328,9 +332,20 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--sensor", default="Nikon 5100 (NPL)")
     ap.add_argument("--seed", type=int, default=0, help="demo room seed")
     ap.add_argument("--out", default=None, help="also write the JSON here")
+    root = Path(__file__).resolve().parents[1]
+    ap.add_argument("--bench-scenes", default=str(root.parent / "shared" / "bench-scenes"),
+                    help="folder of the benchmark scenes (part backends: probe.yaml)")
+    ap.add_argument("--backends-sensor", default=str(root.parent / "shared" / "data" / "rawtoaces-data" / "data"
+                                                     / "camera" / "Nikon_D810_380_780_5.json"),
+                    help="sensor of part backends (issue 17 measured with the Nikon D810)")
+    ap.add_argument("--probe-size", default="240x180", help="probe scene resolution (part backends)")
+    ap.add_argument("--demo-size", default="160x120", help="demo room resolution (part backends)")
+    ap.add_argument("--backends-ref-spp", type=int, default=512, help="Mitsuba reference spp (part backends)")
     ap.add_argument("--plot", default="bench/out/render_curve.png", help="PNG of noise against spp and CPU time")
     args = ap.parse_args(argv)
     args.spp = [int(s) for s in args.spp.split(",")]
+    args.probe_size = [int(v) for v in args.probe_size.lower().split("x")]
+    args.demo_size = [int(v) for v in args.demo_size.lower().split("x")]
     args.groups = [g for g in args.groups.split(",") if g]
     args.modes = [m for m in args.modes.split(",") if m]
     args.sampling = [s for s in args.sampling.split(",") if s]
@@ -370,6 +385,15 @@ def main(argv: list[str] | None = None) -> dict:
         doc["background"] = part_background(args, sizes[0], mr, log)
     if "narrowband" in parts:
         doc["narrowband"] = part_narrowband(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
+    if "backends" in parts:
+        from renderer_jobs.cycles_env import find_blender_python
+
+        if find_blender_python(required=False) is None:
+            doc["backends"] = {"skipped": "Blender (bpy) not installed: bash scripts/install.sh --blender"}
+        else:
+            from render_backends import part_backends
+
+            doc["backends"] = part_backends(args, log)
     if rows:
         png = plot_curves(doc, Path(args.plot))
         doc["plot"] = str(png) if png else None

@@ -17,7 +17,7 @@ from rich.console import Console
 
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
-from renderer_jobs.modes import EXECUTORS
+from renderer_jobs.modes import BACKENDS, EXECUTORS
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 
 console = Console(stderr=True)
@@ -82,6 +82,10 @@ def render(
                                  "Also store a denoised copy of every cube and illumination cube, made with this "
                                  f"guide-only linear filter (relighting stays exact) — {described(DENOISE_CHOICES)}. "
                                  "The raw cubes stay; /sample?denoise= picks.", default=DEFAULT_METHOD),
+    backend: str = choice_option(BACKENDS, "--backend",
+                                 f"Renderer — {described(BACKENDS)}. Cycles needs Blender: bash scripts/install.sh "
+                                 "--blender; it uses --spp (per pass), --seed, --resolution, --illumination and "
+                                 "--denoise, and renders every group of a view at once."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -108,7 +112,7 @@ def render(
             scenes = load_scenes(config)
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
         for s in scenes:
-            if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified":
+            if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified" and backend == "mitsuba":
                 raise UserError(f"--spp {spp} is too low: stratified sampling of {s.spectral_grid.n_bands} "
                                 f"bands needs spp >= {-(-s.spectral_grid.n_bands // 4)}")
         if noise_target is not None and not 0 < noise_target < 1:
@@ -119,7 +123,11 @@ def render(
                             "give one of the two")
         settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target, illumination=illumination,
-                                  denoise=denoise)
+                                  denoise=denoise, backend=backend)
+        if settings.backend == "cycles" and not dry_run:
+            from renderer_jobs.cycles_env import find_blender_python
+
+            find_blender_python()
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
                       overwrite=overwrite)
     except SceneError as exc:
@@ -138,7 +146,7 @@ def render(
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
                "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
-               "denoise": denoise, "executor": executor}
+               "denoise": denoise, "executor": executor, "backend": settings.backend}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")
@@ -150,7 +158,7 @@ def render(
         if as_json:
             print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
         return
-    if executor == "local":
+    if executor == "local" and settings.backend == "mitsuba":
         require_renderer()  # ray: the workers render (their image has Mitsuba); the driver needs none
     t0 = time.perf_counter()
     done: list[dict] = []
@@ -158,6 +166,15 @@ def render(
                   TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
                   transient=False, disable=as_json and not console.is_terminal) as prog:
         task = prog.add_task("rendering", total=len(p.jobs), last="")
+        passes = None
+
+        def on_pass(n: int, total: int, label: str) -> None:  # the Cycles backend's passes
+            nonlocal passes
+            if passes is None:
+                passes = prog.add_task("cycles passes", total=total, last="")
+            if n == 0:
+                prog.reset(passes, total=total, last="")
+            prog.update(passes, completed=n, last=label)
 
         def on_done(job, result, exc) -> None:
             if exc is None:
@@ -168,7 +185,7 @@ def render(
 
         try:
             jobs.execute(p, store, settings, executor=executor, workers=workers, address=address,
-                         on_done=on_done, overwrite=overwrite)
+                         on_done=on_done, overwrite=overwrite, on_pass=on_pass)
         except SceneError as exc:
             raise UserError(str(exc)) from None
         except jobs.JobError as exc:

@@ -10,7 +10,8 @@ from rich.console import Console
 from rich.table import Table
 
 from illumix.errors import UserError
-from illumix.options import seed_option, wavelengths_option
+from illumix.options import choice_option, described, seed_option, wavelengths_option
+from renderer_jobs.modes import BACKENDS
 
 console = Console(stderr=True)
 
@@ -26,6 +27,7 @@ def validate(
     incidence: float = typer.Option(30.0, "--incidence", min=0.0, max=80.0,
                                     help="Angle of the light from the chart normal, degrees."),
     wavelengths: str = wavelengths_option(),
+    backend: str = choice_option(BACKENDS, "--backend", f"Renderer of the chart — {described(BACKENDS)}."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Render a Lambertian ColorChecker under a distant light and compare it with closed form."""
@@ -34,14 +36,15 @@ def validate(
     from renderer_jobs.scene_schema import SceneError
     from renderer_jobs.validate import run_validation
 
-    require_renderer()
+    if BACKENDS.canonical(backend) == "mitsuba":
+        require_renderer()
     names = [s.strip() for s in illuminants.split(",") if s.strip()]
     if not names:
         raise UserError("--illuminants is empty; give e.g. D65,A")
     try:
         res = parse_resolution(resolution)
         result = run_validation(sensor, names, spp=spp, seed=seed, resolution=res, incidence_deg=incidence,
-                                wavelengths=wavelengths)
+                                wavelengths=wavelengths, backend=backend)
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except ValueError as exc:  # patch too small for the resolution

@@ -243,14 +243,7 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
         aovs = render_aovs(scene, job.view, settings)
         st.write_view(scene.name, job.view, _view_meta(scene, job.view), aovs)
         return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view"}
-    from store.schema import CubeMeta, IlluminationInfo
-
-    def cube_meta(emission, emission_name: str, renderer: dict, stats: dict) -> CubeMeta:
-        return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
-                        renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
-                        view_hash=scene.view_hash(job.view), render_stats=stats,
-                        units="radiance per unit emission (band averages)")
-
+    probe = None
     if settings.skip_dark:
         from renderer_jobs.light_probe import probe_group
         from renderer_jobs.mitsuba_scene import group_emission
@@ -260,27 +253,46 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
             # No pilot path carried light into the view: record the cube as empty, render nothing.
             emission, name = group_emission(scene, job.group)
             renderer = mr.renderer_info(scene, settings, mr.emitter_passes(scene, [job.group]))
-            meta = cube_meta(np.asarray(emission, dtype=float).tolist(), name, renderer,
+            meta = cube_meta(scene, job, settings, np.asarray(emission, dtype=float).tolist(), name, renderer,
                              {"skipped": "dark", "probe": probe.to_dict()})
             st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
             return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube", "empty": True,
                     "probe_s": probe.seconds}
     result = mr.render_cube(scene, job.view, job.group, settings)
-    stats = dict(result.stats)
-    if settings.skip_dark:
-        stats["probe"] = probe.to_dict()
-    meta = cube_meta(result.emission.tolist(), result.emission_name, result.renderer, stats)
+    empty = store_result(st, scene, job, result, settings, overwrite,
+                         {"probe": probe.to_dict()} if probe is not None else {})
+    return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
+            "empty": empty, "trace_s": result.stats.get("trace_s")}
+
+
+def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, renderer: dict, stats: dict):
+    """The store's :class:`store.schema.CubeMeta` of one rendered (or skipped) cube."""
+    from store.schema import CubeMeta
+
+    return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
+                    renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
+                    view_hash=scene.view_hash(job.view), render_stats=stats,
+                    units="radiance per unit emission (band averages)")
+
+
+def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, extra_stats: dict) -> bool:
+    """Write a rendered cube (with its illumination cube and denoised copies) into the store, or
+    record it as empty when it is all zero. Returns True for empty."""
+    from renderer_jobs.mitsuba_render import ILLUMINATION_METHOD
+    from store.schema import IlluminationInfo
+
+    meta = cube_meta(scene, job, settings, result.emission.tolist(), result.emission_name, result.renderer,
+                     {**result.stats, **extra_stats})
     if result.illumination is not None:
-        meta.illumination = IlluminationInfo(method=mr.ILLUMINATION_METHOD)
+        meta.illumination = IlluminationInfo(method=result.renderer.get("illumination_method", ILLUMINATION_METHOD))
     if not (result.cube.max() > 0):
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
-    else:
-        denoised = _denoise(st, scene.name, job.view, result, settings.denoise, meta)
-        st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
-                      illumination=result.illumination, denoised=denoised)
-    return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
-            "empty": not (result.cube.max() > 0), "trace_s": result.stats.get("trace_s")}
+        return True
+    denoised = _denoise(st, scene.name, job.view, result, settings.denoise, meta)
+    st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
+                  illumination=result.illumination, denoised=denoised)
+    return False
 
 
 def _denoise(st, scene: str, view: str, result, method: str | None, meta) -> dict | None:
@@ -354,8 +366,10 @@ def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
 
 def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,
             address: str | None = None, on_done: ProgressFn | None = None,
-            ray_init: dict | None = None, overwrite: bool = False) -> list[dict]:
-    """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries."""
+            ray_init: dict | None = None, overwrite: bool = False,
+            on_pass: Callable[[int, int, str], None] | None = None) -> list[dict]:
+    """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries.
+    ``on_pass(done, total, label)``: the Cycles backend's progress through a view's passes."""
     if executor not in EXECUTORS:
         raise SceneError(str(EXECUTORS.unknown(executor)))
     executor = EXECUTORS.canonical(executor)
@@ -367,6 +381,13 @@ def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", 
         st = _open_store(store_path, mode="a")
         for scene, view in plan_.replace_views:
             st.delete(scene, view)
+    if settings_dict.get("backend", "mitsuba") == "cycles":
+        if executor != "local":
+            raise SceneError("the cycles backend runs on this machine (Blender uses every core): "
+                             "leave out --executor ray")
+        from renderer_jobs.cycles_jobs import run_cycles
+
+        return run_cycles(plan_, store_path, settings_dict, cb, overwrite, on_pass)
     if executor == "ray":
         from renderer_jobs.ray_executor import run_ray
 

@@ -94,7 +94,9 @@ class RenderSettings:
     sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
     (:func:`renderer_jobs.adaptive_spp.to_target`); illumination: also render the illumination cube
     (module docstring, "Illumination cube"); denoise: the :mod:`retarget.denoise` method whose
-    denoised copies the job runner stores beside each cube (``None``/``"none"``: no copies).
+    denoised copies the job runner stores beside each cube (``None``/``"none"``: no copies);
+    backend: ``"mitsuba"`` or ``"cycles"`` (:mod:`renderer_jobs.cycles_render`, which uses spp, seed,
+    resolution, aov_spp and illumination, and renders every group of a view at once).
     For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first
     and record a group that sends no light into the view as empty instead of rendering it
     (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's budget is 1/probe_ratio of the
@@ -113,8 +115,16 @@ class RenderSettings:
     noise_target: float | None = None
     illumination: bool = True
     denoise: str | None = "dt-guides"
+    backend: str = "mitsuba"
 
     def __post_init__(self) -> None:
+        from renderer_jobs.modes import BACKENDS  # noqa: PLC0415
+        from retarget.errors import UnknownName  # noqa: PLC0415
+
+        try:
+            object.__setattr__(self, "backend", BACKENDS.canonical(self.backend))
+        except UnknownName as exc:
+            raise SceneError(str(exc)) from None
         if self.spp < 1:
             raise SceneError(f"spp must be >= 1, got {self.spp}")
         if self.wavelengths not in WAVELENGTH_MODES:
@@ -144,7 +154,7 @@ class RenderSettings:
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
                 "skip_background": self.skip_background, "noise_target": self.noise_target,
-                "illumination": self.illumination, "denoise": self.denoise}
+                "illumination": self.illumination, "denoise": self.denoise, "backend": self.backend}
 
 
 @dataclass
@@ -180,7 +190,8 @@ def emitter_passes(scene: Scene, groups: list[str]) -> list[str]:
 def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> dict:
     """The cube metadata's ``renderer`` record: Mitsuba version, variant and every setting that matters."""
     mi, _ = import_mitsuba()
-    return {"name": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
+    return {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
+            "method": "path tracing, 4 stratified wavelengths per path (illumix sampling)",
             "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,

@@ -21,3 +21,9 @@ EXECUTORS: MethodRegistry[str] = MethodRegistry("executor", {
     "local": "a process pool on this machine (--workers)",
     "ray": "one Ray task per job on the cluster at --address",
 })
+
+# See renderer_jobs.backends: the renderers that write transport cubes.
+BACKENDS: MethodRegistry[str] = MethodRegistry("render backend", {
+    "mitsuba": "Mitsuba 3 (default): 4 stratified wavelengths per path, illumix's own sampling",
+    "cycles": "Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
+}, aliases={"blender": "cycles"})

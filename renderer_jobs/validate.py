@@ -131,8 +131,10 @@ def compare(patch_radiance: np.ndarray, scene: Scene, sensor, illuminant: str, i
 
 def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS, *, spp: int = 64, seed: int = 0,
                    resolution: tuple[int, int] = (192, 128), incidence_deg: float = 30.0,
-                   interior: float = 0.6, wavelengths: str = "stratified") -> ValidationResult:
-    """Render the validation chart once and compare it with closed form under every illuminant."""
+                   interior: float = 0.6, wavelengths: str = "stratified",
+                   backend: str = "mitsuba") -> ValidationResult:
+    """Render the validation chart once (with ``backend``: ``"mitsuba"`` or ``"cycles"``) and compare
+    it with closed form under every illuminant."""
     from renderer_jobs import mitsuba_render as mr
     from retarget.illuminants import illuminant_spd
     from retarget.sensors import get_sensor
@@ -142,7 +144,13 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
     for name in illuminants:  # fail on a bad name before rendering
         illuminant_spd(name, scene.spectral_grid)
     masks = patch_masks(scene, interior)
-    res = mr.render_cube(scene, VIEW, GROUP, mr.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths))
+    settings = mr.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, backend=backend, illumination=False)
+    if settings.backend == "cycles":
+        from renderer_jobs import cycles_render
+
+        res = cycles_render.render_cube(scene, VIEW, GROUP, settings)
+    else:
+        res = mr.render_cube(scene, VIEW, GROUP, settings)
     cube = res.cube.astype(np.float64)
     radiance = np.stack([cube[m].mean(axis=0) for m in masks])
     patches: list[dict] = []
@@ -159,6 +167,7 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
     meta = {"sensor": sen.name, "illuminants": list(illuminants), "spp": spp, "seed": seed,
             "resolution": list(resolution), "incidence_deg": incidence_deg, "interior_fraction": interior,
             "pixels_per_patch": [int(m.sum()) for m in masks], "wavelength_sampling": wavelengths,
+            "backend": settings.backend,
             "renderer": res.renderer, "render_seconds": res.stats["total_s"],
             "reflectances": demo.CHART_SET, "grid": scene.spectral_grid.to_dict()}
     return ValidationResult(patches=patches, summary=summary, meta=meta)

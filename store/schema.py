@@ -41,11 +41,15 @@ def _check_version(v: int) -> int:
 
 
 class RendererInfo(BaseModel):
-    """Renderer provenance: ``name`` (e.g. ``"mitsuba"``), ``version``, ``variant``
+    """Renderer provenance: ``name`` (e.g. ``"mitsuba"``), ``backend`` (``"mitsuba"`` or ``"cycles"``;
+    empty in stores written before there was a choice: Mitsuba), ``method`` (how the spectrum was
+    sampled, e.g. the thesis method's passes of 3 fixed wavelengths), ``version``, ``variant``
     (e.g. ``"llvm_ad_spectral"``) and free-form ``settings`` (max depth, integrator, …)."""
 
     model_config = ConfigDict(extra="allow")
     name: str = "unknown"
+    backend: str = ""
+    method: str = ""
     version: str = ""
     variant: str = ""
     settings: dict[str, Any] = Field(default_factory=dict)

@@ -1,0 +1,413 @@
+"""Cycles worker: renders one plain-data job with Blender's ``bpy`` and writes multilayer EXRs.
+
+Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2, which the rest of illumix cannot use, so it
+lives in its own environment: :mod:`renderer_jobs.cycles_env`). It imports only the standard
+library, numpy and bpy — nothing of illumix — and knows nothing of spectra: the job
+(:mod:`renderer_jobs.cycles_job` writes it) already holds band values, and each *pass* names the
+three bands its R, G, B slots carry (the thesis method: 21 passes × 3 fixed wavelengths, the same
+seed in every pass). Per pass it sets every colour to its bands' values and renders; one render
+returns every light group's pass (``view_layer.lightgroups``, ``Combined_<group>`` in the EXR).
+
+    python cycles_worker.py JOB_DIR        # reads JOB_DIR/job.json (+ meshes.npz), writes JOB_DIR/*.exr
+
+Prints ``ILLUMIX-PROGRESS <done> <total> <label>`` lines (Blender's own log goes to stdout too).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+PROGRESS = "ILLUMIX-PROGRESS"
+
+
+def _log(done: int, total: int, label: str) -> None:
+    print(f"{PROGRESS} {done} {total} {label}", flush=True)
+
+
+def _slots(values, bands) -> tuple[float, float, float]:
+    """The R, G, B values of a pass: ``values[band]`` per slot, 0 for an unused slot (-1)."""
+    return tuple(float(values[b]) if b >= 0 else 0.0 for b in bands)
+
+
+class Builder:
+    """Builds the Blender scene of a job and keeps every per-pass setter."""
+
+    def __init__(self, bpy, job: dict, job_dir: Path) -> None:
+        self.bpy, self.job, self.dir = bpy, job, job_dir
+        self.setters: list = []  # f(bands, setup, mode) called before each render
+        self.portal_objects: list = []  # shapes shown only in the "only" setup
+        arrays = job_dir / "meshes.npz"
+        self.meshes = np.load(arrays) if arrays.is_file() else {}
+
+    # -- scene -----------------------------------------------------------------------------------
+
+    def build(self) -> None:
+        bpy = self.bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        sc = bpy.context.scene
+        self.scene = sc
+        self._settings(sc)
+        vl = sc.view_layers[0]
+        for g in self.job["groups"]:
+            vl.lightgroups.add(name=g)
+        for name in ("albedo", "normal"):
+            a = vl.aovs.add()
+            a.name, a.type = name, "COLOR"
+        for name in ("depth", "emitter"):
+            a = vl.aovs.add()
+            a.name, a.type = name, "VALUE"
+        self.materials = {name: m for name, m in self.job["materials"].items()}
+        for shape in self.job["shapes"]:
+            self._shape(sc, shape)
+        for light in self.job["lights"]:
+            self._light(sc, light)
+        self._world(sc)
+        self._camera(sc)
+
+    def _settings(self, sc) -> None:
+        s = self.job["settings"]
+        sc.render.engine = "CYCLES"
+        cy = sc.cycles
+        cy.device = "CPU"
+        cy.samples = int(s["spp"])
+        cy.seed = int(s["seed"])
+        cy.use_animated_seed = False
+        cy.use_adaptive_sampling = False
+        cy.use_denoising = False
+        cy.sample_clamp_direct = 0.0
+        cy.sample_clamp_indirect = 0.0
+        cy.use_light_tree = bool(s["light_tree"])
+        cy.light_sampling_threshold = 0.0  # no light culling: unbiased
+        cy.sampling_pattern = s["sampling_pattern"]
+        cy.pixel_filter_type = "BOX"
+        cy.filter_width = 1.0
+        cy.blur_glossy = 0.0
+        cy.caustics_reflective = True
+        cy.caustics_refractive = True
+        cy.use_guiding = False
+        b = int(s["max_bounces"])
+        cy.max_bounces = b
+        cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = b
+        cy.transparent_max_bounces = b
+        cy.volume_bounces = 0
+        cy.min_light_bounces = 0
+        cy.film_exposure = 1.0
+        sc.render.film_transparent = False
+        sc.render.use_persistent_data = True  # the BVH is built once for all passes
+        if s.get("threads"):
+            sc.render.threads_mode = "FIXED"
+            sc.render.threads = int(s["threads"])
+        w, h = self.job["resolution"]
+        sc.render.resolution_x, sc.render.resolution_y = int(w), int(h)
+        sc.render.resolution_percentage = 100
+        sc.render.pixel_aspect_x = sc.render.pixel_aspect_y = 1.0
+        sc.view_settings.view_transform = "Standard"
+        im = sc.render.image_settings
+        im.file_format = "OPEN_EXR_MULTILAYER"
+        im.color_depth = "32"
+        im.exr_codec = "ZIP"
+
+    def _camera(self, sc) -> None:
+        from mathutils import Matrix, Vector
+
+        c = self.job["camera"]
+        o, t, up = (Vector(c[k]) for k in ("origin", "target", "up"))
+        fwd = (t - o).normalized()
+        right = fwd.cross(up).normalized()
+        true_up = right.cross(fwd)
+        m = Matrix.Identity(4)
+        for i in range(3):  # Blender cameras look down -Z with +Y up
+            m[i][0], m[i][1], m[i][2], m[i][3] = right[i], true_up[i], -fwd[i], o[i]
+        cam = self.bpy.data.cameras.new("camera")
+        cam.sensor_fit = "HORIZONTAL"
+        cam.angle = math.radians(c["fov_deg"])
+        cam.clip_start, cam.clip_end = 1e-4, 1e6
+        ob = self.bpy.data.objects.new("camera", cam)
+        ob.matrix_world = m
+        sc.collection.objects.link(ob)
+        sc.camera = ob
+
+    # -- shapes and materials ---------------------------------------------------------------------
+
+    def _mesh_object(self, sc, shape: dict):
+        bpy = self.bpy
+        if "file" in shape:
+            before = set(bpy.data.objects)
+            if shape["file_type"] == "obj":
+                bpy.ops.wm.obj_import(filepath=shape["file"], forward_axis="Y", up_axis="Z")
+            else:
+                bpy.ops.wm.ply_import(filepath=shape["file"], forward_axis="Y", up_axis="Z")
+            new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
+            if not new:
+                raise RuntimeError(f"shape {shape['name']}: {shape['file']} holds no mesh")
+            ob = new[0]
+            if len(new) > 1:  # one object per shape: join the file's parts
+                with bpy.context.temp_override(active_object=ob, selected_editable_objects=new):
+                    bpy.ops.object.join()
+            from mathutils import Matrix
+
+            ob.matrix_world = Matrix(shape["matrix"])
+            for p in ob.data.polygons:
+                p.use_smooth = not shape.get("flat", False)
+            ob.data.materials.clear()
+            for c in list(ob.users_collection):
+                c.objects.unlink(ob)
+            sc.collection.objects.link(ob)
+            return ob
+        key = shape["mesh"]
+        v, f = self.meshes[key + ".v"], self.meshes[key + ".f"]
+        me = bpy.data.meshes.new(shape["name"])
+        me.vertices.add(len(v))
+        me.vertices.foreach_set("co", v.astype(np.float32).ravel())
+        me.loops.add(f.size)
+        me.loops.foreach_set("vertex_index", f.astype(np.int32).ravel())
+        me.polygons.add(len(f))
+        me.polygons.foreach_set("loop_start", (3 * np.arange(len(f))).astype(np.int32))
+        me.polygons.foreach_set("use_smooth", np.full(len(f), bool(shape.get("smooth")), dtype=bool))
+        me.update()
+        me.validate()
+        if shape.get("smooth") and key + ".n" in self.meshes:
+            me.normals_split_custom_set_from_vertices(self.meshes[key + ".n"].astype(np.float32).tolist())
+        ob = bpy.data.objects.new(shape["name"], me)
+        sc.collection.objects.link(ob)
+        return ob
+
+    def _shape(self, sc, shape: dict) -> None:
+        ob = self._mesh_object(sc, shape)
+        em = shape.get("emitter")
+        if em is not None:
+            ob.lightgroup = em["group"]
+            if em["portal"]:
+                self.portal_objects.append(ob)
+        mat = self._material(shape["name"], self.materials.get(shape.get("material")), em)
+        ob.data.materials.append(mat)
+
+    def _material(self, name: str, m: dict | None, em: dict | None):
+        """Node tree: the surface BSDF (black when none), emission on the front side only, the
+        white-Lambertian switch for the illumination cube, and the AOV outputs."""
+        bpy = self.bpy
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        nt = mat.node_tree
+        nt.nodes.clear()
+        N, L = nt.nodes.new, nt.links.new
+        out = N("ShaderNodeOutputMaterial")
+        geo = N("ShaderNodeNewGeometry")
+        surf = self._bsdf(nt, m)
+        if m is not None and not m.get("two_sided", True):
+            black = N("ShaderNodeBsdfDiffuse")
+            black.inputs["Color"].default_value = (0, 0, 0, 1)
+            mix = N("ShaderNodeMixShader")
+            L(geo.outputs["Backfacing"], mix.inputs["Fac"])
+            L(surf, mix.inputs[1])
+            L(black.outputs[0], mix.inputs[2])
+            surf = mix.outputs[0]
+        if em is not None:
+            emit = N("ShaderNodeEmission")
+            self._spectral_input(emit.inputs["Color"], em["radiance"], strength=emit.inputs["Strength"],
+                                 active=lambda setup, em=em: (setup == "only") == em["portal"])
+            front = N("ShaderNodeMixShader")  # emits from the front (normal) side only, like Mitsuba
+            add = N("ShaderNodeAddShader")
+            L(emit.outputs[0], add.inputs[0])
+            L(surf, add.inputs[1])
+            L(geo.outputs["Backfacing"], front.inputs["Fac"])
+            L(add.outputs[0], front.inputs[1])
+            L(surf, front.inputs[2])
+            surf = front.outputs[0]
+            mat.cycles.emission_sampling = "FRONT"
+        # Illumination cube: camera rays see a white Lambertian surface (E/π), later bounces the
+        # true materials; switched on per render by the value node.
+        white = N("ShaderNodeBsdfDiffuse")
+        white.inputs["Color"].default_value = (1, 1, 1, 1)
+        lp = N("ShaderNodeLightPath")
+        switch = N("ShaderNodeValue")
+        mul = N("ShaderNodeMath")
+        mul.operation = "MULTIPLY"
+        L(lp.outputs["Is Camera Ray"], mul.inputs[0])
+        L(switch.outputs[0], mul.inputs[1])
+        gt = N("ShaderNodeMixShader")
+        L(mul.outputs[0], gt.inputs["Fac"])
+        L(surf, gt.inputs[1])
+        L(white.outputs[0], gt.inputs[2])
+        L(gt.outputs[0], out.inputs["Surface"])
+        self.setters.append(lambda bands, setup, mode, s=switch: setattr(
+            s.outputs[0], "default_value", 1.0 if mode == "illumination" else 0.0))
+        # AOVs (the view's guides and masks)
+        cam = N("ShaderNodeCameraData")
+        for aov, value in (("albedo", None), ("normal", geo.outputs["Normal"]),
+                           ("depth", cam.outputs["View Distance"]), ("emitter", None)):
+            node = N("ShaderNodeOutputAOV")
+            node.aov_name = aov
+            if aov == "albedo":
+                node.inputs["Color"].default_value = (*((m or {}).get("albedo_rgb") or (0, 0, 0)), 1)
+            elif aov == "emitter":
+                node.inputs["Value"].default_value = 1.0 if (em is not None and not em["portal"]) else 0.0
+            elif aov == "normal":
+                L(value, node.inputs["Color"])
+            else:
+                L(value, node.inputs["Value"])
+        return mat
+
+    def _spectral_input(self, socket, values, *, strength=None, active=None) -> None:
+        """Set ``socket`` (a colour) to the pass's band values before each render; with
+        ``strength`` the colour is normalised to ≤ 1 and its maximum goes to the strength input."""
+        def setter(bands, setup, mode):
+            rgb = _slots(values, bands) if (active is None or active(setup)) else (0.0, 0.0, 0.0)
+            if strength is not None:
+                peak = max(rgb)
+                strength.default_value = peak
+                rgb = tuple(c / peak for c in rgb) if peak > 0 else (0.0, 0.0, 0.0)
+            socket.default_value = (*rgb, 1.0) if len(socket.default_value) == 4 else rgb  # colour / vector
+        self.setters.append(setter)
+
+    def _bsdf(self, nt, m: dict | None):
+        N, L = nt.nodes.new, nt.links.new
+        if m is None:  # an emitter without material: black
+            d = N("ShaderNodeBsdfDiffuse")
+            d.inputs["Color"].default_value = (0, 0, 0, 1)
+            return d.outputs[0]
+        kind = m["kind"]
+        if kind == "diffuse":
+            d = N("ShaderNodeBsdfDiffuse")
+            d.inputs["Roughness"].default_value = 0.0
+            self._spectral_input(d.inputs["Color"], m["reflectance"])
+            return d.outputs[0]
+        if kind == "plastic":
+            pr = N("ShaderNodeBsdfPrincipled")
+            pr.distribution = "GGX"
+            pr.inputs["Roughness"].default_value = m["roughness"]
+            pr.inputs["IOR"].default_value = m["ior"]
+            pr.inputs["Metallic"].default_value = 0.0
+            self._spectral_input(pr.inputs["Base Color"], m["diffuse"])
+            return pr.outputs[0]
+        if kind == "conductor":
+            c = N("ShaderNodeBsdfMetallic")
+            c.distribution = "GGX"
+            c.fresnel_type = "PHYSICAL_CONDUCTOR"
+            c.inputs["Roughness"].default_value = m["roughness"]
+            self._spectral_input(c.inputs["IOR"], m["eta"])
+            self._spectral_input(c.inputs["Extinction"], m["k"])
+            return c.outputs[0]
+        if kind == "glass":
+            g = N("ShaderNodeBsdfGlass")
+            g.distribution = "GGX"  # roughness 0: a smooth (sharp) interface
+            g.inputs["Roughness"].default_value = 0.0
+            g.inputs["IOR"].default_value = m["ior"]
+            g.inputs["Color"].default_value = (1, 1, 1, 1)
+            return g.outputs[0]
+        raise RuntimeError(f"unknown material kind {kind!r}")
+
+    # -- lights ------------------------------------------------------------------------------------
+
+    def _light(self, sc, light: dict) -> None:
+        from mathutils import Vector
+
+        bpy = self.bpy
+        kind = light["type"]
+        if kind == "sky":
+            self.sky = light
+            return
+        data = bpy.data.lights.new(light["name"], {"point": "POINT", "spot": "SPOT", "sun": "SUN"}[kind])
+        data.use_shadow = True
+        if kind in ("point", "spot"):
+            data.shadow_soft_size = 0.0
+            data.use_soft_falloff = False
+        if kind == "spot":
+            data.spot_size = math.radians(2 * light["cutoff_deg"])
+            data.spot_blend = light["blend"]
+            data.show_cone = False
+        if kind == "sun":
+            data.angle = 0.0
+        ob = bpy.data.objects.new(light["name"], data)
+        if kind in ("point", "spot"):
+            ob.location = Vector(light["position"])
+        if kind in ("spot", "sun"):
+            d = Vector(light["direction"]).normalized()
+            ob.rotation_mode = "QUATERNION"
+            ob.rotation_quaternion = d.to_track_quat("-Z", "Y")
+        ob.lightgroup = light["group"]
+        sc.collection.objects.link(ob)
+        # Cycles: a point/spot light of power P has intensity P/(4π) W/sr; a sun's strength is irradiance
+        scale = 4 * math.pi if kind in ("point", "spot") else 1.0
+        values = [scale * v for v in light["radiance"]]
+
+        def setter(bands, setup, mode, data=data, values=values):
+            rgb = _slots(values, bands) if setup == "without" else (0.0, 0.0, 0.0)
+            peak = max(rgb)
+            data.energy = peak
+            data.color = tuple(c / peak for c in rgb) if peak > 0 else (0.0, 0.0, 0.0)
+        self.setters.append(setter)
+
+    def _world(self, sc) -> None:
+        bpy = self.bpy
+        world = bpy.data.worlds.new("world")
+        sc.world = world
+        world.use_nodes = True
+        nt = world.node_tree
+        nt.nodes.clear()
+        bg = nt.nodes.new("ShaderNodeBackground")
+        out = nt.nodes.new("ShaderNodeOutputWorld")
+        nt.links.new(bg.outputs[0], out.inputs["Surface"])
+        sky = getattr(self, "sky", None)
+        if sky is None:
+            bg.inputs["Color"].default_value = (0, 0, 0, 1)
+            bg.inputs["Strength"].default_value = 0.0
+            return
+        world.lightgroup = sky["group"]
+        self._spectral_input(bg.inputs["Color"], sky["radiance"], strength=bg.inputs["Strength"],
+                             active=lambda setup: setup == "without")
+
+    # -- rendering ---------------------------------------------------------------------------------
+
+    def set_setup(self, setup: str) -> None:
+        """``"without"``: every emitter but portals (portals hidden); ``"only"``: portals alone."""
+        for ob in self.portal_objects:
+            ob.hide_render = setup != "only"
+
+    def render(self, path: Path, bands, setup: str, mode: str) -> None:
+        for f in self.setters:
+            f(bands, setup, mode)
+        self.scene.render.filepath = str(path)
+        self.bpy.ops.render.render(write_still=True)
+
+
+def run(job_dir: Path) -> None:
+    import bpy
+
+    job = json.loads((job_dir / "job.json").read_text())
+    b = Builder(bpy, job, job_dir)
+    b.build()
+    renders: list[tuple[str, str, int, list[int]]] = []
+    if job.get("aov_spp"):
+        renders.append(("aov", "aov", -1, [-1, -1, -1]))
+    for setup in job["setups"]:
+        for mode in job["modes"]:
+            for p, bands in enumerate(job["passes"]):
+                renders.append((setup, mode, p, bands))
+    total = len(renders)
+    _log(0, total, "start")
+    t0 = time.process_time()
+    for i, (setup, mode, p, bands) in enumerate(renders):
+        if setup == "aov":
+            b.scene.cycles.samples = int(job["aov_spp"])
+            b.scene.render.film_transparent = True
+            b.set_setup("without")
+            b.render(job_dir / "aov.exr", bands, "without", "transport")
+            b.scene.cycles.samples = int(job["settings"]["spp"])
+            b.scene.render.film_transparent = False
+        else:
+            b.set_setup(setup)
+            b.render(job_dir / f"{setup}_{mode}_{p:02d}.exr", bands, setup, mode)
+        _log(i + 1, total, f"{setup} {mode} pass {p + 1}/{len(job['passes'])}")
+    (job_dir / "done.json").write_text(json.dumps({"renders": total, "worker_cpu_s": time.process_time() - t0,
+                                                   "blender": bpy.app.version_string}))
+
+
+if __name__ == "__main__":
+    run(Path(sys.argv[1]))
