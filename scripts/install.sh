@@ -1,14 +1,28 @@
 #!/usr/bin/env bash
 # Install illumix into the current Python environment, plus the one system library it wants:
 # Debian's libllvm19 for Mitsuba's LLVM backend (LLVM <= 15 crashes it; without any, illumix falls
-# back to the much slower scalar_spectral variant). Usage: bash scripts/install.sh [--test]
+# back to the much slower scalar_spectral variant). Usage: bash scripts/install.sh [--test] [--blender]
+#   --blender: the Cycles backend — Blender's bpy 4.5 in its own Python environment (it pins numpy < 2,
+#              illumix needs numpy 2), at $ILLUMIX_BLENDER_VENV (default ~/.cache/illumix/blender-venv);
+#              a ~370 MB download. --test implies it (the Cycles tests run in CI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+test_install=0
+blender=0
+for arg in "$@"; do
+  case "$arg" in
+    --test) test_install=1; blender=1 ;;
+    --blender) blender=1 ;;
+    *) echo "install: unknown option $arg (use --test and/or --blender)" >&2; exit 2 ;;
+  esac
+done
 # The renderer (Mitsuba) is the optional extra "render" of the package (a service-only install,
 # e.g. docker/Dockerfile.service, leaves it out); this script always installs it.
 extras="render"
 # Tests also exercise the Ray executor against a local Ray instance; "bench" adds the benchmarks' plots.
-[ "${1:-}" = "--test" ] && extras="render,ray,test,bench"
+[ "$test_install" = 1 ] && extras="render,ray,test,bench"
+# "blender": what the main environment needs to read Cycles' multilayer EXRs (OpenEXR).
+[ "$blender" = 1 ] && extras="${extras},blender"
 # Debian's libllvm19 puts libLLVM-19.so under /usr/lib/<triplet>/, LLVM's own packages under /usr/lib/llvm-N/.
 if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* \
         /usr/lib/*-linux-gnu/libLLVM-1[6-9]*.so* /usr/lib/*-linux-gnu/libLLVM-2*.so* \
@@ -25,7 +39,15 @@ fi
 python3 -m pip install -q -e ".[${extras}]"
 # The Python client is its own package (numpy + httpx only); install it beside the server.
 python3 -m pip install -q -e clients/python
-if [ "${1:-}" = "--test" ]; then
+if [ "$blender" = 1 ]; then
+  venv="${ILLUMIX_BLENDER_VENV:-$HOME/.cache/illumix/blender-venv}"
+  if ! "$venv/bin/python" -c "import bpy" >/dev/null 2>&1; then
+    echo "install: Blender (bpy 4.5) into $venv for the cycles backend" >&2
+    { python3 -m venv "$venv" && "$venv/bin/python" -m pip install -q "bpy>=4.5,<4.6"; } \
+      || echo "install: could not install bpy; --backend cycles and its tests will be unavailable" >&2
+  fi
+fi
+if [ "$test_install" = 1 ]; then
   # The client's PyTorch dataset tests want torch. Pin the CPU build so pip takes the local CPU
   # wheel and never pulls the multi-GB CUDA one; without it those tests skip with a reason.
   python3 -m pip install -q "torch==2.13.0+cpu" \
