@@ -79,8 +79,13 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
 
 
 def load_scenes(path: str | Path, *, check: bool = True) -> list[Scene]:
-    """Load a YAML or JSON file holding one scene or ``{scenes: [...]}``."""
+    """Load a YAML or JSON file holding one scene or ``{scenes: [...]}``, or a Blender ``.blend`` file
+    (:func:`renderer_jobs.blend_import.load_blend`)."""
     p = Path(path)
+    if p.suffix.lower() == ".blend":
+        from renderer_jobs import blend_import
+
+        return blend_import.load_blend(p)
     if not p.is_file():
         what = "is a directory; give a YAML or JSON file" if p.is_dir() else "does not exist"
         raise SceneError(f"scene file {str(p)!r} {what}")

@@ -1,0 +1,404 @@
+"""Import a Blender ``.blend`` file as an illumix :class:`~renderer_jobs.scene_model.Scene`.
+
+:mod:`renderer_jobs.blend_worker` reads the file in Blender's Python (:mod:`renderer_jobs.cycles_env`)
+into ``scene.json`` plus one world-space PLY per mesh object and material; this module turns that
+into a scene document and validates it (:func:`~renderer_jobs.scene_load.scene_from_dict`).
+
+Conventions
+-----------
+- **Coordinates**: Blender's world frame as it is — right-handed, +Z up, one Blender unit = one
+  metre (a unit scale other than 1 is warned about, not applied). Views take ``up`` from the camera's
+  +Y axis, so the image is framed as in Blender.
+- **Light groups**: the custom property ``illumix_group`` on the object (or light data) if set, else
+  the object's first collection (instances: their instancer's), else ``scene``; the world background
+  is the group ``world``. Every group has ``emission: flat``: a light's or emitting material's
+  *colour* is replaced by the group's spectrum (a warning names each non-grey one) and only its
+  magnitude is kept.
+- **Emitter strengths** (per unit of the group spectrum): point and spot — intensity ``P / 4π``
+  [W/sr] from Blender's power ``P`` [W] (a Blender spot has the intensity of a point light of the
+  same power); sun — irradiance = its strength [W/m²]; area light — an emitting ``rectangle``/``disk``
+  of radiance ``P / (π A)`` [W/(m² sr)] (``P / π`` when "normalize" is off), emitting along the light's
+  −Z as in Blender; emitting materials — emission strength × the colour's largest channel; world —
+  a constant sky of background strength × the colour's largest channel.
+- **Materials**: ``illumix_reflectance`` (custom property: ``"Library/Sample"`` or a bare sample name)
+  names a measured reflectance from :mod:`retarget.reflectances`; otherwise the linear sRGB base
+  colour is upsampled to a smooth spectrum (Jakob & Hanika 2019, under D65, 380–780 nm / 5 nm) and
+  given inline. Metallic > 0.5 → ``roughconductor`` (Al, α = roughness²), transmission > 0.5 →
+  ``dielectric`` (the Principled IOR), a Principled BSDF with roughness < 0.999 → ``roughplastic``
+  (α = roughness², IOR), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
+  inputs, other shader nodes, no material) is replaced by a stated value with a ``UserWarning``.
+- **Cache**: the worker's output goes to ``$ILLUMIX_CACHE/blend-import/<sha256(file)[:16]>/``
+  (``ILLUMIX_CACHE`` defaults to ``~/.cache/illumix``), written to a temporary directory and renamed
+  into place; it is reused while the worker is unchanged. Linked libraries and images are not part
+  of the key.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import warnings
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from renderer_jobs.scene_model import Scene
+from renderer_jobs.scene_schema import SceneError
+
+WORKER = Path(__file__).with_name("blend_worker.py")
+WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
+GREY = 1e-3  # relative channel spread below which a colour counts as grey
+
+
+try:  # the Cycles backend's interpreter finder, where this checkout has it
+    from renderer_jobs.cycles_env import find_blender_python
+except ImportError:  # pragma: no cover - same search, for checkouts without the Cycles backend
+    def find_blender_python(required: bool = True) -> tuple[str, str] | None:
+        """``(python, Blender version)`` of a Python that can import bpy: ``$ILLUMIX_BLENDER_PYTHON``,
+        else ``$ILLUMIX_BLENDER_VENV`` (default ``~/.cache/illumix/blender-venv``)."""
+        env = os.environ.get("ILLUMIX_BLENDER_PYTHON")
+        venv = Path(os.environ.get("ILLUMIX_BLENDER_VENV", Path.home() / ".cache" / "illumix" / "blender-venv"))
+        for c in ([env] if env else []) + [str(venv / "bin" / "python")]:
+            if c and Path(c).exists():
+                r = subprocess.run([c, "-c", "import bpy; print('BPY', bpy.app.version_string)"],
+                                   capture_output=True, text=True, timeout=120)
+                lines = [ln for ln in r.stdout.splitlines() if ln.startswith("BPY ")]
+                if r.returncode == 0 and lines:
+                    return c, lines[-1][4:].strip()
+        if required:
+            raise SceneError("importing .blend files needs Blender (bpy), which was not found; install it with "
+                             "`bash scripts/install.sh --blender`, or set ILLUMIX_BLENDER_PYTHON to a Python "
+                             "that can import bpy")
+        return None
+
+
+# -- names ------------------------------------------------------------------------------------
+
+
+def sanitize(name: str, fallback: str = "unnamed") -> str:
+    """``name`` under the scene name rules ``^[A-Za-z0-9][A-Za-z0-9_.+-]*$`` (no ``..``, ≤ 100 chars):
+    other characters become ``_``, leading punctuation is dropped."""
+    s = re.sub(r"[^A-Za-z0-9_.+\-]+", "_", name)
+    s = re.sub(r"\.{2,}", ".", s)
+    s = re.sub(r"^[^A-Za-z0-9]+", "", s)[:100]
+    return s or fallback
+
+
+class _Names:
+    """Unique sanitised names within one kind (shapes, lights, views, materials)."""
+
+    def __init__(self) -> None:
+        self.used: set[str] = set()
+
+    def __call__(self, name: str, fallback: str = "unnamed") -> str:
+        base = sanitize(name, fallback)
+        out, k = base, 2
+        while out in self.used:
+            out, k = f"{base[:95]}-{k}", k + 1
+        self.used.add(out)
+        return out
+
+
+# -- spectra ----------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=4096)
+def _upsample(rgb: tuple[float, float, float]) -> tuple[tuple[float, ...], float]:
+    import colour
+    from colour.recovery import XYZ_to_sd_Jakob2019
+
+    shape = colour.SpectralShape(380, 780, 5)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
+    sd, err = XYZ_to_sd_Jakob2019(xyz, cmfs, d65, additional_data=True)
+    values = np.clip(sd.copy().align(shape).values, 0.0, 1.0)
+    return tuple(np.round(values, 6).tolist()), float(err)
+
+
+def rgb_to_spectrum(rgb, what: str) -> dict:
+    """An inline table reflectance (380–780 nm / 5 nm, values in [0, 1]) whose sRGB colour under D65
+    is the linear sRGB ``rgb`` (Jakob & Hanika 2019). Components outside [0, 1] are clipped, with a
+    warning, as is a colour the smooth spectra cannot reach (CIE ΔE2000 > 1)."""
+    c = np.asarray(rgb, dtype=float)[:3]
+    if np.any(c < 0) or np.any(c > 1):
+        warnings.warn(f"{what}: base colour {np.round(c, 3).tolist()} is outside [0, 1]; clipped", UserWarning,
+                      stacklevel=3)
+        c = np.clip(c, 0.0, 1.0)
+    values, err = _upsample(tuple(round(float(x), 6) for x in c))
+    if err > 1.0:
+        warnings.warn(f"{what}: no reflectance spectrum reproduces base colour {np.round(c, 3).tolist()} "
+                      f"closely (ΔE2000 {err:.1f}); used the closest smooth spectrum", UserWarning, stacklevel=3)
+    return {"wavelengths": WAVELENGTHS.tolist(), "values": list(values)}
+
+
+def resolve_reflectance(ref: str, what: str) -> dict:
+    """``{"library", "sample"}`` for ``"Library/Sample"`` or a bare sample name (the first of
+    :func:`retarget.reflectances.set_names` that holds it); :class:`SceneError` with close matches."""
+    from retarget.reflectances import get_reflectances, set_names
+
+    ref = ref.strip()
+    libs = {lib: get_reflectances(lib)[0] for lib in set_names()}
+    for lib, names in libs.items():
+        if ref.startswith(lib + "/") and ref[len(lib) + 1:] in names:
+            return {"library": lib, "sample": ref[len(lib) + 1:]}
+    for exact in (True, False):
+        for lib, names in libs.items():
+            for n in names:
+                if n == ref or (not exact and n.lower() == ref.lower()):
+                    return {"library": lib, "sample": n}
+    known = [f"{lib}/{n}" for lib, names in libs.items() for n in names]
+    close = difflib.get_close_matches(ref, known + [n for names in libs.values() for n in names], n=3, cutoff=0.5)
+    hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+    raise SceneError(f"{what}: illumix_reflectance {ref!r} is not a known reflectance{hint} "
+                     f"(give 'Library/Sample'; libraries: {', '.join(libs)})")
+
+
+# -- pieces of the scene ------------------------------------------------------------------------
+
+
+def _warn(msg: str) -> None:
+    warnings.warn(msg, UserWarning, stacklevel=4)
+
+
+def _is_grey(rgb) -> bool:
+    c = np.asarray(rgb, dtype=float)[:3]
+    return float(c.max() - c.min()) <= GREY * max(float(c.max()), 1e-12)
+
+
+def material_doc(info: dict, what: str) -> dict | None:
+    """The illumix material for a worker material record (None: emission only)."""
+    for p in info["problems"]:
+        _warn(f"{what}: {p}")
+    if info["shader"] == "emission":
+        return None
+    alpha = min(max(float(info["roughness"]) ** 2, 1e-3), 1.0)
+    ior = min(max(float(info.get("ior", 1.5)), 1.0001), 4.0)
+    ref = info.get("illumix_reflectance")
+    if info["metallic"] > 0.5 or info["transmission"] > 0.5:
+        kind = "roughconductor (aluminium)" if info["metallic"] > 0.5 else f"dielectric (IOR {ior:.3g})"
+        _warn(f"{what}: imported as {kind}; its base colour {'and illumix_reflectance are' if ref else 'is'} "
+              "not used")
+        if info["metallic"] > 0.5:
+            return {"kind": "roughconductor", "conductor": "Al", "alpha": alpha}
+        return {"kind": "dielectric", "int_ior": ior}
+    refl = resolve_reflectance(ref, what) if ref else rgb_to_spectrum(info["base_color"], what)
+    if info["shader"] == "principled" and info["roughness"] < 0.999:
+        return {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
+    return {"kind": "diffuse", "reflectance": refl}
+
+
+def _emission(color, strength: float, what: str) -> float:
+    """Strength per unit of a flat group spectrum: ``strength × max(colour)``; warns if coloured."""
+    c = np.asarray(color, dtype=float)[:3]
+    s = float(strength) * float(c.max())
+    if s > 0 and not _is_grey(c):
+        _warn(f"{what}: emission colour {np.round(c, 3).tolist()} is replaced by the light group's "
+              "emission spectrum (flat); only its strength × largest channel is kept")
+    return s
+
+
+def area_shape(li: dict, what: str) -> tuple[str, np.ndarray, float]:
+    """``(type, 4×4 to-world matrix, radiance)`` of an area light as a Mitsuba-style rectangle
+    (``[-1, 1]²``, z = 0, normal +z) or unit disk, its +z turned onto the light's −Z."""
+    sx = li["size"]
+    sy = li["size_y"] if li["shape"] in ("RECTANGLE", "ELLIPSE") else sx
+    t = np.asarray(li["matrix"], dtype=float) @ np.diag([sx / 2, -sy / 2, -1.0, 1.0])  # a rotation by π about x
+    kind = "disk" if li["shape"] in ("DISK", "ELLIPSE") else "rectangle"
+    area = (math.pi if kind == "disk" else 4.0) * float(np.linalg.norm(np.cross(t[:3, 0], t[:3, 1])))
+    if li.get("spread", 180.0) < 179.9:
+        _warn(f"{what}: area light spread {li['spread']:.0f}° is ignored (illumix area lights are Lambertian)")
+    power = _emission(li["color"], li["energy"], what)
+    return kind, t, power / (math.pi * (area if li.get("normalize", True) else 1.0))
+
+
+def view_doc(cam: dict, name: str, what: str) -> dict | None:
+    if cam["type"] != "PERSP":
+        _warn(f"{what}: {cam['type'].lower()} cameras cannot be imported; skipped")
+        return None
+    for bad, msg in ((any(cam["shift"]), "lens shift"), (abs(cam["pixel_aspect"] - 1) > 1e-6, "non-square pixels"),
+                     (cam["dof"], "depth of field")):
+        if bad:
+            _warn(f"{what}: {msg} is ignored")
+    m = np.asarray(cam["matrix"], dtype=float)
+    origin, fwd, up = m[:3, 3], -m[:3, 2], m[:3, 1]
+    return {"name": name, "origin": origin.tolist(), "target": (origin + fwd / np.linalg.norm(fwd)).tolist(),
+            "up": (up / np.linalg.norm(up)).tolist(), "fov": float(cam["fov"]),
+            "resolution": [int(cam["resolution"][0]), int(cam["resolution"][1])]}
+
+
+def _group(item: dict, groups: dict[str, str]) -> str:
+    if item.get("illumix_group"):
+        g = sanitize(item["illumix_group"], "group")
+        groups.setdefault(g, f"custom property illumix_group = {item['illumix_group']!r}")
+    elif item.get("collections"):
+        g = sanitize(item["collections"][0], "collection")
+        groups.setdefault(g, f"Blender collection {item['collections'][0]!r}")
+    else:
+        g = "scene"
+        groups.setdefault(g, "objects in no collection but the scene's")
+    return g
+
+
+def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
+    """The scene document for the worker's ``scene.json`` ``data`` (files under ``cache``)."""
+    groups: dict[str, str] = {}
+    mats, shape_names, light_names = _Names(), _Names(), _Names()
+    materials: dict[str, dict] = {}
+    by_blender: dict[str, tuple[str | None, dict]] = {}
+    for bname, info in data["materials"].items():
+        mdoc = material_doc(info, f"{where}: material {bname!r}")
+        key = mats(bname, "material") if mdoc is not None else None
+        if mdoc is not None:
+            materials[key] = mdoc
+        by_blender[bname] = (key, info)
+    for name, why in data.get("skipped", []):
+        _warn(f"{where}: object {name!r} {why}; skipped")
+    if abs(data.get("unit_scale", 1.0) - 1.0) > 1e-9:
+        _warn(f"{where}: unit scale {data['unit_scale']:g} is not applied; Blender units are taken as metres")
+    shapes, lights, grey = [], [], None
+    for ob in data["objects"]:
+        what = f"{where}: object {ob['name']!r}"
+        entry = {"name": shape_names(ob["name"], "shape"), "type": "ply", "filename": str(cache / ob["ply"])}
+        key, info = by_blender.get(ob["material"], (None, None)) if ob["material"] else (None, None)
+        if info is None:
+            if grey is None:
+                grey = mats("default-grey")
+                materials[grey] = {"kind": "diffuse", "reflectance": {"value": 0.5}}
+            _warn(f"{what} has no material; used a grey diffuse (reflectance 0.5)")
+            key = grey
+        elif info["emission_strength"] > 0 and max(info["emission_color"]) > 0:
+            s = _emission(info["emission_color"], info["emission_strength"], f"{what} (material {info['name']!r})")
+            if key is not None and materials[key]["kind"] == "dielectric":
+                _warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped")
+            else:
+                entry["emitter"] = {"group": _group(ob, groups), "strength": s}
+        if key is None and "emitter" not in entry:
+            _warn(f"{what}: material {info['name']!r} is an Emission shader that emits nothing; object skipped")
+            continue
+        if key is not None:
+            entry["material"] = key
+        shapes.append(entry)
+    for li in data["lights"]:
+        what = f"{where}: light {li['name']!r}"
+        for p in li.get("problems", []):
+            _warn(f"{what}: {p}")
+        if li["energy"] <= 0 or max(li["color"]) <= 0:
+            _warn(f"{what} emits nothing; skipped")
+            continue
+        g = _group(li, groups)
+        name = light_names(li["name"], "light")
+        if li["type"] == "AREA":
+            kind, t, radiance = area_shape(li, what)
+            shapes.append({"name": shape_names(li["name"], "light"), "type": kind, "transform": {"matrix": t.tolist()},
+                           "emitter": {"group": g, "strength": radiance}})
+            continue
+        s = _emission(li["color"], li["energy"], what)
+        if li["type"] == "SUN":
+            lights.append({"name": name, "type": "directional", "group": g, "strength": s,
+                           "direction": li["direction"]})
+            continue
+        point = {"name": name, "type": "point", "group": g, "strength": s / (4 * math.pi), "position": li["position"]}
+        if li["type"] == "SPOT":
+            cutoff = li["spot_size"] / 2
+            if cutoff >= 89.9:
+                _warn(f"{what}: spot size {li['spot_size']:.0f}° is clamped to 179.8°")
+                cutoff = 89.9
+            point.update(type="spot", target=(np.add(li["position"], li["direction"])).tolist(), cutoff_angle=cutoff,
+                       beam_width=max(cutoff * (1 - li["spot_blend"]), 1e-3))
+        lights.append(point)
+    w = data.get("world")
+    if w:
+        for p in w.get("problems", []):
+            _warn(f"{where}: world: {p}; the background is not imported")
+        if w.get("color") is not None and not w.get("problems"):
+            s = _emission(w["color"], w["strength"], f"{where}: world background")
+            if s > 0:
+                groups["world"] = "the world background"
+                lights.append({"name": light_names("world", "world"), "type": "constant", "group": "world",
+                               "strength": s})
+    views_names = _Names()
+    views = [v for c in data["cameras"] if (v := view_doc(c, views_names(c["name"], "camera"),
+                                                          f"{where}: camera {c['name']!r}"))]
+    if not views:
+        raise SceneError(f"{where}: the .blend has no (perspective) camera; add one to define the view")
+    used = {s["emitter"]["group"] for s in shapes if "emitter" in s} | {li["group"] for li in lights}
+    if not used:
+        raise SceneError(f"{where}: nothing in the .blend emits light (no lights, emitting materials or world "
+                         "background); add a light")
+    return {"name": sanitize(stem, "blend"), "description": f"imported from {data.get('file') or stem} "
+            f"(Blender {data.get('blender', '?')})", "materials": materials, "shapes": shapes, "lights": lights,
+            "light_groups": [{"name": g, "emission": "flat", "description": d} for g, d in groups.items() if g in used],
+            "views": views}
+
+
+# -- running the worker -------------------------------------------------------------------------
+
+
+def _cache_root() -> Path:
+    return Path(os.environ.get("ILLUMIX_CACHE", Path.home() / ".cache" / "illumix")) / "blend-import"
+
+
+def export_blend(path: Path, cache_dir: Path | None = None) -> Path:
+    """The worker's output directory for ``path`` (run now unless cached); :class:`SceneError` on failure."""
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+    worker_hash = hashlib.sha256(WORKER.read_bytes()).hexdigest()[:16]
+    out = Path(cache_dir) if cache_dir is not None else _cache_root() / digest
+    done = out / "done.json"
+    if done.is_file() and json.loads(done.read_text()) == {"file": digest, "worker": worker_hash}:
+        return out
+    if out.exists() and not (done.is_file() or (out.is_dir() and not any(out.iterdir()))):
+        raise SceneError(f"{path}: cache directory {str(out)!r} exists and is not a blend-import cache; "
+                         "give a new or empty directory")
+    python, _ = find_blender_python()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        r = subprocess.run([python, str(WORKER), str(path.resolve()), str(tmp)], capture_output=True, text=True,
+                           timeout=600)
+        if r.returncode != 0 or not (tmp / "scene.json").is_file():
+            lines = [ln.strip() for ln in r.stderr.splitlines() if ln.strip()]
+            msg = next((ln.removeprefix("blend_worker: ") for ln in reversed(lines) if ln.startswith("blend_worker:")),
+                       lines[-1] if lines else f"exit status {r.returncode}")
+            raise SceneError(f"{path}: cannot import the .blend file: {msg}")
+        (tmp / "done.json").write_text(json.dumps({"file": digest, "worker": worker_hash}))
+        if out.exists():  # stale (another file or worker version): replace it
+            old = out.with_name(f".{out.name}-old-{os.getpid()}")
+            out.rename(old)
+            shutil.rmtree(old, ignore_errors=True)
+        try:
+            tmp.rename(out)
+        except OSError:  # another process got there first; its output is as good
+            if not (out / "done.json").is_file():
+                raise
+    except subprocess.TimeoutExpired:
+        raise SceneError(f"{path}: reading the .blend file took over 600 s") from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list[Scene]:
+    """The scene of a ``.blend`` file (one, named after the file's stem): see the module docstring.
+
+    ``cache_dir``: where the worker's output goes (default: the cache described above).
+    Problems that have a stated substitute are ``UserWarning`` s; the rest raise :class:`SceneError`.
+    """
+    from renderer_jobs.scene_load import scene_from_dict
+
+    p = Path(path)
+    if not p.is_file():
+        what = "is a directory" if p.is_dir() else "does not exist"
+        raise SceneError(f"blend file {str(p)!r} {what}")
+    out = export_blend(p, None if cache_dir is None else Path(cache_dir))
+    data = json.loads((out / "scene.json").read_text())
+    doc = scene_doc(data, out.resolve(), p.stem, str(p))
+    return [scene_from_dict(doc, source=str(p), base=out.resolve())]
