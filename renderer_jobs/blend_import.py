@@ -25,7 +25,10 @@ Conventions
   colour is upsampled to a smooth spectrum (Jakob & Hanika 2019, under D65, 380–780 nm / 5 nm) and
   given inline. Metallic > 0.5 → ``roughconductor`` (Al, α = roughness²), transmission > 0.5 →
   ``dielectric`` (the Principled IOR), a Principled BSDF with roughness < 0.999 → ``roughplastic``
-  (α = roughness², IOR), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
+  (α = roughness², IOR; an upsampled base colour divided by
+  :func:`renderer_jobs.cycles_job.plastic_diffuse_scale`, so it renders as bright as in Blender —
+  Mitsuba's rough plastic loses 7–27 % of its diffuse light in the coating, the Principled BSDF
+  does not), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
   inputs, other shader nodes, no material) is replaced by a stated value with a ``UserWarning``.
 - **Cache**: the worker's output goes to ``$ILLUMIX_CACHE/blend-import/<sha256(file)[:16]>/``
   (``ILLUMIX_CACHE`` defaults to ``~/.cache/illumix``), written to a temporary directory and renamed
@@ -58,26 +61,7 @@ WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
 GREY = 1e-3  # relative channel spread below which a colour counts as grey
 
 
-try:  # the Cycles backend's interpreter finder, where this checkout has it
-    from renderer_jobs.cycles_env import find_blender_python
-except ImportError:  # pragma: no cover - same search, for checkouts without the Cycles backend
-    def find_blender_python(required: bool = True) -> tuple[str, str] | None:
-        """``(python, Blender version)`` of a Python that can import bpy: ``$ILLUMIX_BLENDER_PYTHON``,
-        else ``$ILLUMIX_BLENDER_VENV`` (default ``~/.cache/illumix/blender-venv``)."""
-        env = os.environ.get("ILLUMIX_BLENDER_PYTHON")
-        venv = Path(os.environ.get("ILLUMIX_BLENDER_VENV", Path.home() / ".cache" / "illumix" / "blender-venv"))
-        for c in ([env] if env else []) + [str(venv / "bin" / "python")]:
-            if c and Path(c).exists():
-                r = subprocess.run([c, "-c", "import bpy; print('BPY', bpy.app.version_string)"],
-                                   capture_output=True, text=True, timeout=120)
-                lines = [ln for ln in r.stdout.splitlines() if ln.startswith("BPY ")]
-                if r.returncode == 0 and lines:
-                    return c, lines[-1][4:].strip()
-        if required:
-            raise SceneError("importing .blend files needs Blender (bpy), which was not found; install it with "
-                             "`bash scripts/install.sh --blender`, or set ILLUMIX_BLENDER_PYTHON to a Python "
-                             "that can import bpy")
-        return None
+from renderer_jobs.cycles_env import find_blender_python  # noqa: E402
 
 
 # -- names ------------------------------------------------------------------------------------
@@ -190,8 +174,23 @@ def material_doc(info: dict, what: str) -> dict | None:
         if info["metallic"] > 0.5:
             return {"kind": "roughconductor", "conductor": "Al", "alpha": alpha}
         return {"kind": "dielectric", "int_ior": ior}
-    refl = resolve_reflectance(ref, what) if ref else rgb_to_spectrum(info["base_color"], what)
-    if info["shader"] == "principled" and info["roughness"] < 0.999:
+    plastic = info["shader"] == "principled" and info["roughness"] < 0.999
+    if ref:
+        refl = resolve_reflectance(ref, what)
+    elif plastic:
+        # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
+        # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
+        # Cycles backend's mapping, renderer_jobs.cycles_job.plastic_diffuse_scale).
+        from renderer_jobs.cycles_job import plastic_diffuse_scale
+
+        base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
+        if np.any(base > 1):
+            _warn(f"{what}: base colour / {plastic_diffuse_scale(alpha, ior):.3g} (to render as bright as "
+                  "Blender's Principled BSDF as a rough plastic) exceeds 1; clipped")
+        refl = rgb_to_spectrum(np.minimum(base, 1.0), what)
+    else:
+        refl = rgb_to_spectrum(info["base_color"], what)
+    if plastic:
         return {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
     return {"kind": "diffuse", "reflectance": refl}
 
