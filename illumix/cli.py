@@ -65,6 +65,13 @@ def main(argv: list[str] | None = None) -> None:
     from retarget.errors import SpectralError
 
     _register()
+    import warnings
+
+    def one_line(message, category, filename, lineno, file=None, line=None) -> None:
+        # what a scene import had to approximate, said in one line (not Python's file:line form)
+        print(f"illumix: warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = one_line
     try:
         code = app(args=argv, prog_name="illumix", standalone_mode=False)
     except (SpectralError, UserError) as exc:

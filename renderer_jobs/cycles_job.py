@@ -15,7 +15,10 @@ Everything spectral is resolved here, on the scene grid, so the worker only copi
   lit floor. (A Fresnel-weighted mix of Diffuse and Glossy was 4–16 % off: its specular weight
   ``F(n·ω_o)`` overshoots at grazing views.) ``roughconductor`` → Metallic BSDF with the
   physical-conductor Fresnel of Mitsuba's own ``η, k`` tables. ``dielectric`` → sharp Glass.
-- **Emitters**: area emitters emit from the front side only (as in Mitsuba); point and spot lights
+- **Emitters**: emitter-only rectangles and disks become Cycles area lights (sampled by solid angle,
+  as Blender users light scenes; an emitting mesh is sampled by area and was 4× noisier on the probe's
+  floor), other area emitters stay emitting meshes; both emit from the front side only (as in
+  Mitsuba) and are seen by every ray. Point and spot lights
   have radius 0 and no soft falloff; the sun has angle 0; a constant sky is the world. Spot lights
   ramp from ``beam_width`` to ``cutoff_angle`` by Blender's smoothstep in ``cos θ`` instead of
   Mitsuba's linear ramp in ``θ`` (same cone, same full-intensity core). Envmap skies are refused.
@@ -214,6 +217,30 @@ def _cylinder(p0, p1, radius):
     return v, f, np.concatenate([n, n])
 
 
+def area_light(sh) -> dict | None:
+    """An emitter-only rectangle or disk as a Blender area light (``shape``, ``size``, ``size_y``,
+    world ``matrix`` with −Z along the shape's normal, ``area`` in m²), or None when its transform
+    shears it (then it stays an emitting mesh)."""
+    if not isinstance(sh, (Rectangle, Disk)) or sh.material is not None or sh.emitter is None:
+        return None
+    m = sh.transform.to_matrix() if sh.transform is not None else np.eye(4)
+    ex, ey = m[:3, 0], m[:3, 1]
+    sx, sy = float(np.linalg.norm(ex)), float(np.linalg.norm(ey))
+    if abs(float(ex @ ey)) > 1e-6 * sx * sy:
+        return None
+    n = np.cross(ex, ey)
+    z = -n / np.linalg.norm(n)
+    x = ex / sx
+    rot = np.stack([x, np.cross(z, x), z], axis=1)
+    world = np.eye(4)
+    world[:3, :3], world[:3, 3] = rot, m[:3, 3]
+    if isinstance(sh, Rectangle):
+        kind, area = "RECTANGLE", 4 * sx * sy
+    else:
+        kind, area = ("DISK" if abs(sx - sy) <= 1e-9 * sx else "ELLIPSE"), math.pi * sx * sy
+    return {"shape": kind, "size": 2 * sx, "size_y": 2 * sy, "matrix": world.tolist(), "area": area}
+
+
 def shape_mesh(sh) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """``(vertices (n, 3), triangles (m, 3), vertex normals (n, 3) or None)`` in world space."""
     if isinstance(sh, Rectangle):
@@ -275,7 +302,10 @@ def write_job(scene: Scene, view: str, job_dir: Path, *, spp: int, seed: int,
     shapes, arrays = [], {}
     for i, s in enumerate(scene.shapes):
         doc: dict = {"name": s.name, "material": s.material}
-        if isinstance(s, MeshFile):
+        light = None if aov_spp else area_light(s)  # the AOV pass keeps meshes: they flag emitter pixels
+        if light is not None:
+            doc["area_light"] = light
+        elif isinstance(s, MeshFile):
             doc.update(file=str(scene.resolve_path(s.filename)), file_type=s.type, flat=s.face_normals,
                        matrix=(s.transform.to_matrix() if s.transform is not None else np.eye(4)).tolist())
         else:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from renderer_jobs.jobs import Job, JobError, Plan, _open_store, _view_meta, store_result
+from renderer_jobs.jobs import Job, JobError, Plan, _open_store, _view_meta, run_guarded, store_result
 from renderer_jobs.scene_schema import SceneError
 
 
@@ -21,16 +21,8 @@ def run_cycles(plan_: Plan, store_path: str, settings_dict: dict, on_done, overw
     st = _open_store(store_path, mode="a")
     results: list[dict] = []
 
-    def guarded(job: Job, fn):
-        try:
-            r = fn()
-        except SceneError:
-            raise
-        except Exception as exc:
-            on_done(job, None, exc)
-            raise JobError(f"{job.label}: {type(exc).__name__}: {exc}") from exc
-        results.append(r)
-        on_done(job, r, None)
+    def guarded(job: Job, fn) -> None:
+        run_guarded(job, fn, on_done, results)
 
     for job in plan_.view_jobs:
         scene = plan_.scenes[job.scene]

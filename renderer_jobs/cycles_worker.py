@@ -178,7 +178,38 @@ class Builder:
         sc.collection.objects.link(ob)
         return ob
 
+    def _area_light(self, sc, shape: dict) -> None:
+        """An emitter-only rectangle or disk as a Cycles area light: sampled by solid angle, far less
+        noisy than the same emitting mesh (sampled by area). Radiance ``L`` ↔ power ``π A L``;
+        emits along the light's −Z (the shape's normal), seen by every ray as in Mitsuba."""
+        from mathutils import Matrix
+
+        a, em = shape["area_light"], shape["emitter"]
+        data = self.bpy.data.lights.new(shape["name"], "AREA")
+        data.shape, data.size, data.size_y = a["shape"], a["size"], a["size_y"]
+        data.spread = math.pi
+        data.use_shadow = True
+        ob = self.bpy.data.objects.new(shape["name"], data)
+        ob.matrix_world = Matrix(a["matrix"])
+        for flag in ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission"):
+            setattr(ob, flag, True)
+        ob.lightgroup = em["group"]
+        sc.collection.objects.link(ob)
+        if em["portal"]:
+            self.portal_objects.append(ob)
+        power = math.pi * a["area"]
+
+        def setter(bands, setup, mode, data=data, values=em["radiance"], portal=em["portal"]):
+            rgb = _slots(values, bands) if (setup == "only") == portal else (0.0, 0.0, 0.0)
+            peak = max(rgb)
+            data.energy = peak * power
+            data.color = tuple(c / peak for c in rgb) if peak > 0 else (0.0, 0.0, 0.0)
+        self.setters.append(setter)
+
     def _shape(self, sc, shape: dict) -> None:
+        if "area_light" in shape:
+            self._area_light(sc, shape)
+            return
         ob = self._mesh_object(sc, shape)
         em = shape.get("emitter")
         if em is not None:

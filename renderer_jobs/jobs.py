@@ -320,6 +320,20 @@ def _denoise(st, scene: str, view: str, result, method: str | None, meta) -> dic
 ProgressFn = Callable[[Job, dict | None, BaseException | None], None]
 
 
+def run_guarded(job: Job, fn: Callable[[], dict], on_done: ProgressFn, results: list[dict]) -> None:
+    """Run one job in this process: its summary goes to ``results`` and ``on_done``; a failure is
+    reported to ``on_done`` and raised as :class:`JobError` naming the job (a bad scene as itself)."""
+    try:
+        r = fn()
+    except SceneError:
+        raise
+    except Exception as exc:
+        on_done(job, None, exc)
+        raise JobError(f"{job.label}: {type(exc).__name__}: {exc}") from exc
+    results.append(r)
+    on_done(job, r, None)
+
+
 def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
                on_done: ProgressFn, overwrite: bool = False) -> list[dict]:
     payloads = {n: _scene_payload(s) for n, s in plan_.scenes.items()}
@@ -330,15 +344,8 @@ def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
     if workers <= 1:
         for phase in phases:
             for job in phase:
-                try:
-                    r = run_job(payloads[job.scene], job, store_path, settings_dict, None, overwrite)
-                except SceneError:
-                    raise
-                except Exception as exc:
-                    on_done(job, None, exc)
-                    raise JobError(f"{job.label}: {type(exc).__name__}: {exc}") from exc
-                results.append(r)
-                on_done(job, r, None)
+                run_guarded(job, lambda job=job: run_job(payloads[job.scene], job, store_path, settings_dict, None,
+                                                         overwrite), on_done, results)
         return results
     import multiprocessing as mp
 
