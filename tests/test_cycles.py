@@ -147,3 +147,36 @@ def test_render_cli_writes_the_same_store_layout(tmp_path, capsys):
         assert st.read_cube("duo", "cam", g).shape == (12, 16, 63)
     code, out, _ = run_cli(capsys, "render", str(p), "--store", store, "--backend", "cycles", "--spp", "4", "--json")
     assert code == 0 and json.loads(out.strip().splitlines()[-1])["rendered"] == []  # resumes: nothing to do
+
+
+def test_emitter_rectangle_becomes_an_area_light_facing_its_normal():
+    from renderer_jobs.cycles_job import area_light
+
+    d = two_light_scene()
+    d["shapes"][2]["transform"] = {"scale": [0.5, 0.25, 1], "rotate": [{"axis": [1, 0, 0], "angle": 90}],
+                                   "translate": [0, 2, 0]}
+    panel = scene_from_dict(d).shapes[2]
+    light = area_light(panel)
+    assert light["shape"] == "RECTANGLE" and light["size"] == pytest.approx(1.0) and light["size_y"] == pytest.approx(0.5)
+    assert light["area"] == pytest.approx(0.5)
+    m = np.asarray(light["matrix"])
+    normal = panel.transform.to_matrix()[:3, :3] @ [0, 0, 1]
+    np.testing.assert_allclose(-m[:3, 2], normal / np.linalg.norm(normal), atol=1e-12)  # Blender lights emit along -Z
+    np.testing.assert_allclose(m[:3, :3].T @ m[:3, :3], np.eye(3), atol=1e-12)  # a rotation
+    assert np.linalg.det(m[:3, :3]) == pytest.approx(1.0)
+    shear = two_light_scene()
+    shear["shapes"][2]["transform"] = {"matrix": [[1, 0.5, 0, 0], [0, 1, 0, 2], [0, 0, 1, 0], [0, 0, 0, 1]]}
+    assert area_light(scene_from_dict(shear).shapes[2]) is None  # a parallelogram stays an emitting mesh
+
+
+def test_envmap_sky_is_refused_with_the_alternative(tmp_path):
+    from renderer_jobs.cycles_job import write_job
+    from renderer_jobs.scene_schema import SceneError
+
+    d = two_light_scene()
+    (tmp_path / "sky.exr").write_bytes(b"")
+    d["lights"].append({"name": "sky", "type": "envmap", "group": "skyg", "filename": str(tmp_path / "sky.exr"),
+                        "strength": 1})
+    d["light_groups"].append({"name": "skyg"})
+    with pytest.raises(SceneError, match="backend mitsuba"):
+        write_job(scene_from_dict(d, check=False), "cam", tmp_path / "job", spp=1, seed=0)
