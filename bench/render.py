@@ -394,6 +394,7 @@ def main(argv: list[str] | None = None) -> dict:
             from render_backends import part_backends
 
             doc["backends"] = part_backends(args, log)
+            doc["vs_thesis"] = doc["backends"]["vs_thesis"]
     if rows:
         png = plot_curves(doc, Path(args.plot))
         doc["plot"] = str(png) if png else None

@@ -16,7 +16,10 @@ and resolution:
   albedo AOV) of each backend against a Mitsuba reference at ``--backends-ref-spp`` (uniform), in
   percent; and the same for the illumination cubes (white-Lambertian first hit), which isolates
   geometry, lights and spectra from the BSDF models;
-- the closed-form validation chart (``illumix validate``) on both backends: mean and max ΔE00.
+- the closed-form validation chart (``illumix validate``) on both backends: mean and max ΔE00;
+- ``vs_thesis`` (issue 17's figures): illumix's CPU time to the thesis method's noise over the thesis
+  method's CPU time — raw G on the lit region and the image, raw G under FL11 relighting of every
+  group, and the 550 nm band — assuming illumix's noise falls as 1/√time.
 """
 
 from __future__ import annotations
@@ -93,7 +96,9 @@ def noise(a: np.ndarray, b: np.ndarray, sel: np.ndarray) -> list[float]:
 def compare_scene(name: str, scene, view: str, relight: dict, weights: np.ndarray, ref_spp: int, log) -> dict:
     from renderer_jobs.mitsuba_aovs import render_aovs
     from renderer_jobs.mitsuba_render import RenderSettings
+    from retarget.illuminants import illuminant_spd
 
+    fl11 = {g: illuminant_spd("FL11", scene.spectral_grid) for g in relight}  # a spiky illuminant
     band = int(np.argmin(np.abs(scene.spectral_grid.wavelengths - 550)))
     log(f"  backends/{name}: Mitsuba reference at {ref_spp} spp")
     ref_t, ref_u, ref_cpu = render_all(scene, view, RenderSettings(spp=ref_spp, adaptive=False, seed=7))
@@ -120,6 +125,7 @@ def compare_scene(name: str, scene, view: str, relight: dict, weights: np.ndarra
             "raw_noise_lit_pct": noise(raws[0], raws[1], regs["lit"]),
             "raw_noise_image_pct": noise(raws[0], raws[1], regs["image"]),
             "band_550_noise_lit_pct": noise(spectra[0], spectra[1], regs["lit"])[0],
+            "fl11_raw_noise_lit_pct": noise(*(relit_raw(t, fl11, weights) for t, _ in runs), regs["lit"]),
             "mean_raw_vs_reference_pct": {k: [round(float(100 * (mean_raw[r][:, c].mean() / raw_ref[r][:, c].mean()
                                                                   - 1)), 2) for c in range(3)]
                                           for k, r in regs.items()},
@@ -129,8 +135,22 @@ def compare_scene(name: str, scene, view: str, relight: dict, weights: np.ndarra
         }
     m, c = out["backends"]["mitsuba"], out["backends"]["cycles"]
     out["cycles_cpu_over_mitsuba"] = round(c["cpu_s"] / m["cpu_s"], 3)
+    out["vs_thesis"] = vs_thesis(m, c)
     out["max_abs_region_diff_pct"] = max(abs(v) for vals in c["mean_raw_vs_reference_pct"].values() for v in vals)
     return out
+
+
+def vs_thesis(ill: dict, thesis: dict) -> dict:
+    """CPU time of illumix's default settings to the thesis method's noise, over the thesis method's
+    CPU time (issue 17's ratios): ``(cpu_i / cpu_t) · (noise_i / noise_t)²``, Monte-Carlo noise
+    falling as 1/√time for the illumix renderer at fixed settings."""
+    def ratio(key: str, channel: int | None = 1) -> float:
+        ni, nt = ill[key], thesis[key]
+        if channel is not None:
+            ni, nt = ni[channel], nt[channel]
+        return round(ill["cpu_s"] / thesis["cpu_s"] * (ni / nt) ** 2, 3)
+    return {"raw_g_lit": ratio("raw_noise_lit_pct"), "raw_g_image": ratio("raw_noise_image_pct"),
+            "fl11_raw_g_lit": ratio("fl11_raw_noise_lit_pct"), "band_550": ratio("band_550_noise_lit_pct", None)}
 
 
 def validation(spp: int, log) -> dict:
@@ -167,4 +187,5 @@ def part_backends(args, log) -> dict:
     relight = {g: illuminant_spd("D65", grid) for g in room.group_names}
     out["demo"] = compare_scene("demo", room, args.view, relight, w, args.backends_ref_spp, log)
     out["validation"] = validation(64, log)
+    out["vs_thesis"] = {"probe": out["probe"]["vs_thesis"], "demo": out["demo"]["vs_thesis"]}
     return out

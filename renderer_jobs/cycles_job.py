@@ -17,8 +17,11 @@ Everything spectral is resolved here, on the scene grid, so the worker only copi
   physical-conductor Fresnel of Mitsuba's own ``η, k`` tables. ``dielectric`` → sharp Glass.
 - **Emitters**: emitter-only rectangles and disks become Cycles area lights (sampled by solid angle,
   as Blender users light scenes; an emitting mesh is sampled by area and was 4× noisier on the probe's
-  floor), other area emitters stay emitting meshes; both emit from the front side only (as in
-  Mitsuba) and are seen by every ray. Point and spot lights
+  floor), with a black copy of the shape 10⁻⁵ of its size behind the emitting side (an emitter
+  without material is black geometry that absorbs and shadows; a Cycles light lets rays through:
+  +1.1 % on the demo room, whose ceiling panel hangs under a white housing, without it). Other area
+  emitters stay emitting meshes; both emit from the front side only (as in Mitsuba) and are seen by
+  every ray. Point and spot lights
   have radius 0 and no soft falloff; the sun has angle 0; a constant sky is the world. Spot lights
   ramp from ``beam_width`` to ``cutoff_angle`` by Blender's smoothstep in ``cos θ`` instead of
   Mitsuba's linear ramp in ``θ`` (same cone, same full-intensity core). Envmap skies are refused.
@@ -305,11 +308,13 @@ def write_job(scene: Scene, view: str, job_dir: Path, *, spp: int, seed: int,
         light = None if aov_spp else area_light(s)  # the AOV pass keeps meshes: they flag emitter pixels
         if light is not None:
             doc["area_light"] = light
-        elif isinstance(s, MeshFile):
+        if isinstance(s, MeshFile):
             doc.update(file=str(scene.resolve_path(s.filename)), file_type=s.type, flat=s.face_normals,
                        matrix=(s.transform.to_matrix() if s.transform is not None else np.eye(4)).tolist())
         else:
             vert, tri, nrm = shape_mesh(s)
+            if light is not None:  # the black occluder sits just behind the light's emitting side
+                vert = vert + 1e-5 * max(light["size"], light["size_y"]) * np.asarray(light["matrix"])[:3, 2]  # light +Z
             key = f"s{i}"
             arrays[key + ".v"], arrays[key + ".f"] = vert.astype(np.float64), tri.astype(np.int64)
             if nrm is not None:

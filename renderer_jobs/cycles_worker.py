@@ -208,7 +208,14 @@ class Builder:
 
     def _shape(self, sc, shape: dict) -> None:
         if "area_light" in shape:
+            # The light, plus the shape itself as a black surface just behind its emitting side:
+            # in the scene description an emitter without material is black geometry (it absorbs
+            # and shadows), while a Cycles light lets rays through.
             self._area_light(sc, shape)
+            ob = self._mesh_object(sc, shape)
+            ob.data.materials.append(self._material(shape["name"] + ".black", None, None))
+            if shape["emitter"]["portal"]:
+                self.portal_objects.append(ob)
             return
         ob = self._mesh_object(sc, shape)
         em = shape.get("emitter")
