@@ -63,7 +63,8 @@ def relit_raw(cubes: dict, relight: dict, weights: np.ndarray) -> np.ndarray:
 
 def regions(aovs: dict, raw_ref: np.ndarray) -> dict[str, np.ndarray]:
     """``image`` (geometry pixels), ``lit`` (upward-facing flat pixels brighter than their median),
-    and one region per distinct albedo (materials), at least 50 pixels each, away from edges."""
+    and one region per distinct albedo (materials, albedo AOV rounded to 0.05), at least 30 pixels
+    each, away from edges."""
     from scipy import ndimage
 
     mask = aovs["mask"] & ~aovs["emitter"]
@@ -73,16 +74,16 @@ def regions(aovs: dict, raw_ref: np.ndarray) -> dict[str, np.ndarray]:
     g = raw_ref[..., 1]
     lit = flat & (g > np.median(g[flat])) if flat.any() else flat
     out = {"image": mask, "lit": lit}
-    key = np.round(aovs["albedo"], 2)
+    key = np.round(aovs["albedo"] * 20) / 20  # materials: albedo to 0.05 (the AOV's noise splits finer bins)
     inner = ndimage.binary_erosion(mask, iterations=1)
     codes, inverse, counts = np.unique(key[inner].reshape(-1, 3), axis=0, return_inverse=True, return_counts=True)
     order = np.argsort(-counts)
     for rank, i in enumerate(order[:6]):
-        if counts[i] < 50:
+        if counts[i] < 30:
             break
         sel = np.zeros(mask.shape, bool)
         sel[inner] = inverse.ravel() == i
-        out[f"albedo {tuple(float(x) for x in codes[i])}"] = sel
+        out[f"albedo {tuple(round(float(x), 2) for x in codes[i])}"] = sel
     return out
 
 
