@@ -56,7 +56,7 @@ def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> Non
     render(config=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
            wavelengths="stratified", views=None, groups=None, workers=workers, executor="local",
            address=None, skip_dark=True, adaptive=True, noise_target=None, illumination=True,
-           denoise=DEFAULT_METHOD, overwrite=False, dry_run=False, as_json=False)
+           denoise=DEFAULT_METHOD, backend="mitsuba", overwrite=False, dry_run=False, as_json=False)
 
 
 def _save_samples(url: str, out: Path) -> list[str]:
