@@ -5,7 +5,7 @@ differing by G −3.9 %, B −6.2 %. With one scene translation (:mod:`renderer_
 backends agree within 1.3 % (``bench/render.py --parts backends``); this script measures the
 plausible hand-made differences one at a time, each as the change of the lit floor's and the whole
 image's mean raw (A → D65, B → illuminant A, Nikon D810) against the backend's own settings. A
-variant is a textual edit of a copy of the worker (in a temporary folder) or of the job document:
+variant is a textual edit of a copy of the worker and its node module (in a temporary folder) or of the job document:
 nothing in the package changes.
 
     python bench/cycles_ablation.py [--spp 32] [--size 120x90]     # ~3 min on 2 cores; JSON last
@@ -60,7 +60,7 @@ def main(argv=None) -> dict:
     grid = scene.spectral_grid
     weights = get_sensor(args.sensor, grid).weights()
     relight = {"A": illuminant_spd("D65", grid), "B": illuminant_spd("A", grid)}
-    source = cr.WORKER.read_text()
+    sources = {name: (cr.WORKER.parent / name).read_text() for name in ("cycles_worker.py", "cycles_nodes.py")}
     write_job = cj.write_job
     tmp = Path(tempfile.mkdtemp(prefix="illumix-ablation-"))
 
@@ -68,13 +68,15 @@ def main(argv=None) -> dict:
         return sum((cubes[g].cube * relight[g]) @ w for g in relight)
 
     def render(worker_edits=(), job_edit=None) -> dict:
-        text = source
+        texts = dict(sources)
         for old, new in worker_edits:
-            if old not in text:
+            hits = [n for n, t in texts.items() if old in t]
+            if not hits:
                 raise SystemExit(f"the worker changed: {old!r} not found; update WORKER_EDITS")
-            text = text.replace(old, new)
-        (tmp / "worker.py").write_text(text)
-        cr.WORKER = tmp / "worker.py"
+            texts[hits[0]] = texts[hits[0]].replace(old, new)
+        for name, text in texts.items():
+            (tmp / name).write_text(text)
+        cr.WORKER = tmp / "cycles_worker.py"
 
         def edited(*a, **k):
             job = write_job(*a, **k)
