@@ -24,7 +24,9 @@ Everything spectral is resolved here, on the scene grid, so the worker only copi
   every ray. Point and spot lights
   have radius 0 and no soft falloff; the sun has angle 0; a constant sky is the world. Spot lights
   ramp from ``beam_width`` to ``cutoff_angle`` by Blender's smoothstep in ``cos θ`` instead of
-  Mitsuba's linear ramp in ``θ`` (same cone, same full-intensity core). Envmap skies are refused.
+  Mitsuba's linear ramp in ``θ`` (same cone, same full-intensity core). An envmap sky is looked up
+  with Mitsuba's lat-long convention and lights with its luminance × the group's spectrum
+  (Mitsuba's D65): exact for a grey map; a coloured map is rendered grey, with a warning.
 - **Portals** are rendered in a second setup (``"only"``) with only them emitting, as the Mitsuba
   backend does; the cube is the sum.
 
@@ -271,7 +273,7 @@ def shape_mesh(sh) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 # The job
 
 
-def _light_doc(scene: Scene, light, gid: str, emission: np.ndarray) -> dict:
+def _light_doc(scene: Scene, light, gid: str, emission: np.ndarray, warn=lambda msg: None) -> dict:
     radiance = (light.strength * emission).tolist()
     if isinstance(light, PointLight):
         return {"type": "point", "name": light.name, "group": gid, "position": list(light.position),
@@ -287,8 +289,37 @@ def _light_doc(scene: Scene, light, gid: str, emission: np.ndarray) -> dict:
                 "radiance": radiance}
     if isinstance(light, ConstantSky):
         return {"type": "sky", "name": light.name, "group": gid, "radiance": radiance}
-    raise SceneError(f"lights ({light.name}): the cycles backend cannot render {light.type!r} skies yet "
-                     "(the map's colours would need per-pixel spectral upsampling); use --backend mitsuba")
+    if isinstance(light, EnvMapSky):
+        path = scene.resolve_path(light.filename)
+        if not _grey_map(path):
+            warn(f"lights ({light.name}): the cycles backend lights with the envmap's luminance × Mitsuba's "
+                 "D65 (exact for a grey map); this map is coloured, so its colours are not rendered "
+                 "(use --backend mitsuba for them)")
+        m = light.transform.to_matrix() if light.transform is not None else np.eye(4)
+        return {"type": "sky", "name": light.name, "group": gid, "radiance": radiance, "image": str(path),
+                "to_local": np.linalg.inv(m[:3, :3]).tolist()}
+    raise SceneError(f"lights ({light.name}): the cycles backend cannot render {light.type!r}")  # pragma: no cover
+
+
+def _grey_map(path: Path) -> bool:
+    """True when every pixel of the environment map has R = G = B (within 0.1 %)."""
+    try:
+        if path.suffix.lower() == ".exr":
+            from renderer_jobs.cycles_render import read_exr
+
+            layers = read_exr(path)
+            img = next(iter(layers.values())) if len(layers) == 1 else np.concatenate(
+                [layers[k] for k in ("R", "G", "B") if k in layers], axis=-1)
+        else:
+            import cv2
+
+            img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+    except Exception:  # noqa: BLE001 — unreadable here: say it may be coloured
+        return False
+    if img is None or img.ndim < 3 or img.shape[2] < 3:
+        return img is not None
+    c = img[..., :3].astype(np.float64)
+    return bool(np.all(np.ptp(c, axis=2) <= 1e-3 * np.maximum(c.max(axis=2), 1e-12)))
 
 
 def write_job(scene: Scene, view: str, job_dir: Path, *, spp: int, seed: int,
@@ -324,7 +355,7 @@ def write_job(scene: Scene, view: str, job_dir: Path, *, spp: int, seed: int,
             doc["emitter"] = {"group": gid[s.emitter.group], "portal": s.emitter.portal,
                               "radiance": (s.emitter.strength * emission[s.emitter.group]).tolist()}
         shapes.append(doc)
-    lights = [_light_doc(scene, light, gid[light.group], emission[light.group]) for light in scene.lights]
+    lights = [_light_doc(scene, light, gid[light.group], emission[light.group], warn) for light in scene.lights]
     portals = any(s.emitter is not None and s.emitter.portal for s in scene.shapes)
     direct = bool(lights) or any(s.emitter is not None and not s.emitter.portal for s in scene.shapes)
     w, h = resolution or v.resolution

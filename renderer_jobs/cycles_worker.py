@@ -28,6 +28,10 @@ from cycles_nodes import MaterialBuilder, _slots  # the worker's folder is on sy
 PROGRESS = "ILLUMIX-PROGRESS"
 
 
+def math_pi() -> float:
+    return math.pi
+
+
 def _log(done: int, total: int, label: str) -> None:
     print(f"{PROGRESS} {done} {total} {label}", flush=True)
 
@@ -280,8 +284,55 @@ class Builder(MaterialBuilder):
             bg.inputs["Strength"].default_value = 0.0
             return
         world.lightgroup = sky["group"]
-        self._spectral_input(bg.inputs["Color"], sky["radiance"], strength=bg.inputs["Strength"],
-                             active=lambda setup: setup == "without")
+        if "image" not in sky:
+            self._spectral_input(bg.inputs["Color"], sky["radiance"], strength=bg.inputs["Strength"],
+                                 active=lambda setup: setup == "without")
+            return
+        # An environment map, looked up as Mitsuba's envmap does: the direction d to the sky in the
+        # map's frame (inverse to_world), u = atan2(d.x, -d.z) / 2π, v = acos(d.y) / π (top row at
+        # v = 0; Blender's images start at the bottom). Its luminance scales the group spectrum.
+        N, L = nt.nodes.new, nt.links.new
+        coord = N("ShaderNodeTexCoord")
+        rows = []
+        for r in sky["to_local"]:
+            dot = N("ShaderNodeVectorMath")
+            dot.operation = "DOT_PRODUCT"
+            dot.inputs[1].default_value = r
+            L(coord.outputs["Generated"], dot.inputs[0])
+            rows.append(dot.outputs["Value"])
+
+        def math(op, a, b=None):
+            n = N("ShaderNodeMath")
+            n.operation = op
+            for i, x in enumerate((a, b)):
+                if x is None:
+                    continue
+                if isinstance(x, (int, float)):
+                    n.inputs[i].default_value = x
+                else:
+                    L(x, n.inputs[i])
+            return n.outputs[0]
+        u = math("MULTIPLY", math("ARCTAN2", rows[0], math("MULTIPLY", rows[2], -1.0)), 1 / (2 * math_pi()))
+        v = math("SUBTRACT", 1.0, math("MULTIPLY", math("ARCCOSINE", rows[1]), 1 / math_pi()))
+        uv = N("ShaderNodeCombineXYZ")
+        L(u, uv.inputs[0])
+        L(v, uv.inputs[1])
+        tex = N("ShaderNodeTexImage")
+        tex.image = bpy.data.images.load(sky["image"])
+        tex.interpolation, tex.extension = "Linear", "REPEAT"
+        L(uv.outputs[0], tex.inputs["Vector"])
+        lum = N("ShaderNodeRGBToBW")
+        L(tex.outputs["Color"], lum.inputs[0])
+        gain = math("MULTIPLY", lum.outputs[0], 0.0)
+        L(gain, bg.inputs["Strength"])
+        gain_input = gain.node.inputs[1]
+
+        def setter(bands, setup, mode, values=sky["radiance"]):
+            rgb = _slots(values, bands) if setup == "without" else (0.0, 0.0, 0.0)
+            peak = max(rgb)
+            gain_input.default_value = peak
+            bg.inputs["Color"].default_value = (*(c / peak if peak > 0 else 0.0 for c in rgb), 1.0)
+        self.setters.append(setter)
 
     # -- rendering ---------------------------------------------------------------------------------
 
