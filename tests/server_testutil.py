@@ -36,3 +36,30 @@ class ThreadServer:
     def __exit__(self, *exc) -> None:
         self.server.should_exit = True
         self.thread.join(timeout=10)
+
+
+def synthetic_service_fixtures(prefix: str, token: str):
+    """Module-scoped pytest fixtures ``(store_path, client)``: a synthetic store
+    (:mod:`synthetic_store`) in a fresh temporary folder, and a ``TestClient`` of the service on it
+    (token ``token``, 64 MiB cache). In a test module: ``store_path, client = synthetic_service_fixtures(...)``."""
+    import pytest
+
+    @pytest.fixture(scope="module")
+    def store_path(tmp_path_factory):
+        import synthetic_store
+
+        path = tmp_path_factory.mktemp(prefix) / "store"
+        synthetic_store.build(path)
+        return path
+
+    @pytest.fixture(scope="module")
+    def client(store_path):
+        from fastapi.testclient import TestClient
+
+        from service.app import create_app
+        from store import CubeStore
+
+        with TestClient(create_app(CubeStore.open(str(store_path), mode="a"), token=token, cache_mb=64)) as c:
+            yield c
+
+    return store_path, client

@@ -14,7 +14,7 @@ pytest.importorskip("store")
 from fastapi.testclient import TestClient  # noqa: E402
 
 import synthetic_store as synth  # noqa: E402
-from server_testutil import ThreadServer  # noqa: E402
+from server_testutil import ThreadServer, synthetic_service_fixtures  # noqa: E402
 from retarget.groundtruth import gain_map, illuminant_weights, mixed_white_point, white_point  # noqa: E402
 from retarget.illuminants import illuminant_spd  # noqa: E402
 from retarget.sensors import get_sensor  # noqa: E402
@@ -27,18 +27,7 @@ SENSOR_CSV = "wavelength,r,g,b\n" + "\n".join(
     f"{np.exp(-((wl - 460) / 30) ** 2):.6f}" for wl in range(380, 785, 5))
 
 
-@pytest.fixture(scope="module")
-def store_path(tmp_path_factory):
-    path = tmp_path_factory.mktemp("svc") / "store"
-    synth.build(path)
-    return path
-
-
-@pytest.fixture(scope="module")
-def client(store_path):
-    app = create_app(CubeStore.open(str(store_path), mode="a"), token=TOKEN, cache_mb=64)
-    with TestClient(app) as c:
-        yield c
+store_path, client = synthetic_service_fixtures("svc", TOKEN)
 
 
 def load(resp) -> dict:

@@ -16,6 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 import synthetic_store as synth
+from server_testutil import synthetic_service_fixtures
 from service.app import create_app
 from store import CubeStore
 
@@ -25,17 +26,7 @@ WL = np.arange(380, 781, 5)
 V0 = {"scene": "synth", "view": "v0"}
 
 
-@pytest.fixture(scope="module")
-def store_path(tmp_path_factory):
-    path = tmp_path_factory.mktemp("hard") / "store"
-    synth.build(path)
-    return path
-
-
-@pytest.fixture(scope="module")
-def client(store_path):
-    with TestClient(create_app(CubeStore.open(str(store_path), mode="a"), token=TOKEN, cache_mb=64)) as c:
-        yield c
+store_path, client = synthetic_service_fixtures("hard", TOKEN)
 
 
 def error(r, status: int) -> dict:
