@@ -78,7 +78,7 @@ def regions(aovs: dict, raw_ref: np.ndarray) -> dict[str, np.ndarray]:
     inner = ndimage.binary_erosion(mask, iterations=1)
     codes, inverse, counts = np.unique(key[inner].reshape(-1, 3), axis=0, return_inverse=True, return_counts=True)
     order = np.argsort(-counts)
-    for rank, i in enumerate(order[:6]):
+    for i in order[:6]:
         if counts[i] < 30:
             break
         sel = np.zeros(mask.shape, bool)

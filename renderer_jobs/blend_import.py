@@ -53,15 +53,13 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer_jobs.cycles_env import find_blender_python
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 
 WORKER = Path(__file__).with_name("blend_worker.py")
 WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
 GREY = 1e-3  # relative channel spread below which a colour counts as grey
-
-
-from renderer_jobs.cycles_env import find_blender_python  # noqa: E402
 
 
 # -- names ------------------------------------------------------------------------------------

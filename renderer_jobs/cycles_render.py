@@ -22,6 +22,7 @@ import numpy as np
 from renderer_jobs.cycles_env import find_blender_python
 from renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
 from renderer_jobs.mitsuba_render import CubeResult, RenderSettings
+from renderer_jobs.mitsuba_scene import group_emission
 from renderer_jobs.mitsuba_variant import RenderError
 from renderer_jobs.scene_model import Scene
 
@@ -117,23 +118,20 @@ def render_cubes(scene: Scene, view: str, settings: RenderSettings = RenderSetti
                                 cubes[mode][gi, :, :, b] += rgb[..., slot]
     info = renderer_info(scene, settings, version, job)
     run_stats = {"total_s": round(stats["wall_s"], 3), "cpu_s": round(stats["cpu_s"], 3),
-                 "renders": stats["renders"], "non_finite_samples": 0}
+                 "renders": stats["renders"]}
     out: dict[str, CubeResult] = {}
     for gi, g in enumerate(job["group_names"]):
         if g not in wanted:
             continue
-        from renderer_jobs.mitsuba_scene import group_emission
-
         emission, name = group_emission(scene, g)
-        t = cubes["transport"][gi]
-        bad = ~np.isfinite(t)
-        if bad.any():
-            run_stats["non_finite_samples"] += int(bad.sum())
-            t[bad] = 0
-        u = cubes.get("illumination")
+        # Non-finite pixels (none seen so far) are zeroed and counted, per group, as Mitsuba's are.
+        t, u = cubes["transport"][gi], (cubes["illumination"][gi] if "illumination" in cubes else None)
+        bad = sum(int((~np.isfinite(c)).sum()) for c in (t, u) if c is not None)
+        for c in (t, u):
+            if c is not None:
+                np.nan_to_num(c, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
         out[g] = CubeResult(cube=t, emission=np.asarray(emission, dtype=float), emission_name=name,
-                            renderer=info, stats=dict(run_stats),
-                            illumination=np.nan_to_num(u[gi], nan=0, posinf=0, neginf=0) if u is not None else None)
+                            renderer=info, stats={**run_stats, "non_finite_samples": bad}, illumination=u)
     return out
 
 

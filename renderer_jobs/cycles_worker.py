@@ -28,10 +28,6 @@ from cycles_nodes import MaterialBuilder, _slots  # the worker's folder is on sy
 PROGRESS = "ILLUMIX-PROGRESS"
 
 
-def math_pi() -> float:
-    return math.pi
-
-
 def _log(done: int, total: int, label: str) -> None:
     print(f"{PROGRESS} {done} {total} {label}", flush=True)
 
@@ -63,7 +59,7 @@ class Builder(MaterialBuilder):
         for name in ("depth", "emitter"):
             a = vl.aovs.add()
             a.name, a.type = name, "VALUE"
-        self.materials = {name: m for name, m in self.job["materials"].items()}
+        self.materials = dict(self.job["materials"])
         for shape in self.job["shapes"]:
             self._shape(sc, shape)
         for light in self.job["lights"]:
@@ -301,7 +297,7 @@ class Builder(MaterialBuilder):
             L(coord.outputs["Generated"], dot.inputs[0])
             rows.append(dot.outputs["Value"])
 
-        def math(op, a, b=None):
+        def node_math(op, a, b=None):
             n = N("ShaderNodeMath")
             n.operation = op
             for i, x in enumerate((a, b)):
@@ -312,8 +308,9 @@ class Builder(MaterialBuilder):
                 else:
                     L(x, n.inputs[i])
             return n.outputs[0]
-        u = math("MULTIPLY", math("ARCTAN2", rows[0], math("MULTIPLY", rows[2], -1.0)), 1 / (2 * math_pi()))
-        v = math("SUBTRACT", 1.0, math("MULTIPLY", math("ARCCOSINE", rows[1]), 1 / math_pi()))
+        u = node_math("MULTIPLY", node_math("ARCTAN2", rows[0], node_math("MULTIPLY", rows[2], -1.0)),
+                      1 / (2 * math.pi))
+        v = node_math("SUBTRACT", 1.0, node_math("MULTIPLY", node_math("ARCCOSINE", rows[1]), 1 / math.pi))
         uv = N("ShaderNodeCombineXYZ")
         L(u, uv.inputs[0])
         L(v, uv.inputs[1])
@@ -323,7 +320,7 @@ class Builder(MaterialBuilder):
         L(uv.outputs[0], tex.inputs["Vector"])
         lum = N("ShaderNodeRGBToBW")
         L(tex.outputs["Color"], lum.inputs[0])
-        gain = math("MULTIPLY", lum.outputs[0], 0.0)
+        gain = node_math("MULTIPLY", lum.outputs[0], 0.0)
         L(gain, bg.inputs["Strength"])
         gain_input = gain.node.inputs[1]
 
