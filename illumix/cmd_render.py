@@ -17,7 +17,7 @@ from rich.console import Console
 
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
-from renderer_jobs.modes import BACKENDS, EXECUTORS
+from renderer_jobs.modes import BACKENDS, EXECUTORS, SAMPLERS
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 
 console = Console(stderr=True)
@@ -55,9 +55,11 @@ def render(
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
     demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
-    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (4 wavelengths each; >= 16 on 63 bands)."),
+    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (all-bands: each carries every band; stratified/random: 4 "
+                                 "wavelengths each, >= 16 on 63 bands)."),
     seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
     wavelengths: str = wavelengths_option(),
+    sampler: str = choice_option(SAMPLERS, "--sampler", f"Pixel sampler of the all-bands mode — {described(SAMPLERS)}."),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
@@ -66,14 +68,14 @@ def render(
     skip_dark: bool = typer.Option(True, "--skip-dark/--no-skip-dark",
                                    help="Probe each view/group first (<= 1/16 of its paths) and record a group "
                                         "that sends no light into the view as empty instead of rendering it."),
-    adaptive: bool = typer.Option(True, "--adaptive/--no-adaptive",
-                                  help="Spread the spp budget over the pixels by a 16-spp pilot's variance "
-                                       "(same total paths, lower RMS and worst-pixel noise); --no-adaptive: "
-                                       "the same spp in every pixel."),
+    adaptive: bool = typer.Option(False, "--adaptive/--no-adaptive",
+                                  help="With --wavelengths stratified: spread the spp budget over the pixels by a "
+                                       "16-spp pilot's variance (same total paths); default: the same spp in "
+                                       "every pixel (bench/RENDER_PERF.md measures both)."),
     noise_target: float | None = typer.Option(
         None, "--noise-target",
-        help="Render each pixel to this relative noise of its spectral sum as the pilot predicts it (e.g. "
-             "0.05 = 5 %); --spp becomes the per-pixel maximum, so a cube costs what its light needs."),
+        help="With --wavelengths stratified: render each pixel to this relative noise of its spectral sum as "
+             "the pilot predicts it (e.g. 0.05 = 5 %); --spp becomes the per-pixel maximum."),
     illumination: bool = typer.Option(True, "--illumination/--no-illumination",
                                       help="Also render each cube's illumination cube (what a white surface would "
                                            "show, bounce light included): the physical ground truth the service "
@@ -118,10 +120,8 @@ def render(
         if noise_target is not None and not 0 < noise_target < 1:
             raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
                             "e.g. 0.05 for 5 %")
-        if noise_target is not None and not adaptive:  # the renderer would quietly let the target win
-            raise UserError("--noise-target spreads the paths by the adaptive pilot, which --no-adaptive turns off; "
-                            "give one of the two")
-        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, skip_dark=skip_dark,
+        adaptive = adaptive or noise_target is not None  # a target spreads paths by the adaptive pilot
+        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target, illumination=illumination,
                                   denoise=denoise, backend=backend)
         if settings.backend == "cycles" and not dry_run:
@@ -144,7 +144,7 @@ def render(
     n_cubes = len(p.cube_jobs)
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
-               "spp": spp, "seed": seed, "wavelengths": wavelengths, "skip_dark": skip_dark,
+               "spp": spp, "seed": seed, "wavelengths": wavelengths, "sampler": sampler, "skip_dark": skip_dark,
                "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
                "denoise": denoise, "executor": executor, "backend": settings.backend}
     if dry_run:

@@ -75,7 +75,7 @@ from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live
 from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
-from renderer_jobs.modes import WAVELENGTH_MODES
+from renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
@@ -83,15 +83,18 @@ from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 @dataclass(frozen=True)
 class RenderSettings:
-    """spp: paths per pixel (each carries 4 wavelengths); seed: RNG seed of the cube;
-    wavelengths: ``"stratified"`` or ``"random"`` (module docstring); max_lanes: paths traced per pass
-    (bounds memory: ~1 kB per lane on the LLVM backend); aov_spp: samples per pixel of the AOV pass;
-    resolution: ``(width, height)`` overriding the view's; adaptive: spread the spp budget over the
-    pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`; spp ≥ 2 × pilot, else uniform);
-    skip_background: trace no paths in pixels that cannot see geometry when the groups have no sky
-    (they are exactly zero; :mod:`renderer_jobs.view_coverage`); noise_target: instead of a fixed
-    budget, give each pixel the paths its pilot predicts for this relative noise of its spectral
-    sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
+    """spp: paths per pixel; seed: RNG seed of the cube; wavelengths: ``"all-bands"`` (every path
+    carries every band, rendered by Mitsuba's loop with ``sampler``: :mod:`renderer_jobs.mitsuba_band_render`),
+    ``"stratified"`` or ``"random"`` (4 wavelengths per path, numpy-driven: module docstring);
+    sampler: Mitsuba's pixel sampler for ``"all-bands"`` (:data:`renderer_jobs.modes.SAMPLERS`; its spp
+    rules apply); max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
+    AOV pass; resolution: ``(width, height)`` overriding the view's; adaptive (hero wavelength modes
+    only): spread the spp budget over the pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`;
+    spp ≥ 2 × pilot, else uniform); skip_background (hero modes): trace no paths in pixels that cannot
+    see geometry when the groups have no sky (they are exactly zero; :mod:`renderer_jobs.view_coverage`;
+    in ``"all-bands"`` such a path ends at its first missed ray, exactly zero too); noise_target (hero
+    modes): instead of a fixed budget, give each pixel the paths its pilot predicts for this relative
+    noise of its spectral sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
     (:func:`renderer_jobs.adaptive_spp.to_target`); illumination: also render the illumination cube
     (module docstring, "Illumination cube"); denoise: the :mod:`retarget.denoise` method whose
     denoised copies the job runner stores beside each cube (``None``/``"none"``: no copies);
@@ -104,13 +107,14 @@ class RenderSettings:
 
     spp: int = 64
     seed: int = 0
-    wavelengths: str = "stratified"
+    wavelengths: str = "all-bands"
+    sampler: str = "multijitter"
     max_lanes: int = 1 << 20
     aov_spp: int = 16  # the denoising guides: bench/denoise.py measures them at 16 rays per pixel
     resolution: tuple[int, int] | None = None
     skip_dark: bool = True
     probe_ratio: int = 16
-    adaptive: bool = True
+    adaptive: bool = False
     skip_background: bool = True
     noise_target: float | None = None
     illumination: bool = True
@@ -131,6 +135,18 @@ class RenderSettings:
             raise SceneError(str(WAVELENGTH_MODES.unknown(self.wavelengths)))
         # Any accepted spelling ("Stratified") becomes the canonical name the renderer compares with.
         object.__setattr__(self, "wavelengths", WAVELENGTH_MODES.canonical(self.wavelengths))
+        if self.sampler not in SAMPLERS:
+            raise SceneError(str(SAMPLERS.unknown(self.sampler)))
+        object.__setattr__(self, "sampler", SAMPLERS.canonical(self.sampler))
+        if self.wavelengths == "all-bands" and self.backend == "mitsuba":
+            from renderer_jobs.mitsuba_band_render import SPP_RULES, spp_allowed  # noqa: PLC0415
+
+            if not spp_allowed(self.sampler, self.spp):
+                raise SceneError(f"spp {self.spp} does not suit the {self.sampler} sampler: it needs "
+                                 f"{SPP_RULES[self.sampler]}; or choose the multijitter sampler")
+            if self.adaptive or self.noise_target is not None:
+                raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
+                                 "they need wavelengths 'stratified' (all-bands paths are uniform per pixel)")
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
         if self.denoise is not None:
@@ -149,7 +165,7 @@ class RenderSettings:
                              "deviation, e.g. 0.05 for 5 %")
 
     def to_dict(self) -> dict:
-        return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths,
+        return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths, "sampler": self.sampler,
                 "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
@@ -190,18 +206,34 @@ def emitter_passes(scene: Scene, groups: list[str]) -> list[str]:
 def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> dict:
     """The cube metadata's ``renderer`` record: Mitsuba version, variant and every setting that matters."""
     mi, _ = import_mitsuba()
-    return {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
-            "method": "path tracing, 4 stratified wavelengths per path (illumix sampling)",
-            "settings": {"integrator": "path", "max_depth": scene.max_depth, "rfilter": "box",
+    bands = settings.wavelengths == "all-bands"
+    info = {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
+            "method": ("path tracing, every band on every path (16 quadruples of band centres), "
+                       f"{settings.sampler} pixel samples, Mitsuba's render loop" if bands else
+                       f"path tracing, 4 {settings.wavelengths} wavelengths per path (illumix sampling)"),
+            "settings": {"integrator": "illumix band path" if bands else "path", "max_depth": scene.max_depth,
+                         "rr_depth": 5, "mis": "power heuristic", "rfilter": "box",
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
-                         "adaptive_spp": settings.adaptive, "noise_target": settings.noise_target,
-                         "skip_background": settings.skip_background,
                          "passes": passes, "libllvm": libllvm_path()}}
+    if bands:
+        # No material of the scene model disperses (dielectrics take one scalar IOR): every band
+        # follows the path sampled once, none falls back to hero wavelengths.
+        info["settings"].update({"sampler": settings.sampler, "dispersion": "none",
+                                 "band_wavelengths": "band centres (step spectra: the band average)"})
+        info["illumination_method"] = ILLUMINATION_METHOD_BANDS
+    else:
+        info["settings"].update({"adaptive_spp": settings.adaptive, "noise_target": settings.noise_target,
+                                 "skip_background": settings.skip_background})
+    return info
 
 
 ILLUMINATION_METHOD = ("per-sample L/rho at purely diffuse first hits; elsewhere a white-Lambertian first-hit "
                        "estimate (light sampling + one cosine-sampled continuation) in the same paths")
+ILLUMINATION_METHOD_BANDS = ("per band, in the same paths: L/rho at purely diffuse first hits; at first hits with "
+                             "a diffuse lobe a white-Lambertian estimate along the path's own BSDF-sampled "
+                             "continuation (MIS with its light sample); elsewhere a second path from a white "
+                             "Lambertian first vertex")
 
 
 class _PathBlocks:
@@ -334,6 +366,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     groups = group_list(scene, group)
     t0 = time.perf_counter()
     passes = emitter_passes(scene, groups)
+    if settings.wavelengths == "all-bands":
+        return _render_all_bands(scene, view, groups, passes, settings)
     tracers = [Tracer(scene, view, groups, settings.resolution, portals=p) for p in passes]
     t_load = time.perf_counter() - t0
     nb = tracers[0].grid.n_bands
@@ -419,3 +453,15 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
                                      "fraction_predicted_on_target": round(float(np.mean(pred <= target)), 4)}
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
                       renderer=renderer, stats=stats, illumination=illum)
+
+
+def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
+                      settings: RenderSettings) -> CubeResult:
+    from renderer_jobs.mitsuba_band_render import render_all_bands  # noqa: PLC0415
+
+    nb = scene.spectral_grid.n_bands
+    emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
+    cube, illum, stats = render_all_bands(scene, view, groups, passes, settings, np.asarray(emission, np.float64))
+    stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})
+    return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
+                      renderer=renderer_info(scene, settings, passes), stats=stats, illumination=illum)

@@ -1,4 +1,4 @@
-"""The renderer's option families by name: wavelength sampling and job executors.
+"""The renderer's option families by name: wavelength sampling, pixel samplers, backends and job executors.
 
 :class:`retarget.registry.MethodRegistry` families (case-insensitive, one error naming the valid
 choices), each name mapped to a one-line description. Pure Python, unlike the modules that implement
@@ -12,8 +12,9 @@ from retarget.registry import MethodRegistry
 
 # See renderer_jobs.mitsuba_render, "Wavelength sampling".
 WAVELENGTH_MODES: MethodRegistry[str] = MethodRegistry("wavelength sampling", {
-    "stratified": "every band gets its exact share of each pixel's wavelength samples",
-    "random": "Mitsuba's own sampling, four wavelengths drawn uniformly over the grid span",
+    "all-bands": "every path carries every band (default; renderer_jobs.mitsuba_bands), Mitsuba's render loop",
+    "stratified": "4 wavelengths per path, illumix's numpy-driven paths; every band gets its exact share of each pixel's wavelength samples",
+    "random": "as stratified but with Mitsuba's own wavelength sampling, four wavelengths drawn uniformly over the grid span",
 })
 
 # See renderer_jobs.jobs (module docstring).
@@ -24,6 +25,15 @@ EXECUTORS: MethodRegistry[str] = MethodRegistry("executor", {
 
 # See renderer_jobs.backends: the renderers that write transport cubes.
 BACKENDS: MethodRegistry[str] = MethodRegistry("render backend", {
-    "mitsuba": "Mitsuba 3 (default): 4 stratified wavelengths per path, illumix's own sampling",
+    "mitsuba": "Mitsuba 3 (default): every band on every path, quasi-random pixel samples",
     "cycles": "Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
 }, aliases={"blender": "cycles"})
+
+# Mitsuba's pixel samplers, for the "all-bands" mode (renderer_jobs.mitsuba_band_render).
+SAMPLERS: MethodRegistry[str] = MethodRegistry("pixel sampler", {
+    "multijitter": "correlated multi-jittered sampling (Kensler 2013); any spp",
+    "ldsampler": "low-discrepancy (0,2)-sequences; spp a power of 2",
+    "orthogonal": "orthogonal array sampling (Jarosz et al. 2019); spp a prime squared",
+    "stratified": "jittered strata; any spp",
+    "independent": "independent uniform samples (plain Monte Carlo); any spp",
+}, aliases={"low-discrepancy": "ldsampler", "random": "independent"})

@@ -102,8 +102,8 @@ def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
     from renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
-    a = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=1, adaptive=True))
-    u = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=2, adaptive=False))
+    a = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=1, adaptive=True, wavelengths="stratified"))
+    u = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=2, adaptive=False, wavelengths="stratified"))
     sp = a.stats["spp_per_pixel"]
     assert sp["pilot"] == 16 and sp["min"] >= 16 and sp["max"] > 64 and "spp_per_pixel" not in u.stats
     assert a.renderer["settings"]["adaptive_spp"] is True
@@ -111,8 +111,8 @@ def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
     se = d.std() / np.sqrt(d.size)
     assert abs(d.mean()) < 5 * se
     # below twice the pilot there is nothing to distribute: uniform, bit for bit
-    lo = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=True))
-    lo_u = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=False))
+    lo = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=True, wavelengths="stratified"))
+    lo_u = render_cube(room, "front", "desk", RenderSettings(spp=24, seed=3, adaptive=False, wavelengths="stratified"))
     assert np.array_equal(lo.cube, lo_u.cube)
 
 
@@ -140,7 +140,7 @@ def test_noise_target_render_meets_its_target():
     room = demo.demo_room(0, resolution=(48, 36))
     mean_spp = {}
     for target in (0.2, 0.1):
-        a, b = (render_cube(room, "front", "desk", RenderSettings(spp=1024, seed=s, noise_target=target))
+        a, b = (render_cube(room, "front", "desk", RenderSettings(spp=1024, seed=s, noise_target=target, wavelengths="stratified"))
                 for s in (1, 2))
         ya, yb = (r.cube.astype(np.float64).mean(-1) for r in (a, b))
         m = (ya + yb) / 2

@@ -50,16 +50,27 @@ def _chart_plastic() -> dict:
     return doc
 
 
-def test_traced_estimate_matches_the_closed_form_on_glossy_patches(monkeypatch):
+@pytest.mark.parametrize("wavelengths, force, estimator", [
+    ("all-bands", None, "in_path"), ("all-bands", "traced", "traced"), ("stratified", None, "traced")])
+def test_glossy_estimates_match_the_closed_form_on_glossy_patches(monkeypatch, wavelengths, force, estimator):
+    """Rough-plastic patches (no L/ρ): the in-path estimate (all-bands: a white surface along the
+    path's own BSDF-sampled continuation), the separate white path, and the stratified mode's traced
+    estimate all give the closed form."""
+    from renderer_jobs import mitsuba_bands
+
     monkeypatch.setattr(mr, "TRACE_BUDGET", 1.0)  # trace every sample: no subsampling noise
+    monkeypatch.setattr(mitsuba_bands, "FORCE_FIRST", force)
     s = scene_from_dict(_chart_plastic())
-    r = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2))
-    assert r.stats["illumination"]["traced"] > 0 and r.stats["illumination"]["demodulated"] == 0
+    r = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2, wavelengths=wavelengths))
+    assert r.stats["illumination"][estimator] > 0 and r.stats["illumination"]["demodulated"] == 0
     u = np.stack([r.illumination[m].mean(axis=0) for m in patch_masks(s)])
     # delta light: the light sample is exact; the continuation escapes (nothing else in the scene)
     np.testing.assert_allclose(u, math.cos(math.radians(30)) / math.pi, rtol=1e-5)
+    if wavelengths == "all-bands":
+        return
     # small lane blocks: the queue of estimates is traced as it fills (bounded memory), same result
-    small = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2, max_lanes=4096))
+    small = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2, max_lanes=4096,
+                                                                     wavelengths=wavelengths))
     u = np.stack([small.illumination[m].mean(axis=0) for m in patch_masks(s)])
     np.testing.assert_allclose(u, math.cos(math.radians(30)) / math.pi, rtol=1e-5)
 
@@ -101,19 +112,26 @@ def test_illumination_relights_exactly_like_transport():
 
 
 def test_illumination_is_finite_non_negative_and_unbiased_against_demodulation(monkeypatch):
-    """The box with every surface diffuse: per-sample demodulation (exact) and the traced estimator
-    (forced, by treating every hit as non-diffuse and tracing each) agree within noise; both finite
-    and ≥ 0."""
+    """The box with every surface diffuse: per-sample demodulation (exact) and the other estimators
+    (forced on every hit: the stratified mode's traced one; all-bands' in-path and separate white
+    path) agree within noise; all finite and ≥ 0."""
+    from renderer_jobs import mitsuba_bands
+
     box = scene_from_dict(box_scene())
-    settings = mr.RenderSettings(spp=32, seed=5)
-    demod = mr.render_cube(box, "cam", "lamp", settings)
-    monkeypatch.setattr(mr, "RHO_MIN", np.inf)
-    monkeypatch.setattr(mr, "TRACE_BUDGET", 1.0)
-    traced = mr.render_cube(box, "cam", "lamp", settings)
-    for r in (demod, traced):
-        assert np.isfinite(r.illumination).all() and (r.illumination >= 0).all()
-    assert traced.stats["illumination"]["demodulated"] == 0
-    assert_same_within_noise(traced.illumination, demod.illumination)
+    for wavelengths, forced in (("stratified", ("traced",)), ("all-bands", ("mixed", "traced"))):
+        settings = mr.RenderSettings(spp=32, seed=5, wavelengths=wavelengths)
+        demod = mr.render_cube(box, "cam", "lamp", settings)
+        assert demod.stats["illumination"]["demodulated"] > 0
+        for force in forced:
+            with monkeypatch.context() as m:
+                m.setattr(mr, "RHO_MIN", np.inf)
+                m.setattr(mr, "TRACE_BUDGET", 1.0)
+                m.setattr(mitsuba_bands, "FORCE_FIRST", force)
+                other = mr.render_cube(box, "cam", "lamp", settings)
+            for r in (demod, other):
+                assert np.isfinite(r.illumination).all() and (r.illumination >= 0).all()
+            assert other.stats["illumination"]["demodulated"] == 0
+            assert_same_within_noise(other.illumination, demod.illumination)
 
 
 def test_emitter_aov_flags_the_light_panel():

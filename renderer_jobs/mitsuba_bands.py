@@ -1,0 +1,257 @@
+"""Every band on every path: a Mitsuba integrator whose paths carry all the cube's bands at once.
+
+Mitsuba's spectral variants trace 4 wavelengths per ray. Every material of the scene model is
+non-dispersive (diffuse, rough plastic, rough conductor, dielectric with a scalar IOR): a BSDF's
+sampled direction and its pdf do not depend on the wavelength, only its value does. So one path,
+sampled once, can carry every band: :class:`BandPathIntegrator` keeps a throughput per *quadruple*
+of band centres (16 quadruples = 64 lanes for 63 bands) and re-evaluates the BSDF, the emitters and
+the light samples at each quadruple along the same path. That removes wavelength sampling from the
+noise altogether (issue 17: a band sees every path, not 1/16 of them), and because the integrator is
+a standard ``SamplingIntegrator`` returning the bands as AOVs of an ``hdrfilm`` with a box filter,
+Mitsuba's own render loop and its low-discrepancy samplers (``multijitter``, ``ldsampler``,
+``orthogonal``, ``stratified``) drive it at compiled speed (the Python ``sample`` is traced once into
+a Dr.Jit kernel per pass).
+
+Estimator (per path, each band ``b`` of quadruple ``q``): unidirectional path tracing with next-event
+estimation and MIS (power heuristic), emitters selected by Mitsuba's ``sampling_weight`` (their
+approximate power per unit group spectrum, so a relit render selects exactly the same lights),
+Russian roulette from ``rr_depth`` on the largest throughput over *all* bands (independent of the
+emission spectrum, so relighting stays exact). ``max_depth`` as Mitsuba's ``path``: 1 = emitters
+seen directly, 2 = direct light, …
+
+Illumination (DESIGN.md "Physical GT"), band by band, from the same paths: where the first hit is
+purely diffuse and not emitting, ``U = L/ρ`` (every contribution of the path carries ``ρ``); elsewhere
+a second path from the same camera ray whose first vertex is a white Lambertian surface (BSDF ``1/π``,
+cosine sampling, its own emission excluded), in the same kernel. Samples that hit nothing add 0.
+
+AOVs: ``b000…`` the bands (radiance, band average of a step-spectrum scene = its value at the band
+centre), ``u000…`` the illumination bands, ``bad`` the number of non-finite values the sample
+dropped. Bands a group does not emit are left out of the quadruples (exactly zero in the cube).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM
+from renderer_jobs.mitsuba_variant import import_mitsuba
+
+RR_DEPTH = 5  # Mitsuba's path default: Russian roulette from the 5th vertex
+RHO_MIN = 1e-6  # below this diffuse reflectance L/ρ carries nothing usable: trace U instead
+
+
+def band_quadruples(edges: np.ndarray, live: np.ndarray) -> tuple[list[tuple[float, ...]], np.ndarray]:
+    """The bands a path carries, in quadruples: ``(lower band edges (nm) per quadruple, band index of
+    each lane (n_quads·4,))``. ``live`` bands only; the last quadruple repeats its last band to fill 4
+    lanes (those copies are ignored: lane index ``-1``)."""
+    live = np.asarray(live, dtype=np.int64)
+    n = -(-live.size // 4)
+    lanes = np.full(n * 4, -1, dtype=np.int64)
+    lanes[:live.size] = live
+    lo = np.asarray(edges, dtype=np.float64)[:-1][np.maximum(lanes, 0)]
+    lo[live.size:] = lo[live.size - 1] if live.size else float(edges[0])
+    return [tuple(float(x) for x in lo[4 * i:4 * i + 4]) for i in range(n)], lanes
+
+
+def _power_heuristic(dr, a, b):
+    a2, b2 = a * a, b * b
+    w = a2 / (a2 + b2)
+    return dr.select(dr.isfinite(w), w, 0.0)  # an infinite pdf (delta) gives 0, not NaN
+
+
+# Tests force every first vertex through one illumination estimator (None: chosen per vertex).
+FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists) or "traced"
+
+
+def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool):
+    """A :class:`BandPathIntegrator` carrying the bands whose lower edges are ``quads`` (nm; width
+    ``step``), for Mitsuba's ``mi.render`` (the class is
+    built on first use: it subclasses Mitsuba's, which needs the variant selected). Mitsuba's loop
+    runs every sample of the film in one symbolic-loop kernel: the per-lane state lives in registers,
+    the memory is the film's."""
+    mi, dr = import_mitsuba()
+
+    def flagged(flags, flag):
+        return mi.has_flag(flags, flag)
+
+    class BandPathIntegrator(mi.SamplingIntegrator):
+        """See the module docstring. Loop state per lane: 16 quadruples of throughput and radiance,
+        and for the illumination estimate (``illumination``) a second throughput and radiance that
+        follow the same path from its second vertex on (the "in-path" white estimate)."""
+
+        def __init__(self, props):
+            super().__init__(props)
+            self.lows = [mi.Spectrum(*q) for q in quads]
+            self.quads = list(self.lows)  # this path's wavelengths, set per sample (sample())
+            self.width = float(step) - 2 * EDGE_GUARD_NM
+            self.force = FORCE_FIRST
+            self.max_depth = int(max_depth)
+            self.illumination = bool(illumination)
+
+        def aov_names(self):
+            names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
+            if self.illumination:
+                names += [f"u{i:03d}" for i in range(4 * len(self.quads))]
+                names += ["first_pure", "first_mixed", "first_traced"]
+            return names + ["bad"]
+
+        def _path(self, scene, sampler, ray, active, white0, split: bool):
+            """Trace one path per lane. Returns per quadruple: the radiance ``L``, and (``split``) the
+            first vertex's diffuse reflectance ``rho``, and the in-path white estimate ``U``, with the
+            masks ``diffuse0`` (first vertex purely diffuse: U = L/ρ) and ``mixed0`` (first vertex
+            has a diffuse lobe and no delta one: U from this path, module docstring).
+            ``white0``: lanes whose first vertex *is* a white Lambertian surface (the separate
+            illumination path, for every other first vertex)."""
+            nq = len(self.quads)
+            ctx = mi.BSDFContext()
+            zeros = [mi.Spectrum(0.0) for _ in range(nq)]
+            state = (sampler, mi.Ray3f(ray), mi.UInt32(0), [mi.Spectrum(1.0) for _ in range(nq)], list(zeros),
+                     list(zeros), list(zeros), list(zeros),
+                     mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0), mi.Bool(True),
+                     mi.Bool(active))
+
+            def cond(sampler, ray, depth, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf, prev_delta,
+                     active):
+                return active
+
+            def body(sampler, ray, depth, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf, prev_delta,
+                     active):
+                si = scene.ray_intersect(ray, mi.RayFlags.All, coherent=depth == 0, active=active)
+                white = white0 & (depth == 0)
+                first = active & (depth == 0) & si.is_valid()
+                bsdf = si.bsdf(ray)
+                flags = bsdf.flags()
+                if split:  # what the first vertex is, for the illumination estimate
+                    emits = si.shape.is_emitter()
+                    pure = flagged(flags, mi.BSDFFlags.DiffuseReflection) & ~emits
+                    for other in (mi.BSDFFlags.Glossy, mi.BSDFFlags.Delta, mi.BSDFFlags.Transmission):
+                        pure &= ~flagged(flags, other)
+                    for q in range(nq):
+                        si.wavelengths = self.quads[q]
+                        r = bsdf.eval_diffuse_reflectance(si, first & pure)
+                        rho[q] = dr.select(first, r, rho[q])
+                        pure &= dr.min(r) > RHO_MIN
+                    mixed = (flagged(flags, mi.BSDFFlags.DiffuseReflection) & ~flagged(flags, mi.BSDFFlags.Delta)
+                             & ~emits & ~pure)
+                    if self.force is not None:
+                        mixed = (pure | mixed) if self.force == "mixed" else mi.Bool(False)
+                        pure = mi.Bool(False)
+                    diffuse0 = dr.select(first, pure, diffuse0)
+                    mixed0 = dr.select(first, mixed, mixed0)
+                u_first = split & first & mixed0  # the white estimate starts here (its own light sample)
+                # --- emission found by this ray, MIS-weighted against the light sample that could have found it
+                ds = mi.DirectionSample3f(scene, si, prev)
+                em_pdf = scene.pdf_emitter_direction(prev, ds, ~prev_delta)
+                mis = dr.select(prev_delta, 1.0, _power_heuristic(dr, prev_pdf, em_pdf))
+                count = active & ~white  # a white first vertex does not emit
+                emitter = si.emitter(scene)
+                for q in range(nq):
+                    si.wavelengths = self.quads[q]
+                    le = mis * emitter.eval(si, count)
+                    L[q] = dr.select(count, L[q] + beta[q] * le, L[q])
+                    if split:
+                        U[q] = dr.select(count, U[q] + beta_u[q] * le, U[q])
+                go = active & si.is_valid() & (depth + 1 < self.max_depth)
+                # --- light sample: drawn once (hero quadruple), valued at every quadruple
+                si.wavelengths = self.quads[0]
+                em_on = go & (white | flagged(flags, mi.BSDFFlags.Smooth))
+                ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
+                em_on &= ds_em.pdf != 0.0
+                em_on &= ~scene.ray_test(si.spawn_ray_to(ds_em.p), em_on)
+                wo_em = si.to_local(ds_em.d)
+                # a white surface faces the camera, whichever side of the shape it sees
+                side = dr.select(mi.Frame3f.cos_theta(si.wi) < 0.0, -1.0, 1.0)
+                cos_em = dr.maximum(side * mi.Frame3f.cos_theta(wo_em), 0.0)
+                for q in range(nq):
+                    si.wavelengths = self.quads[q]
+                    le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
+                    f, f_pdf = bsdf.eval_pdf(ctx, si, wo_em, em_on)
+                    f = dr.select(white, cos_em / dr.pi, f)
+                    f_pdf = dr.select(white, cos_em / dr.pi, f_pdf)
+                    mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(dr, ds_em.pdf, f_pdf))
+                    L[q] = dr.select(em_on, L[q] + beta[q] * mis_em * f * le, L[q])
+                    if split:  # the white surface sampled with the BSDF's pdf: same MIS weights
+                        f_u = dr.select(u_first, cos_em / dr.pi, beta_u[q] * f)
+                        U[q] = dr.select(em_on, U[q] + mis_em * f_u * le, U[q])
+                # --- continue: one direction, every quadruple's weight
+                s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
+                bs = None
+                for q in range(nq):
+                    si.wavelengths = self.quads[q]
+                    bs_q, w_q = bsdf.sample(ctx, si, s1, s2, go)
+                    bs = bs_q if bs is None else bs
+                    beta[q] = beta[q] * w_q
+                    if split:
+                        beta_u[q] = beta_u[q] * w_q
+                wo_white = mi.warp.square_to_cosine_hemisphere(s2)
+                pdf_white = mi.warp.square_to_cosine_hemisphere_pdf(wo_white)
+                wo_white.z = side * wo_white.z
+                wo = dr.select(white, wo_white, bs.wo)
+                pdf = dr.select(white, pdf_white, bs.pdf)
+                delta = ~white & flagged(bs.sampled_type, mi.BSDFFlags.Delta)
+                if split:  # white surface, BSDF-sampled direction: weight (cos/π)/pdf
+                    cos_u = dr.maximum(side * mi.Frame3f.cos_theta(bs.wo), 0.0)
+                    w_u = dr.select(bs.pdf > 0.0, cos_u / (dr.pi * bs.pdf), 0.0)
+                bmax = mi.Float(0.0)
+                for q in range(nq):
+                    beta[q] = dr.select(white, mi.Spectrum(1.0), beta[q])
+                    if split:
+                        beta_u[q] = dr.select(u_first, mi.Spectrum(w_u), beta_u[q])
+                        bmax = dr.maximum(bmax, dr.max(beta_u[q]))
+                    bmax = dr.maximum(bmax, dr.max(beta[q]))
+                go &= bmax > 0.0
+                # Russian roulette on the largest throughput over every band (and both estimates)
+                rr = go & (depth + 1 >= RR_DEPTH)
+                q_rr = dr.minimum(bmax * dr.square(dr.select(delta, bs.eta, 1.0)), 0.95)
+                go &= ~rr | (sampler.next_1d(rr) < q_rr)
+                for q in range(nq):
+                    beta[q] = dr.select(rr, beta[q] / q_rr, beta[q])
+                    if split:
+                        beta_u[q] = dr.select(rr, beta_u[q] / q_rr, beta_u[q])
+                ray = si.spawn_ray(si.to_world(wo))
+                prev = dr.select(go, mi.Interaction3f(si), prev)
+                prev_pdf = dr.select(go, pdf, prev_pdf)
+                prev_delta = dr.select(go, delta, prev_delta)
+                return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf,
+                        prev_delta, go)
+
+            out = dr.while_loop(state, cond, body, label="illumix band path")
+            return out[4], out[6], out[7], out[8], out[9]
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            nq = len(self.quads)
+            split = self.illumination
+            # One offset inside the bands per path: step spectra are constant there (their band
+            # average exactly), other spectra (envmap D65, conductor tables) averaged over the band.
+            offset = EDGE_GUARD_NM + self.width * sampler.next_1d(active)
+            self.quads = [low + offset for low in self.lows]
+            L, Uin, rho, diffuse0, mixed0 = self._path(scene, sampler, ray, active, mi.Bool(False), split)
+            bad = mi.Float(0.0)
+            aovs = []
+
+            def keep(v):
+                nonlocal bad
+                ok = dr.isfinite(v)
+                bad += dr.select(ok, 0.0, 1.0)
+                aovs.append(dr.select(ok, v, 0.0))
+
+            for q in range(nq):
+                for k in range(4):
+                    keep(L[q][k])
+            if split:
+                # first vertices that are neither purely diffuse nor have a diffuse lobe (glass, metal,
+                # emitters, black): a separate path whose first vertex is a white Lambertian surface
+                si0 = scene.ray_intersect(mi.Ray3f(ray), active)
+                need = mi.Bool(active) & si0.is_valid() & ~diffuse0 & ~mixed0
+                W = self._path(scene, sampler, ray, need, need, False)[0]
+                for q in range(nq):
+                    for k in range(4):
+                        u_pure = L[q][k] / dr.maximum(rho[q][k], RHO_MIN)
+                        keep(dr.select(diffuse0, u_pure, dr.select(mixed0, Uin[q][k], W[q][k])))
+                hit = mi.Bool(active) & si0.is_valid()
+                aovs += [dr.select(hit & diffuse0, 1.0, 0.0), dr.select(hit & mixed0, 1.0, 0.0),
+                         dr.select(need, 1.0, 0.0)]
+            aovs.append(bad)
+            return mi.Spectrum(0.0), mi.Bool(active), aovs
+
+    return BandPathIntegrator(mi.Properties())
