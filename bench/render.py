@@ -1,6 +1,6 @@
 """Render benchmark: time against noise for transport cubes, and what skipping and adaptivity buy.
 
-Six parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
+Eight parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
 
 ``curve`` — per image size, light group, sampling (``uniform`` spp or ``adaptive``, the default:
   ``renderer_jobs.adaptive_spp``), wavelength mode and spp: two cubes with different seeds, timed
@@ -42,6 +42,10 @@ Six parts (``--parts``, all by default), on the seeded demo room (``renderer_job
 ``backends`` — Mitsuba against Cycles run the thesis way, same scenes, one run (``bench/render_backends.py``):
   CPU time, raw noise on the lit region and the image, 550 nm band noise, mean raw per region against
   a Mitsuba reference (the cross-check), and the closed-form validation on both.
+
+``samplers`` — what each step of the all-bands renderer buys on its own (``bench/render_samplers.py``):
+  4-wavelength paths against all-bands paths with each of Mitsuba's samplers, and power-weighted
+  against uniform light selection, on the probe scene, the demo room and the window-lit room.
 
 ``narrowband`` — a group emitting in 5 of the 63 bands: the stratified schedule samples only those
   (``mitsuba_render.live_bands``); lit-band noise and CPU time against the full 63-band schedule.
@@ -85,6 +89,8 @@ def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
                 spp=ref_spp, seed=12345, wavelengths=mode, adaptive=False)).cube)
             log(f"  reference {group} {mode} {ref_spp} spp: {ref_cpu:.1f} s CPU")
             for sampling in args.sampling:
+                if sampling == "adaptive" and mode == "all-bands":
+                    continue  # adaptive spp belongs to the 4-wavelength modes
                 for spp in args.spp:
                     pairs, walls, cpus = seed_pairs(args, scene, mr, group, spp=spp, wavelengths=mode,
                                                     adaptive=sampling == "adaptive")
@@ -296,7 +302,7 @@ def part_background(args, size, mr, log) -> list:
         for rep in range(3):  # median of three (CPU time of a ~1 s render jitters by ~20 %)
             for on in (False, True):
                 r, _, c = timed(lambda: mr.render_cube(scene, view, group, mr.RenderSettings(
-                    spp=args.skip_spp, seed=1 + rep, skip_background=on, adaptive=False)))
+                    spp=args.skip_spp, seed=1 + rep, skip_background=on, wavelengths="stratified")))
                 cpus[on].append(c)
                 if not on:
                     full = r
@@ -315,7 +321,7 @@ def part_background(args, size, mr, log) -> list:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="curve,adaptive,target,skip,background,narrowband,backends",
+    ap.add_argument("--parts", default="curve,adaptive,target,skip,background,narrowband,samplers,backends",
                     help="curve, adaptive, target, skip, background, narrowband")
     ap.add_argument("--sizes", default="160x120", help="WIDTHxHEIGHT list (e.g. 320x240,960x720)")
     ap.add_argument("--spp", default="16,32,64,128", help="spp list")
@@ -385,6 +391,10 @@ def main(argv: list[str] | None = None) -> dict:
         doc["background"] = part_background(args, sizes[0], mr, log)
     if "narrowband" in parts:
         doc["narrowband"] = part_narrowband(args, demo.demo_room_dict(args.seed, resolution=sizes[0]), mr, log)
+    if "samplers" in parts:
+        from render_samplers import part_samplers
+
+        doc["samplers"] = part_samplers(args, log)
     if "backends" in parts:
         from renderer_jobs.cycles_env import find_blender_python
 

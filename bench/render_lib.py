@@ -110,7 +110,8 @@ def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
     from renderer_jobs.light_probe import probe_group
 
     probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
-    mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode, adaptive=True))
+    mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode,
+                                                         adaptive=mode != "all-bands"))
 
 
 def with_cupboard(scene_doc: dict, lo: np.ndarray, hi: np.ndarray) -> dict:

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM
+from renderer_jobs.mitsuba_scene import band_guard
 from renderer_jobs.mitsuba_variant import import_mitsuba
 
 RR_DEPTH = 5  # Mitsuba's path default: Russian roulette from the 5th vertex
@@ -83,7 +83,8 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             super().__init__(props)
             self.lows = [mi.Spectrum(*q) for q in quads]
             self.quads = list(self.lows)  # this path's wavelengths, set per sample (sample())
-            self.width = float(step) - 2 * EDGE_GUARD_NM
+            self.guard = band_guard(step)
+            self.width = float(step) - 2 * self.guard
             self.force = FORCE_FIRST
             self.max_depth = int(max_depth)
             self.illumination = bool(illumination)
@@ -223,7 +224,7 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             split = self.illumination
             # One offset inside the bands per path: step spectra are constant there (their band
             # average exactly), other spectra (envmap D65, conductor tables) averaged over the band.
-            offset = EDGE_GUARD_NM + self.width * sampler.next_1d(active)
+            offset = self.guard + self.width * sampler.next_1d(active)
             self.quads = [low + offset for low in self.lows]
             L, Uin, rho, diffuse0, mixed0 = self._path(scene, sampler, ray, active, mi.Bool(False), split)
             bad = mi.Float(0.0)

@@ -72,7 +72,7 @@ import numpy as np
 
 from renderer_jobs import adaptive_spp
 from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, pass_sizes
-from renderer_jobs.mitsuba_scene import EDGE_GUARD_NM, group_emission
+from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
 from renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
@@ -243,7 +243,7 @@ class _PathBlocks:
         self.tracers, self.settings = tracers, settings
         grid = tracers[0].grid
         self.nb, self.lo, self.step = grid.n_bands, grid.edges[0], grid.step
-        self.guard = min(EDGE_GUARD_NM, self.step / 10)
+        self.guard = band_guard(self.step)
         self.npix = tracers[0].width * tracers[0].height
         self.live = live_bands(emission)
         self.off = (hash_u32(np.arange(self.npix), settings.seed ^ 0x5BD1E995)

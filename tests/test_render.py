@@ -96,11 +96,28 @@ def test_variant_selected_and_llvm_path_set():
         assert mv.llvm_version(lib)[0] >= mv.MIN_LLVM
 
 
-def test_step_spectrum_never_all_zero_irregular(box):
+def test_step_spectrum_is_exact_inside_every_band_and_never_all_zero(box):
+    """Mitsuba evaluates the tabulated step spectrum at random wavelengths of every band's sampled
+    interior (the band minus its guards): exactly the band's value (to float32)."""
+    import drjit as dr
+    import mitsuba as mi
+
     assert ms.step_spectrum(np.zeros(63), box) == {"type": "uniform", "value": 0.0}
     assert ms.step_spectrum(np.full(63, 2.0), box) == {"type": "uniform", "value": 2.0}
     d = ms.step_spectrum(np.r_[np.zeros(62), 1.0], box)
-    assert d["type"] == "irregular" and len(d["values"].split(",")) == 126
+    assert d["type"] == "regular" and len(d["values"].split(",")) == 63 * ms.NODES_PER_BAND
+    values = np.random.default_rng(0).random(63)
+    tex = mi.load_dict(ms.step_spectrum(values, box))
+    grid = box.spectral_grid
+    g = ms.band_guard(grid.step)
+    u = np.random.default_rng(1).random((63, 4))
+    lam = grid.edges[:-1, None] + g + (grid.step - 2 * g) * u
+    lam[:, 0], lam[:, 1] = grid.edges[:-1] + g, grid.edges[1:] - g  # the interior's own ends too
+    si = dr.zeros(mi.SurfaceInteraction3f, 63)
+    si.wavelengths = mi.Spectrum(*[mi.Float(lam[:, i].astype(np.float32)) for i in range(4)])
+    out = tex.eval(si)
+    got = np.stack([np.asarray(out[i]) for i in range(4)], axis=1)
+    np.testing.assert_allclose(got, np.repeat(values[:, None], 4, axis=1), rtol=2e-6)
 
 
 def test_validation_matches_closed_form():
