@@ -346,12 +346,15 @@ def main(argv: list[str] | None = None) -> dict:
                     help="sensor of part backends (issue 17 measured with the Nikon D810)")
     ap.add_argument("--probe-size", default="240x180", help="probe scene resolution (part backends)")
     ap.add_argument("--demo-size", default="160x120", help="demo room resolution (part backends)")
+    ap.add_argument("--samplers-sizes", default="120x90,80x60",
+                    help="probe and demo-room resolutions of part samplers (half of part backends': 13 configurations)")
     ap.add_argument("--backends-ref-spp", type=int, default=512, help="Mitsuba reference spp (part backends)")
     ap.add_argument("--plot", default="bench/out/render_curve.png", help="PNG of noise against spp and CPU time")
     args = ap.parse_args(argv)
     args.spp = [int(s) for s in args.spp.split(",")]
     args.probe_size = [int(v) for v in args.probe_size.lower().split("x")]
     args.demo_size = [int(v) for v in args.demo_size.lower().split("x")]
+    args.samplers_sizes = [[int(v) for v in s.lower().split("x")] for s in args.samplers_sizes.split(",")]
     args.groups = [g for g in args.groups.split(",") if g]
     args.modes = [m for m in args.modes.split(",") if m]
     args.sampling = [s for s in args.sampling.split(",") if s]

@@ -13,7 +13,9 @@ wavelengths per path, adaptive spp): ``(cpu_prev · noise_prev²) / (cpu · nois
 
 Configurations: the previous default and its uniform-spp variant; all-bands paths with each of
 Mitsuba's samplers (``independent`` isolates carrying every band; the others add quasi-random
-samples); and the default with uniform instead of power-weighted light selection.
+samples); multijitter with 8 to 64 bands per path (``spp`` samples of every band either way); the
+default with uniform instead of power-weighted light selection; and the default at half the spp
+(whether noise falls faster than 1/√spp, as quasi-random samples can).
 """
 
 from __future__ import annotations
@@ -28,8 +30,12 @@ CONFIGS = {
     "all-bands, stratified": {"sampler": "stratified"},
     "all-bands, ldsampler": {"sampler": "ldsampler"},
     "all-bands, orthogonal (49 spp)": {"sampler": "orthogonal", "spp": 49},
-    "all-bands, multijitter (default)": {},
+    "all-bands, multijitter, 64 bands per path": {"bands_per_path": 64},
+    "all-bands, multijitter, 32 bands per path": {"bands_per_path": 32},
+    "all-bands, multijitter, 16 bands per path": {"bands_per_path": 16},
+    "all-bands, multijitter, 8 bands per path": {"bands_per_path": 8},
     "all-bands, multijitter, uniform light selection": {"emitter_selection": "uniform"},
+    "all-bands, multijitter, 32 spp": {"spp": 32},
 }
 PREVIOUS = "stratified 4-wl, adaptive (previous default)"
 METRICS = ("raw_g_lit", "raw_g_image", "fl11_raw_g_lit", "band_550")
@@ -91,13 +97,14 @@ def part_samplers(args, log) -> dict:
     from retarget.illuminants import illuminant_spd
     from retarget.sensors import get_sensor
 
-    probe = apply_resolution(load_scenes(Path(args.bench_scenes) / PROBE)[0], tuple(args.probe_size))
+    probe_size, demo_size = (tuple(s) for s in args.samplers_sizes)
+    probe = apply_resolution(load_scenes(Path(args.bench_scenes) / PROBE)[0], probe_size)
     grid = probe.spectral_grid
     w = get_sensor(args.backends_sensor, grid).weights()
     out: dict = {"sensor": args.backends_sensor}
     out["probe"] = measure(probe, "cam", probe.group_names,
                            {"A": illuminant_spd("D65", grid), "B": illuminant_spd("A", grid)}, w, 64, log, "probe")
-    room = demo.demo_room(args.seed, resolution=tuple(args.demo_size))
+    room = demo.demo_room(args.seed, resolution=demo_size)
     d65 = {g: illuminant_spd("D65", grid) for g in room.group_names}
     out["demo"] = measure(room, args.view, room.group_names, d65, w, 64, log, "demo")
     out["window"] = measure(room, args.view, ["daylight"], {"daylight": d65["daylight"]}, w, 64, log, "window")

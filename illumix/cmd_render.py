@@ -55,11 +55,17 @@ def render(
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
     demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
-    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (all-bands: each carries every band; stratified/random: 4 "
-                                 "wavelengths each, >= 16 on 63 bands)."),
+    spp: int = typer.Option(64, "--spp", min=1, help="Samples per pixel (all-bands: of every band, a path carrying up to "
+                                 "--bands-per-path bands; stratified/random: paths of 4 wavelengths each, >= 16 "
+                                 "on 63 bands)."),
     seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
     wavelengths: str = wavelengths_option(),
     sampler: str = choice_option(SAMPLERS, "--sampler", f"Pixel sampler of the all-bands mode — {described(SAMPLERS)}."),
+    bands_per_path: int = typer.Option(32, "--bands-per-path", min=4,
+                                       help="All-bands mode: the most bands one path carries (a multiple of 4); "
+                                            "the bands render in interleaved sets of this many, each with --spp "
+                                            "samples per pixel (bench/RENDER_PERF.md: fewer = cheaper paths, "
+                                            "lower raw noise per second; more = lower band noise per second)."),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
@@ -121,7 +127,8 @@ def render(
             raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
                             "e.g. 0.05 for 5 %")
         adaptive = adaptive or noise_target is not None  # a target spreads paths by the adaptive pilot
-        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler, skip_dark=skip_dark,
+        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
+                                  bands_per_path=bands_per_path, skip_dark=skip_dark,
                                   adaptive=adaptive, noise_target=noise_target, illumination=illumination,
                                   denoise=denoise, backend=backend)
         if settings.backend == "cycles" and not dry_run:
@@ -144,7 +151,7 @@ def render(
     n_cubes = len(p.cube_jobs)
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
-               "spp": spp, "seed": seed, "wavelengths": wavelengths, "sampler": sampler, "skip_dark": skip_dark,
+               "spp": spp, "seed": seed, "wavelengths": wavelengths, "sampler": sampler, "bands_per_path": bands_per_path, "skip_dark": skip_dark,
                "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
                "denoise": denoise, "executor": executor, "backend": settings.backend}
     if dry_run:

@@ -31,6 +31,16 @@ def hash_u32(x: np.ndarray, salt: int) -> np.ndarray:
     return x
 
 
+def mix_seed(*parts: int) -> int:
+    """A 32-bit seed from integer parts, hashing each into the running hash: unlike ``hash(a ^ b)``,
+    different tuples do not collide by construction (``(0, 1)`` and ``(1, 0)`` once gave the same
+    random numbers to two "independent" renders)."""
+    h = 0x811C9DC5
+    for p in parts:
+        h = int(hash_u32(np.array([int(p) & 0xFFFFFFFF]), h)[0])
+    return h
+
+
 def band_counts(n_pixels: int, n_bands: int, spp: int | np.ndarray, seed: int,
                 live: np.ndarray | None = None) -> np.ndarray:
     """Exact samples per (pixel, band) of the ``"stratified"`` schedule: ``(n_pixels, n_bands)`` int.

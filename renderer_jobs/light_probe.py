@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from renderer_jobs.band_schedule import hash_u32
+from renderer_jobs.band_schedule import mix_seed
 from renderer_jobs.mitsuba_render import RenderSettings, emitter_passes, group_list
 from renderer_jobs.mitsuba_scene import group_emission
 from renderer_jobs.mitsuba_trace import Tracer
@@ -127,7 +127,7 @@ def probe_group(scene: Scene, view: str, group: str | list[str] | None,
             paths += len(pix[part])
             for j, tracer in enumerate(tracers):
                 L = tracer.trace(pix[part], jitter[part], lam[part],
-                                 seed=int(hash_u32(np.array([k * 8 + j]), settings.seed ^ 0x9B0E ^ (c << 16))[0]))
+                                 seed=mix_seed(settings.seed, 0x9B0E, k, j, c))
                 if np.any(np.isfinite(L) & (L > 0)):
                     return result(True, paths)
         done += spp_k

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from renderer_jobs.band_schedule import hash_u32, live_bands
+from renderer_jobs.band_schedule import live_bands, mix_seed
 from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
 from renderer_jobs.mitsuba_scene import build_scene_dict
 from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
@@ -40,23 +40,36 @@ def spp_allowed(sampler: str, spp: int) -> bool:
     return True
 
 
+def band_sets(live: np.ndarray, max_quads: int) -> list[np.ndarray]:
+    """The live bands split into the fewest interleaved sets of at most ``4·max_quads`` bands (set
+    ``j`` holds every ``k``-th band from the ``j``-th): each set spans the whole spectrum, so each
+    pass's paths sample every camera channel alike."""
+    live = np.asarray(live, dtype=np.int64)
+    k = max(1, -(-live.size // (4 * max_quads)))
+    return [live[j::k] for j in range(k)]
+
+
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
                      emission: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, dict]:
     """``(cube (H, W, n_bands), illumination cube or None, stats)`` float32 of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba_render.emitter_passes`), with ``settings``
-    (a :class:`renderer_jobs.mitsuba_render.RenderSettings`)."""
+    (a :class:`renderer_jobs.mitsuba_render.RenderSettings`).
+
+    The live bands render in interleaved sets (:func:`band_sets`) of at most ``settings.bands_per_path``
+    bands, each set with ``settings.spp`` samples per pixel: every band's value averages ``spp`` paths,
+    and a pixel costs ``spp × sets`` paths. Fewer bands per path make a path cheaper (raw noise per
+    CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
+    ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
     t0 = time.perf_counter()
-    nb = scene.spectral_grid.n_bands
-    live = live_bands(emission)
     grid = scene.spectral_grid
-    quads, lanes = band_quadruples(grid.edges, live)
-    integrator = make_integrator(quads, grid.step, scene.max_depth, settings.illumination)
-    n_aov = len(integrator.aov_names())
+    nb = grid.n_bands
+    sets = band_sets(live_bands(emission), max(1, settings.bands_per_path // 4))
     cube = illum = None
     bad = 0.0
     kinds = np.zeros(3)  # samples whose first hit's illumination was demodulated / in-path / traced
     t_load = t_render = 0.0
+    n_quads = 0
     for k, portals in enumerate(passes):
         t1 = time.perf_counter()
         doc = build_scene_dict(scene, view, groups, resolution=settings.resolution, portals=portals)
@@ -67,27 +80,33 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             raise RenderError(f"scene {scene.name!r}: Mitsuba could not load it: {str(exc).splitlines()[0]}") from None
         sensor = ms.sensors()[0]
         w, h = (int(x) for x in sensor.film().crop_size())
-        seed = int(hash_u32(np.array([k]), settings.seed)[0])
-        t2 = time.perf_counter()
-        out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=settings.spp, seed=seed))
-        t_render += time.perf_counter() - t2
-        t_load += t2 - t1
-        aov = out[..., out.shape[-1] - n_aov:]
+        t_load += time.perf_counter() - t1
         if cube is None:
             cube = np.zeros((h, w, nb), np.float64)
             illum = np.zeros((h, w, nb), np.float64) if settings.illumination else None
-        on = lanes >= 0
-        cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
-        if illum is not None:
-            illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
-            kinds += aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64) * settings.spp
-        bad += float(aov[..., -1].sum(dtype=np.float64)) * settings.spp
+        for j, bands in enumerate(sets):
+            quads, lanes = band_quadruples(grid.edges, bands)
+            n_quads += len(quads)
+            integrator = make_integrator(quads, grid.step, scene.max_depth, settings.illumination)
+            n_aov = len(integrator.aov_names())
+            seed = mix_seed(settings.seed, k, j)
+            t2 = time.perf_counter()
+            out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=settings.spp, seed=seed))
+            t_render += time.perf_counter() - t2
+            aov = out[..., out.shape[-1] - n_aov:]
+            on = lanes >= 0
+            cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
+            if illum is not None:
+                illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
+                # every set sees the same first hits: count them once
+                part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
+                kinds += part * settings.spp / len(sets)
+            bad += float(aov[..., -1].sum(dtype=np.float64)) * settings.spp
     stats = {"load_s": round(t_load, 4), "trace_s": round(t_render, 4),
              "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": int(round(bad)),
-             "quadruples": len(quads),
-             "sampler": settings.sampler}
+             "band_sets": len(sets), "quadruples": n_quads // max(1, len(passes)),
+             "paths_per_pixel": settings.spp * len(sets), "sampler": settings.sampler}
     if illum is not None:
-        n = int(round(kinds.sum()))
-        stats["illumination"] = {"samples": n, "demodulated": int(round(kinds[0])),
+        stats["illumination"] = {"samples": int(round(kinds.sum())), "demodulated": int(round(kinds[0])),
                                  "in_path": int(round(kinds[1])), "traced": int(round(kinds[2]))}
     return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats)

@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from renderer_jobs import adaptive_spp
-from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, pass_sizes
+from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
 from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
@@ -87,7 +87,10 @@ class RenderSettings:
     carries every band, rendered by Mitsuba's loop with ``sampler``: :mod:`renderer_jobs.mitsuba_band_render`),
     ``"stratified"`` or ``"random"`` (4 wavelengths per path, numpy-driven: module docstring);
     sampler: Mitsuba's pixel sampler for ``"all-bands"`` (:data:`renderer_jobs.modes.SAMPLERS`; its spp
-    rules apply); max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
+    rules apply); bands_per_path (``"all-bands"``): the most bands one path carries (a multiple of 4);
+    the live bands render in interleaved sets of at most this many, each with ``spp`` samples per
+    pixel, so in ``"all-bands"`` ``spp`` counts the samples of *every band* and a pixel costs
+    ``spp × sets`` paths; max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
     AOV pass; resolution: ``(width, height)`` overriding the view's; adaptive (hero wavelength modes
     only): spread the spp budget over the pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`;
     spp ≥ 2 × pilot, else uniform); skip_background (hero modes): trace no paths in pixels that cannot
@@ -109,6 +112,7 @@ class RenderSettings:
     seed: int = 0
     wavelengths: str = "all-bands"
     sampler: str = "multijitter"
+    bands_per_path: int = 32
     max_lanes: int = 1 << 20
     aov_spp: int = 16  # the denoising guides: bench/denoise.py measures them at 16 rays per pixel
     resolution: tuple[int, int] | None = None
@@ -141,6 +145,9 @@ class RenderSettings:
         if self.wavelengths == "all-bands" and self.backend == "mitsuba":
             from renderer_jobs.mitsuba_band_render import SPP_RULES, spp_allowed  # noqa: PLC0415
 
+            if self.bands_per_path < 4 or self.bands_per_path % 4:
+                raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
+                                 "(Mitsuba traces wavelengths in fours)")
             if not spp_allowed(self.sampler, self.spp):
                 raise SceneError(f"spp {self.spp} does not suit the {self.sampler} sampler: it needs "
                                  f"{SPP_RULES[self.sampler]}; or choose the multijitter sampler")
@@ -166,6 +173,7 @@ class RenderSettings:
 
     def to_dict(self) -> dict:
         return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths, "sampler": self.sampler,
+                "bands_per_path": self.bands_per_path,
                 "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
                 "resolution": list(self.resolution) if self.resolution else None,
                 "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
@@ -208,8 +216,8 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
     mi, _ = import_mitsuba()
     bands = settings.wavelengths == "all-bands"
     info = {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
-            "method": ("path tracing, every band on every path (16 quadruples of band centres), "
-                       f"{settings.sampler} pixel samples, Mitsuba's render loop" if bands else
+            "method": (f"path tracing, up to {settings.bands_per_path} bands on every path (interleaved band sets, "
+                       f"spp paths per band), {settings.sampler} pixel samples, Mitsuba's render loop" if bands else
                        f"path tracing, 4 {settings.wavelengths} wavelengths per path (illumix sampling)"),
             "settings": {"integrator": "illumix band path" if bands else "path", "max_depth": scene.max_depth,
                          "rr_depth": 5, "mis": "power heuristic", "rfilter": "box",
@@ -219,7 +227,8 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
     if bands:
         # No material of the scene model disperses (dielectrics take one scalar IOR): every band
         # follows the path sampled once, none falls back to hero wavelengths.
-        info["settings"].update({"sampler": settings.sampler, "dispersion": "none",
+        info["settings"].update({"sampler": settings.sampler, "bands_per_path": settings.bands_per_path,
+                                 "dispersion": "none",
                                  "band_wavelengths": "band centres (step spectra: the band average)"})
         info["illumination_method"] = ILLUMINATION_METHOD_BANDS
     else:
@@ -278,7 +287,7 @@ class _PathBlocks:
         total = np.zeros((len(pix), 4), dtype=np.float64)
         lam32 = lam.astype(np.float32)
         for j, tracer in enumerate(self.tracers):
-            seed = int(hash_u32(np.array([key * 8 + j]), st.seed ^ (salt - 0x1C0))[0])
+            seed = mix_seed(st.seed, salt, key, j)
             t1 = time.perf_counter()
             out = tracer.trace(pix, jitter, lam32, seed=seed, first_hit=self.acc_u is not None)
             self.t_trace += time.perf_counter() - t1
