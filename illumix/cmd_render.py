@@ -55,17 +55,17 @@ def render(
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
     demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
-    spp: int = typer.Option(64, "--spp", min=1, help="Samples per pixel (all-bands: of every band, a path carrying up to "
-                                 "--bands-per-path bands; stratified/random: paths of 4 wavelengths each, >= 16 "
-                                 "on 63 bands)."),
+    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (all-bands: shared by the band sets, each path carrying "
+                                 "up to --bands-per-path bands, a multiple of the sets: 4 for 63 bands at 16; "
+                                 "stratified/random: 4 wavelengths each, >= 16 on 63 bands)."),
     seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
     wavelengths: str = wavelengths_option(),
     sampler: str = choice_option(SAMPLERS, "--sampler", f"Pixel sampler of the all-bands mode — {described(SAMPLERS)}."),
-    bands_per_path: int = typer.Option(32, "--bands-per-path", min=4,
+    bands_per_path: int = typer.Option(16, "--bands-per-path", min=4,
                                        help="All-bands mode: the most bands one path carries (a multiple of 4); "
-                                            "the bands render in interleaved sets of this many, each with --spp "
-                                            "samples per pixel (bench/RENDER_PERF.md: fewer = cheaper paths, "
-                                            "lower raw noise per second; more = lower band noise per second)."),
+                                            "the bands render in interleaved sets of this many sharing --spp "
+                                            "(bench/RENDER_PERF.md: fewer = cheaper paths, lower raw noise per "
+                                            "second; more = lower band noise per second)."),
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),

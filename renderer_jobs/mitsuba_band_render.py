@@ -19,7 +19,8 @@ from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
 from renderer_jobs.mitsuba_scene import build_scene_dict
 from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
 from renderer_jobs.modes import SAMPLERS
-from renderer_jobs.scene_model import Scene
+from renderer_jobs.scene_model import EnvMapSky, Scene
+from renderer_jobs.scene_schema import SceneError
 
 # spp Mitsuba's samplers can take without rounding it up (they would, with a warning): the settings
 # are checked against these so that the metadata's spp is the spp rendered.
@@ -40,6 +41,24 @@ def spp_allowed(sampler: str, spp: int) -> bool:
     return True
 
 
+def set_spp(sampler: str, spp: int, n_sets: int) -> int:
+    """Paths per pixel of each of ``n_sets`` band sets sharing ``spp``; a :class:`SceneError` naming
+    the fix when ``spp`` does not split into sets the sampler can render exactly."""
+    per = spp // n_sets
+    if per * n_sets != spp or per < 1 or not spp_allowed(sampler, per):
+        rule = SPP_RULES.get(sampler)
+        raise SceneError(f"spp {spp} does not split into {n_sets} band set(s) of equal spp"
+                         + (f" that the {sampler} sampler takes ({rule} each)" if rule else "")
+                         + f": use a multiple of {n_sets}" + (f" whose quotient is {rule}" if rule else "")
+                         + ", or change --bands-per-path / --sampler")
+    return per
+
+
+def check_spp(sampler: str, spp: int, bands_per_path: int, n_bands: int) -> None:
+    """:func:`set_spp` for a group emitting in all ``n_bands`` bands (the most sets a cube needs)."""
+    set_spp(sampler, spp, len(band_sets(np.arange(n_bands), max(1, bands_per_path // 4))))
+
+
 def band_sets(live: np.ndarray, max_quads: int) -> list[np.ndarray]:
     """The live bands split into the fewest interleaved sets of at most ``4·max_quads`` bands (set
     ``j`` holds every ``k``-th band from the ``j``-th): each set spans the whole spectrum, so each
@@ -56,15 +75,20 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     (a :class:`renderer_jobs.mitsuba_render.RenderSettings`).
 
     The live bands render in interleaved sets (:func:`band_sets`) of at most ``settings.bands_per_path``
-    bands, each set with ``settings.spp`` samples per pixel: every band's value averages ``spp`` paths,
-    and a pixel costs ``spp × sets`` paths. Fewer bands per path make a path cheaper (raw noise per
-    CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
+    bands; the pixel's ``settings.spp`` paths are shared equally among the sets (:func:`set_spp`), so
+    every band's value averages ``spp / sets`` paths. Fewer bands per path make a path cheaper (raw
+    noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
     t0 = time.perf_counter()
     grid = scene.spectral_grid
     nb = grid.n_bands
     sets = band_sets(live_bands(emission), max(1, settings.bands_per_path // 4))
+    spp = set_spp(settings.sampler, settings.spp, len(sets))
+    # One group without an envmap: every emitter emits strength × the group's emission, so the bands
+    # render with flat emission (emitters evaluated once per vertex, not per quadruple) and are
+    # scaled by the emission after — the relighting identity, exact per band.
+    flat = len(groups) == 1 and not any(isinstance(e, EnvMapSky) for e in scene.emitters_of(groups[0]))
     cube = illum = None
     bad = 0.0
     kinds = np.zeros(3)  # samples whose first hit's illumination was demodulated / in-path / traced
@@ -72,8 +96,9 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     n_quads = 0
     for k, portals in enumerate(passes):
         t1 = time.perf_counter()
-        doc = build_scene_dict(scene, view, groups, resolution=settings.resolution, portals=portals)
-        doc["sensor"]["sampler"] = {"type": settings.sampler, "sample_count": settings.spp}
+        doc = build_scene_dict(scene, view, groups, resolution=settings.resolution, portals=portals,
+                               flat_emission=flat)
+        doc["sensor"]["sampler"] = {"type": settings.sampler, "sample_count": spp}
         try:
             ms = mi.load_dict(doc)
         except Exception as exc:  # noqa: BLE001 — Mitsuba's own message, on one line
@@ -87,11 +112,11 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
         for j, bands in enumerate(sets):
             quads, lanes = band_quadruples(grid.edges, bands)
             n_quads += len(quads)
-            integrator = make_integrator(quads, grid.step, scene.max_depth, settings.illumination)
+            integrator = make_integrator(quads, grid.step, scene.max_depth, settings.illumination, flat)
             n_aov = len(integrator.aov_names())
             seed = mix_seed(settings.seed, k, j)
             t2 = time.perf_counter()
-            out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=settings.spp, seed=seed))
+            out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=spp, seed=seed))
             t_render += time.perf_counter() - t2
             aov = out[..., out.shape[-1] - n_aov:]
             on = lanes >= 0
@@ -100,12 +125,17 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
                 illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
                 # every set sees the same first hits: count them once
                 part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
-                kinds += part * settings.spp / len(sets)
-            bad += float(aov[..., -1].sum(dtype=np.float64)) * settings.spp
+                kinds += part * spp / len(sets)
+            bad += float(aov[..., -1].sum(dtype=np.float64)) * spp
+    if flat:
+        cube *= emission
+        if illum is not None:
+            illum *= emission
     stats = {"load_s": round(t_load, 4), "trace_s": round(t_render, 4),
              "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": int(round(bad)),
              "band_sets": len(sets), "quadruples": n_quads // max(1, len(passes)),
-             "paths_per_pixel": settings.spp * len(sets), "sampler": settings.sampler}
+             "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": settings.sampler,
+             "flat_emission_scaled": flat}
     if illum is not None:
         stats["illumination"] = {"samples": int(round(kinds.sum())), "demodulated": int(round(kinds[0])),
                                  "in_path": int(round(kinds[1])), "traced": int(round(kinds[2]))}

@@ -63,7 +63,8 @@ def _power_heuristic(dr, a, b):
 FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists) or "traced"
 
 
-def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool):
+def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
+                    flat_emission: bool = False):
     """A :class:`BandPathIntegrator` carrying the bands whose lower edges are ``quads`` (nm; width
     ``step``), for Mitsuba's ``mi.render`` (the class is
     built on first use: it subclasses Mitsuba's, which needs the variant selected). Mitsuba's loop
@@ -86,6 +87,9 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             self.guard = band_guard(step)
             self.width = float(step) - 2 * self.guard
             self.force = FORCE_FIRST
+            # every emitter's spectrum is flat (the caller scales the bands by the emission after):
+            # emitters are evaluated once per vertex, not once per quadruple
+            self.flat = bool(flat_emission)
             self.max_depth = int(max_depth)
             self.illumination = bool(illumination)
 
@@ -146,14 +150,17 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
                 mis = dr.select(prev_delta, 1.0, _power_heuristic(dr, prev_pdf, em_pdf))
                 count = active & ~white  # a white first vertex does not emit
                 emitter = si.emitter(scene)
+                if self.flat:
+                    le_flat = mis * emitter.eval(si, count)
                 for q in range(nq):
                     si.wavelengths = self.quads[q]
-                    le = mis * emitter.eval(si, count)
+                    le = le_flat if self.flat else mis * emitter.eval(si, count)
                     L[q] = dr.select(count, L[q] + beta[q] * le, L[q])
                     if split:
                         U[q] = dr.select(count, U[q] + beta_u[q] * le, U[q])
                 go = active & si.is_valid() & (depth + 1 < self.max_depth)
-                # --- light sample: drawn once (hero quadruple), valued at every quadruple
+                # --- light sample: drawn once (hero quadruple), valued at every quadruple; and the
+                # continuation: one direction (s1, s2), every quadruple's weight, from the same call
                 si.wavelengths = self.quads[0]
                 em_on = go & (white | flagged(flags, mi.BSDFFlags.Smooth))
                 ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
@@ -163,10 +170,16 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
                 # a white surface faces the camera, whichever side of the shape it sees
                 side = dr.select(mi.Frame3f.cos_theta(si.wi) < 0.0, -1.0, 1.0)
                 cos_em = dr.maximum(side * mi.Frame3f.cos_theta(wo_em), 0.0)
+                s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
+                if self.flat:
+                    le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
+                bs = None
                 for q in range(nq):
                     si.wavelengths = self.quads[q]
-                    le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
-                    f, f_pdf = bsdf.eval_pdf(ctx, si, wo_em, em_on)
+                    if not self.flat:
+                        le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
+                    f, f_pdf, bs_q, w_q = bsdf.eval_pdf_sample(ctx, si, wo_em, s1, s2, go)
+                    bs = bs_q if bs is None else bs
                     f = dr.select(white, cos_em / dr.pi, f)
                     f_pdf = dr.select(white, cos_em / dr.pi, f_pdf)
                     mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(dr, ds_em.pdf, f_pdf))
@@ -174,13 +187,6 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
                     if split:  # the white surface sampled with the BSDF's pdf: same MIS weights
                         f_u = dr.select(u_first, cos_em / dr.pi, beta_u[q] * f)
                         U[q] = dr.select(em_on, U[q] + mis_em * f_u * le, U[q])
-                # --- continue: one direction, every quadruple's weight
-                s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
-                bs = None
-                for q in range(nq):
-                    si.wavelengths = self.quads[q]
-                    bs_q, w_q = bsdf.sample(ctx, si, s1, s2, go)
-                    bs = bs_q if bs is None else bs
                     beta[q] = beta[q] * w_q
                     if split:
                         beta_u[q] = beta_u[q] * w_q

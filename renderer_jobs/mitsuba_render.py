@@ -81,16 +81,19 @@ from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 
+DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """spp: paths per pixel; seed: RNG seed of the cube; wavelengths: ``"all-bands"`` (every path
     carries every band, rendered by Mitsuba's loop with ``sampler``: :mod:`renderer_jobs.mitsuba_band_render`),
     ``"stratified"`` or ``"random"`` (4 wavelengths per path, numpy-driven: module docstring);
     sampler: Mitsuba's pixel sampler for ``"all-bands"`` (:data:`renderer_jobs.modes.SAMPLERS`; its spp
-    rules apply); bands_per_path (``"all-bands"``): the most bands one path carries (a multiple of 4);
-    the live bands render in interleaved sets of at most this many, each with ``spp`` samples per
-    pixel, so in ``"all-bands"`` ``spp`` counts the samples of *every band* and a pixel costs
-    ``spp × sets`` paths; max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
+    rules apply to each band set's share of spp); bands_per_path (``"all-bands"``): the most bands
+    one path carries (a multiple of 4); the live bands render in interleaved sets of at most this
+    many that share the pixel's ``spp`` paths equally (4 sets of 16 for 63 bands at the default: each
+    band averages spp/4 paths); max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
     AOV pass; resolution: ``(width, height)`` overriding the view's; adaptive (hero wavelength modes
     only): spread the spp budget over the pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`;
     spp ≥ 2 × pilot, else uniform); skip_background (hero modes): trace no paths in pixels that cannot
@@ -112,7 +115,7 @@ class RenderSettings:
     seed: int = 0
     wavelengths: str = "all-bands"
     sampler: str = "multijitter"
-    bands_per_path: int = 32
+    bands_per_path: int = 16
     max_lanes: int = 1 << 20
     aov_spp: int = 16  # the denoising guides: bench/denoise.py measures them at 16 rays per pixel
     resolution: tuple[int, int] | None = None
@@ -143,14 +146,12 @@ class RenderSettings:
             raise SceneError(str(SAMPLERS.unknown(self.sampler)))
         object.__setattr__(self, "sampler", SAMPLERS.canonical(self.sampler))
         if self.wavelengths == "all-bands" and self.backend == "mitsuba":
-            from renderer_jobs.mitsuba_band_render import SPP_RULES, spp_allowed  # noqa: PLC0415
+            from renderer_jobs.mitsuba_band_render import check_spp  # noqa: PLC0415
 
             if self.bands_per_path < 4 or self.bands_per_path % 4:
                 raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
                                  "(Mitsuba traces wavelengths in fours)")
-            if not spp_allowed(self.sampler, self.spp):
-                raise SceneError(f"spp {self.spp} does not suit the {self.sampler} sampler: it needs "
-                                 f"{SPP_RULES[self.sampler]}; or choose the multijitter sampler")
+            check_spp(self.sampler, self.spp, self.bands_per_path, DEFAULT_BANDS)
             if self.adaptive or self.noise_target is not None:
                 raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
                                  "they need wavelengths 'stratified' (all-bands paths are uniform per pixel)")

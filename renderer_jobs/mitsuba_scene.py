@@ -224,13 +224,15 @@ def mitsuba_d65(scene: Scene) -> np.ndarray:
     return np.asarray(vals).reshape(grid.n_bands, k).mean(axis=1)
 
 
-def _emitter_dicts(mi, scene: Scene, group: str, radius: float, portals: str = "without"
-                   ) -> tuple[dict[str, dict], dict[str, dict]]:
+def _emitter_dicts(mi, scene: Scene, group: str, radius: float, portals: str = "without",
+                   flat_emission: bool = False) -> tuple[dict[str, dict], dict[str, dict]]:
     """``(shape emitters by shape name, other emitters by light name)`` for one group.
 
     ``portals``: ``"without"`` — every emitter but portals; ``"only"`` — portals only.
+    ``flat_emission``: every emitter emits ``strength × 1`` in every band instead of the group's
+    emission (the caller scales the bands after: linearity; not for envmaps, whose colour varies).
     """
-    spectrum = _group_emission(scene, group)
+    spectrum = np.ones(scene.spectral_grid.n_bands) if flat_emission else _group_emission(scene, group)
     shape_em: dict[str, dict] = {}
     lights: dict[str, dict] = {}
     for e in scene.emitters_of(group):
@@ -278,11 +280,11 @@ def _sensor_dict(mi, scene: Scene, view: str, resolution: tuple[int, int] | None
 
 def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
                      resolution: tuple[int, int] | None = None, radius: float | None = None,
-                     portals: str = "without") -> dict:
+                     portals: str = "without", flat_emission: bool = False) -> dict:
     """Mitsuba ``load_dict`` document of ``scene`` seen from ``view`` with only ``groups`` lit
     (``None`` = every group on; ``[]`` = all dark, geometry only). ``portals="without"`` leaves
     portal shapes out entirely; ``"only"`` keeps only the groups' portals as emitters (the geometry
-    stays, the other emitters go)."""
+    stays, the other emitters go). ``flat_emission``: see :func:`_emitter_dicts`."""
     mi, _ = import_mitsuba()
     groups = scene.group_names if groups is None else groups
     if radius is None:
@@ -292,7 +294,7 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
                  "sensor": _sensor_dict(mi, scene, view, resolution)}
     shape_em: dict[str, dict] = {}
     for g in groups:
-        se, lights = _emitter_dicts(mi, scene, g, radius, portals)
+        se, lights = _emitter_dicts(mi, scene, g, radius, portals, flat_emission)
         shape_em.update(se)
         for name, d in lights.items():
             doc[f"light_{name}"] = d
