@@ -10,22 +10,29 @@ What a cube is
 spectral radiance reaching pixel ``x`` (box pixel filter) when only ``g``'s emitters are on, each
 emitting ``strength × Ē_g(λ)`` with ``Ē_g`` the group's emission (flat, value 1, by default) held
 constant over each band; every other group's emitters are removed (their geometry and materials
-stay). Path tracing (Mitsuba's ``path`` integrator, unidirectional with next-event estimation,
-emitter selection weighted by approximate power via ``sampling_weight``), no denoiser, no clamping,
-emitters visible. Portal emitters (``emitter.portal``, e.g. the sky filling a window) are not
+stay). Unidirectional path tracing with next-event estimation and MIS, emitter selection weighted
+by approximate power via ``sampling_weight``, no denoiser, no clamping, emitters visible. Portal emitters (``emitter.portal``, e.g. the sky filling a window) are not
 geometry: they are traced in a second pass with the same schedule and added (linearity), so they
 never shadow the group's other emitters. Non-finite samples (none seen so far) are dropped and
 counted in the cube's stats.
 
-Wavelength sampling (issue 4, see ``bench/render.py`` for the measurements)
--------------------------------------------------------------------------
+Wavelength sampling (issues 4 and 17, see ``bench/render.py`` for the measurements)
+-------------------------------------------------------------------------------------
+- ``"all-bands"`` (default, issue 17): every path carries many bands at once (no material disperses,
+  so a path sampled once serves every wavelength), rendered by Mitsuba's own loop with a
+  low-discrepancy pixel sampler: :mod:`renderer_jobs.mitsuba_bands` (the integrator) and
+  :mod:`renderer_jobs.mitsuba_band_render` (band sets, passes). ``bench/RENDER_PERF.md`` measures it
+  against the modes below and against Cycles run the thesis way.
+
+The two 4-wavelength modes below are this module's own numpy-driven paths (Mitsuba's ``path``
+integrator on rays illumix generates); adaptive spp and noise targets work with them only.
 Mitsuba traces 4 wavelengths per path ("hero" wavelengths). Its spectral film draws them at random
 over the whole range, so each 5 nm band of a pixel receives a *random number* of samples and the
 per-band estimate carries that count's binomial noise (≈ 1/√(expected count): 12 % at 1024 spp for
 63 bands). This backend drives the integrator itself (``Integrator.sample`` on rays it generates) and
 chooses every wavelength:
 
-- ``"stratified"`` (default): path ``s`` of pixel ``p`` starts at band ``k = (s + o_p) mod n`` and its
+- ``"stratified"``: path ``s`` of pixel ``p`` starts at band ``k = (s + o_p) mod n`` and its
   four wavelengths lie in bands ``k, k+16, k+32, k+48 (mod n)`` — spread over the spectrum so one
   path's noise does not pile up in one camera channel — each uniformly jittered inside its band.
   Every ``n`` consecutive paths put exactly 4 samples in every band, so a band's sample count is
@@ -38,8 +45,8 @@ chooses every wavelength:
   span with Mitsuba's shifted stratification (``sample_shifted``), each band estimated as
   ``Σ L / E[count]`` exactly as the ``specfilm`` does.
 
-Adaptive spp (default, ``RenderSettings.adaptive``)
--------------------------------------------------
+Adaptive spp (``RenderSettings.adaptive``, 4-wavelength modes)
+---------------------------------------------------------------
 The cube's ``spp · pixels`` paths are not spread evenly: every pixel first gets the pilot (16 paths:
 every band sampled once), then the rest goes where the pilot's neighbourhood saw the most relative
 variance (:mod:`renderer_jobs.adaptive_spp`). The stratified schedule simply runs longer in those
@@ -56,7 +63,8 @@ is purely diffuse (and not emitting) ``U = L/ρ`` — exact, every contribution 
 ``ρ(λ)`` — at the cost of one more intersection in the same kernel; elsewhere (glossy, metal, glass,
 black or emitting first hits) a white-Lambertian estimate is traced for that sample
 (:meth:`renderer_jobs.mitsuba_trace.Tracer.white_lambertian`). Samples that hit nothing add 0; the
-view's ``mask``/``emitter`` AOVs flag pixels where illumination is undefined.
+view's ``mask``/``emitter`` AOVs flag pixels where illumination is undefined. The ``"all-bands"``
+mode estimates it band by band in its own kernel (:mod:`renderer_jobs.mitsuba_bands`).
 
 Per-band sums are accumulated in float64 by ``numpy.bincount`` (no atomics), so the same seed gives
 the same cube bit for bit.
@@ -75,111 +83,10 @@ from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live
 from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
-from renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
+from renderer_jobs.render_settings import DEFAULT_BANDS, RenderSettings  # noqa: F401 — re-exported
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
-
-
-DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
-
-
-@dataclass(frozen=True)
-class RenderSettings:
-    """spp: paths per pixel; seed: RNG seed of the cube; wavelengths: ``"all-bands"`` (every path
-    carries every band, rendered by Mitsuba's loop with ``sampler``: :mod:`renderer_jobs.mitsuba_band_render`),
-    ``"stratified"`` or ``"random"`` (4 wavelengths per path, numpy-driven: module docstring);
-    sampler: Mitsuba's pixel sampler for ``"all-bands"`` (:data:`renderer_jobs.modes.SAMPLERS`; its spp
-    rules apply to each band set's share of spp); bands_per_path (``"all-bands"``): the most bands
-    one path carries (a multiple of 4); the live bands render in interleaved sets of at most this
-    many that share the pixel's ``spp`` paths equally (4 sets of 16 for 63 bands at the default: each
-    band averages spp/4 paths); max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
-    AOV pass; resolution: ``(width, height)`` overriding the view's; adaptive (hero wavelength modes
-    only): spread the spp budget over the pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`;
-    spp ≥ 2 × pilot, else uniform); skip_background (hero modes): trace no paths in pixels that cannot
-    see geometry when the groups have no sky (they are exactly zero; :mod:`renderer_jobs.view_coverage`;
-    in ``"all-bands"`` such a path ends at its first missed ray, exactly zero too); noise_target (hero
-    modes): instead of a fixed budget, give each pixel the paths its pilot predicts for this relative
-    noise of its spectral sum (e.g. 0.05), ``spp`` then being the per-pixel maximum
-    (:func:`renderer_jobs.adaptive_spp.to_target`); illumination: also render the illumination cube
-    (module docstring, "Illumination cube"); denoise: the :mod:`retarget.denoise` method whose
-    denoised copies the job runner stores beside each cube (``None``/``"none"``: no copies);
-    backend: ``"mitsuba"`` or ``"cycles"`` (:mod:`renderer_jobs.cycles_render`, which uses spp, seed,
-    resolution, aov_spp and illumination, and renders every group of a view at once).
-    For the job runner (:mod:`renderer_jobs.jobs`) only: skip_dark: probe each (view, group) first
-    and record a group that sends no light into the view as empty instead of rendering it
-    (:mod:`renderer_jobs.light_probe`); probe_ratio: the probe's budget is 1/probe_ratio of the
-    cube's paths."""
-
-    spp: int = 64
-    seed: int = 0
-    wavelengths: str = "all-bands"
-    sampler: str = "multijitter"
-    bands_per_path: int = 16
-    max_lanes: int = 1 << 20
-    aov_spp: int = 16  # the denoising guides: bench/denoise.py measures them at 16 rays per pixel
-    resolution: tuple[int, int] | None = None
-    skip_dark: bool = True
-    probe_ratio: int = 16
-    adaptive: bool = False
-    skip_background: bool = True
-    noise_target: float | None = None
-    illumination: bool = True
-    denoise: str | None = "dt-guides"
-    backend: str = "mitsuba"
-
-    def __post_init__(self) -> None:
-        from renderer_jobs.modes import BACKENDS  # noqa: PLC0415
-        from retarget.errors import UnknownName  # noqa: PLC0415
-
-        try:
-            object.__setattr__(self, "backend", BACKENDS.canonical(self.backend))
-        except UnknownName as exc:
-            raise SceneError(str(exc)) from None
-        if self.spp < 1:
-            raise SceneError(f"spp must be >= 1, got {self.spp}")
-        if self.wavelengths not in WAVELENGTH_MODES:
-            raise SceneError(str(WAVELENGTH_MODES.unknown(self.wavelengths)))
-        # Any accepted spelling ("Stratified") becomes the canonical name the renderer compares with.
-        object.__setattr__(self, "wavelengths", WAVELENGTH_MODES.canonical(self.wavelengths))
-        if self.sampler not in SAMPLERS:
-            raise SceneError(str(SAMPLERS.unknown(self.sampler)))
-        object.__setattr__(self, "sampler", SAMPLERS.canonical(self.sampler))
-        if self.wavelengths == "all-bands" and self.backend == "mitsuba":
-            from renderer_jobs.mitsuba_band_render import check_spp  # noqa: PLC0415
-
-            if self.bands_per_path < 4 or self.bands_per_path % 4:
-                raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
-                                 "(Mitsuba traces wavelengths in fours)")
-            check_spp(self.sampler, self.spp, self.bands_per_path, DEFAULT_BANDS)
-            if self.adaptive or self.noise_target is not None:
-                raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
-                                 "they need wavelengths 'stratified' (all-bands paths are uniform per pixel)")
-        if self.max_lanes < 1:
-            raise SceneError("max_lanes must be >= 1")
-        if self.denoise is not None:
-            from retarget.denoise import DENOISE_METHODS  # noqa: PLC0415
-            from retarget.errors import UnknownName  # noqa: PLC0415
-
-            try:
-                name = None if str(self.denoise).lower() == "none" else DENOISE_METHODS.canonical(self.denoise)
-            except UnknownName as exc:
-                raise SceneError(f"{exc} (or none)") from None
-            object.__setattr__(self, "denoise", name)
-        if self.probe_ratio < 1:
-            raise SceneError("probe_ratio must be >= 1")
-        if self.noise_target is not None and not 0 < self.noise_target < 1:
-            raise SceneError(f"noise target {self.noise_target} must lie in (0, 1): a relative standard "
-                             "deviation, e.g. 0.05 for 5 %")
-
-    def to_dict(self) -> dict:
-        return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths, "sampler": self.sampler,
-                "bands_per_path": self.bands_per_path,
-                "max_lanes": self.max_lanes, "aov_spp": self.aov_spp,
-                "resolution": list(self.resolution) if self.resolution else None,
-                "skip_dark": self.skip_dark, "probe_ratio": self.probe_ratio, "adaptive": self.adaptive,
-                "skip_background": self.skip_background, "noise_target": self.noise_target,
-                "illumination": self.illumination, "denoise": self.denoise, "backend": self.backend}
 
 
 @dataclass
