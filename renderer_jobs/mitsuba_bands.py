@@ -3,10 +3,11 @@
 Mitsuba's spectral variants trace 4 wavelengths per ray. Every material of the scene model is
 non-dispersive (diffuse, rough plastic, rough conductor, dielectric with a scalar IOR): a BSDF's
 sampled direction and its pdf do not depend on the wavelength, only its value does. So one path,
-sampled once, can carry every band: :class:`BandPathIntegrator` keeps a throughput per *quadruple*
-of band centres (16 quadruples = 64 lanes for 63 bands) and re-evaluates the BSDF, the emitters and
-the light samples at each quadruple along the same path. That removes wavelength sampling from the
-noise altogether (issue 17: a band sees every path, not 1/16 of them), and because the integrator is
+sampled once, can carry many bands: the integrator keeps a throughput per *quadruple* of bands (up
+to 16 quadruples = 64 lanes for 63 bands; :mod:`renderer_jobs.mitsuba_band_render` splits the bands
+into sets) and re-evaluates the BSDF, the emitters and the light samples at each quadruple along the
+same path. That removes wavelength sampling from the noise (issue 17: a band sees every path of its
+set, not 4 of every 63 band samples), and because the integrator is
 a standard ``SamplingIntegrator`` returning the bands as AOVs of an ``hdrfilm`` with a box filter,
 Mitsuba's own render loop and its low-discrepancy samplers (``multijitter``, ``ldsampler``,
 ``orthogonal``, ``stratified``) drive it at compiled speed (the Python ``sample`` is traced once into
@@ -15,18 +16,26 @@ a Dr.Jit kernel per pass).
 Estimator (per path, each band ``b`` of quadruple ``q``): unidirectional path tracing with next-event
 estimation and MIS (power heuristic), emitters selected by Mitsuba's ``sampling_weight`` (their
 approximate power per unit group spectrum, so a relit render selects exactly the same lights),
-Russian roulette from ``rr_depth`` on the largest throughput over *all* bands (independent of the
+Russian roulette from the 5th vertex on the largest throughput over *all* bands (independent of the
 emission spectrum, so relighting stays exact). ``max_depth`` as Mitsuba's ``path``: 1 = emitters
 seen directly, 2 = direct light, …
 
-Illumination (DESIGN.md "Physical GT"), band by band, from the same paths: where the first hit is
-purely diffuse and not emitting, ``U = L/ρ`` (every contribution of the path carries ``ρ``); elsewhere
-a second path from the same camera ray whose first vertex is a white Lambertian surface (BSDF ``1/π``,
-cosine sampling, its own emission excluded), in the same kernel. Samples that hit nothing add 0.
+Each path draws one offset inside the bands (the same for all its bands): a step spectrum is exact
+there, a smooth one (Mitsuba's D65 of envmaps, conductor tables) is averaged over the band.
 
-AOVs: ``b000…`` the bands (radiance, band average of a step-spectrum scene = its value at the band
-centre), ``u000…`` the illumination bands, ``bad`` the number of non-finite values the sample
-dropped. Bands a group does not emit are left out of the quadruples (exactly zero in the cube).
+Illumination (DESIGN.md "Physical GT"), band by band, from the same paths: where the first hit is
+purely diffuse and not emitting, ``U = L/ρ`` (every contribution of the path carries ``ρ``); where it
+has a diffuse lobe and no delta one (rough plastic), a white Lambertian surface followed along the
+path's own BSDF-sampled continuation — weight ``(cos/π)/pdf``, its own light sample, the same MIS
+weights — with a second throughput and radiance in the loop (no extra rays); elsewhere (glass,
+metal, emitters, black) a second path from the same camera ray whose first vertex is a white
+Lambertian surface (BSDF ``1/π``, cosine sampling, its own emission excluded), in the same kernel.
+Samples that hit nothing add 0.
+
+AOVs: ``b000…`` the bands (radiance), ``u000…`` the illumination bands, ``first_pure``,
+``first_mixed``, ``first_traced`` (which estimator the sample's illumination used), ``bad`` the number
+of non-finite values the sample dropped. Bands a group does not emit are left out of the quadruples
+(exactly zero in the cube).
 """
 
 from __future__ import annotations
@@ -65,18 +74,19 @@ FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists)
 
 def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
                     flat_emission: bool = False):
-    """A :class:`BandPathIntegrator` carrying the bands whose lower edges are ``quads`` (nm; width
-    ``step``), for Mitsuba's ``mi.render`` (the class is
-    built on first use: it subclasses Mitsuba's, which needs the variant selected). Mitsuba's loop
-    runs every sample of the film in one symbolic-loop kernel: the per-lane state lives in registers,
-    the memory is the film's."""
+    """A ``BandPathIntegrator`` carrying the bands whose lower edges are ``quads`` (nm; width
+    ``step``), for Mitsuba's ``mi.render``. The class is defined here, not at import: it subclasses
+    Mitsuba's, which needs the variant selected. Mitsuba's loop runs every sample of the film in one
+    symbolic-loop kernel: the per-lane state lives in registers, the memory is the film's.
+    ``flat_emission``: every emitter's spectrum is flat (the caller scales the bands by the emission
+    after), so emitters are evaluated once per vertex, not once per quadruple."""
     mi, dr = import_mitsuba()
 
     def flagged(flags, flag):
         return mi.has_flag(flags, flag)
 
     class BandPathIntegrator(mi.SamplingIntegrator):
-        """See the module docstring. Loop state per lane: 16 quadruples of throughput and radiance,
+        """See the module docstring. Loop state per lane: a throughput and a radiance per quadruple,
         and for the illumination estimate (``illumination``) a second throughput and radiance that
         follow the same path from its second vertex on (the "in-path" white estimate)."""
 
@@ -87,8 +97,6 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             self.guard = band_guard(step)
             self.width = float(step) - 2 * self.guard
             self.force = FORCE_FIRST
-            # every emitter's spectrum is flat (the caller scales the bands by the emission after):
-            # emitters are evaluated once per vertex, not once per quadruple
             self.flat = bool(flat_emission)
             self.max_depth = int(max_depth)
             self.illumination = bool(illumination)
