@@ -51,12 +51,15 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> None:
     from illumix.cmd_render import render
+    from renderer_jobs.render_settings import RenderSettings
     from retarget.denoise_methods import DEFAULT_METHOD
 
+    d = RenderSettings()  # the renderer's defaults
     render(config=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
-           wavelengths="stratified", views=None, groups=None, workers=workers, executor="local",
-           address=None, skip_dark=True, adaptive=True, noise_target=None, illumination=True,
-           denoise=DEFAULT_METHOD, backend="mitsuba", overwrite=False, dry_run=False, as_json=False)
+           wavelengths=d.wavelengths, sampler=d.sampler, bands_per_path=d.bands_per_path, views=None,
+           groups=None, workers=workers, executor="local", address=None, skip_dark=True, adaptive=d.adaptive,
+           noise_target=None, illumination=True, denoise=DEFAULT_METHOD, backend="mitsuba", overwrite=False,
+           dry_run=False, as_json=False)
 
 
 def _save_samples(url: str, out: Path) -> list[str]:

@@ -34,7 +34,7 @@ def test_no_command_prints_help_and_no_empty_error(capsys, argv):
     (["render", "--demo", "--groups", ","], "--groups ',' names nothing"),
     (["render", "--demo", "--views", ""], "--views '' names nothing"),
     (["render", "{tmp}"], "is a directory; give a YAML or JSON file"),
-    (["render", "--demo", "--noise-target", "0.05", "--no-adaptive"], "--no-adaptive turns off"),
+    (["render", "--demo", "--noise-target", "0.05"], "need wavelengths 'stratified'"),
 ])
 def test_render_refuses_nonsense_before_writing(tmp_path, capsys, argv, needle):
     store = tmp_path / "st"

@@ -56,9 +56,10 @@ def test_help_and_version_import_nothing_heavy(argv):
 
 
 def test_help_shows_the_choices():
-    assert "[stratified|random]" in run_fresh("render", "--help")[1]
+    assert "[all-bands|stratified|random]" in run_fresh("render", "--help")[1]
+    assert "[multijitter|ldsampler|orthogonal|stratified|independent" in run_fresh("render", "--help")[1]
     assert "[local|ray]" in run_fresh("render", "--help")[1]
-    assert "[stratified|random]" in run_fresh("validate", "--help")[1]
+    assert "[all-bands|stratified|random]" in run_fresh("validate", "--help")[1]
     assert "[White Preserving|Unconstrained|wp|Least Squares]" in run_fresh("ccm", "--help")[1]
 
 
@@ -70,8 +71,8 @@ def test_version_end_to_end():
 
 
 @pytest.mark.parametrize("argv, valid", [
-    (["render", "--demo", "--store", "{tmp}", "--wavelengths", "strat"], "(valid: stratified, random)"),
-    (["validate", "--out", "{tmp}", "--wavelengths", "uniform"], "(valid: stratified, random)"),
+    (["render", "--demo", "--store", "{tmp}", "--wavelengths", "strat"], "(valid: all-bands, stratified, random)"),
+    (["validate", "--out", "{tmp}", "--wavelengths", "uniform"], "(valid: all-bands, stratified, random)"),
     (["render", "--demo", "--store", "{tmp}", "--executor", "slurm"], "(valid: local, ray)"),
     (["ccm", "--sensor", "XYZ", "--illuminant", "A", "--method", "gray world"],
      "(valid: White Preserving, Unconstrained, wp, Least Squares)"),
@@ -102,11 +103,12 @@ def test_any_registry_spelling_is_accepted_and_canonical(tmp_path, capsys):
 
 def test_render_settings_and_executor_accept_registry_spellings():
     from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import WAVELENGTH_MODES, RenderSettings
+    from renderer_jobs.mitsuba_render import RenderSettings
+    from renderer_jobs.modes import WAVELENGTH_MODES
     from renderer_jobs.scene_schema import SceneError
 
     assert RenderSettings(wavelengths="Stratified").wavelengths == "stratified"
-    assert list(WAVELENGTH_MODES) == ["stratified", "random"] and list(jobs.EXECUTORS) == ["local", "ray"]
+    assert list(WAVELENGTH_MODES) == ["all-bands", "stratified", "random"] and list(jobs.EXECUTORS) == ["local", "ray"]
     with pytest.raises(SceneError, match=r"unknown wavelength sampling 'rand'; did you mean 'random'\?"):
         RenderSettings(wavelengths="rand")
     with pytest.raises(SceneError, match=r"unknown executor 'slurm' \(valid: local, ray\)"):
