@@ -4,9 +4,9 @@ reference, on the demo room's mixed-illuminant composition.
 Scene and composition
 ---------------------
 The demo room (seed 0), view ``--view`` (front) at ``--resolution`` (160×120), rendered in-process
-with the renderer's default settings (stratified wavelengths, adaptive spp, illumination cubes),
+with the renderer's default settings (all-bands paths since issue 17, illumination cubes),
 each render cached as ``.npz`` under ``bench/out/denoise-cache/`` by (view, resolution, spp, seed,
-groups) (``--no-cache`` renders again and writes nothing). The *test* is group ``daylight`` relit
+groups, the default renderer method) (``--no-cache`` renders again and writes nothing). The *test* is group ``daylight`` relit
 by illuminant A plus group ``ceiling`` relit by D65 (desk off), projected to camera raw through the
 sensor ``--sensor`` (Nikon 5100 (NPL)): ``raw = Σ_g T_g @ M_g`` with ``M_g`` from
 ``retarget.relight.band_scales``/``raw_weights``. Seeds: test 0 (``--spp``, 64), error curve

@@ -21,7 +21,13 @@ ERR_CAP_PCT = 1e4
 
 
 def _cache_name(view: str, res: tuple[int, int], spp: int, seed: int, groups: Sequence[str]) -> str:
-    return f"{view}_{res[0]}x{res[1]}_{spp}spp_seed{seed}_{'+'.join(groups)}.npz"
+    """The cache file of a render; named by the renderer's default method too, so a change of
+    default (issue 17: all-bands paths) never reads another renderer's cubes."""
+    from renderer_jobs.render_settings import RenderSettings
+
+    d = RenderSettings()
+    method = f"{d.wavelengths}-{d.sampler}-b{d.bands_per_path}" if d.wavelengths == "all-bands" else d.wavelengths
+    return f"{view}_{res[0]}x{res[1]}_{spp}spp_seed{seed}_{'+'.join(groups)}_{method}.npz"
 
 
 def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed: int, res: tuple[int, int],
