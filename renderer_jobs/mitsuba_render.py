@@ -124,8 +124,8 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
     mi, _ = import_mitsuba()
     bands = settings.wavelengths == "all-bands"
     info = {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
-            "method": (f"path tracing, up to {settings.bands_per_path} bands on every path (interleaved band sets, "
-                       f"spp paths per band), {settings.sampler} pixel samples, Mitsuba's render loop" if bands else
+            "method": (f"path tracing, up to {settings.bands_per_path} bands on every path (interleaved band sets "
+                       f"sharing the spp), {settings.sampler} pixel samples, Mitsuba's render loop" if bands else
                        f"path tracing, 4 {settings.wavelengths} wavelengths per path (illumix sampling)"),
             "settings": {"integrator": "illumix band path" if bands else "path", "max_depth": scene.max_depth,
                          "rr_depth": 5, "mis": "power heuristic", "rfilter": "box",
@@ -137,7 +137,8 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
         # follows the path sampled once, none falls back to hero wavelengths.
         info["settings"].update({"sampler": settings.sampler, "bands_per_path": settings.bands_per_path,
                                  "dispersion": "none",
-                                 "band_wavelengths": "band centres (step spectra: the band average)"})
+                                 "band_wavelengths": ("one offset per path inside every band (the band minus 1/20 at each edge): "
+                                                     "step spectra exact, smooth ones band-averaged")})
         info["illumination_method"] = ILLUMINATION_METHOD_BANDS
     else:
         info["settings"].update({"adaptive_spp": settings.adaptive, "noise_target": settings.noise_target,
