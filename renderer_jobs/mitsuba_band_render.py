@@ -18,7 +18,6 @@ from renderer_jobs.band_schedule import live_bands, mix_seed
 from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
 from renderer_jobs.mitsuba_scene import build_scene_dict
 from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
-from renderer_jobs.modes import SAMPLERS
 from renderer_jobs.scene_model import EnvMapSky, Scene
 from renderer_jobs.scene_schema import SceneError
 

@@ -83,7 +83,7 @@ from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live
 from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
-from renderer_jobs.render_settings import DEFAULT_BANDS, RenderSettings  # noqa: F401 — re-exported
+from renderer_jobs.render_settings import RenderSettings  # noqa: F401 — re-exported
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
