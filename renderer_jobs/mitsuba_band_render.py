@@ -16,8 +16,8 @@ import numpy as np
 
 from renderer_jobs.band_schedule import live_bands, mix_seed
 from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
-from renderer_jobs.mitsuba_scene import build_scene_dict
-from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
+from renderer_jobs.mitsuba_scene import load_mitsuba_scene
+from renderer_jobs.mitsuba_variant import import_mitsuba
 from renderer_jobs.scene_model import EnvMapSky, Scene
 from renderer_jobs.scene_schema import SceneError
 
@@ -95,14 +95,8 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     n_quads = 0
     for k, portals in enumerate(passes):
         t1 = time.perf_counter()
-        doc = build_scene_dict(scene, view, groups, resolution=settings.resolution, portals=portals,
-                               flat_emission=flat)
-        doc["sensor"]["sampler"] = {"type": settings.sampler, "sample_count": spp}
-        try:
-            ms = mi.load_dict(doc)
-        except Exception as exc:  # noqa: BLE001 — Mitsuba's own message, on one line
-            raise RenderError(f"scene {scene.name!r}: Mitsuba could not load it: {str(exc).splitlines()[0]}") from None
-        sensor = ms.sensors()[0]
+        ms, sensor = load_mitsuba_scene(scene, view, groups, settings.resolution, portals=portals, flat_emission=flat,
+                                        sampler={"type": settings.sampler, "sample_count": spp})
         w, h = (int(x) for x in sensor.film().crop_size())
         t_load += time.perf_counter() - t1
         if cube is None:

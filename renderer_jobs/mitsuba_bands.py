@@ -111,8 +111,9 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
         def _path(self, scene, sampler, ray, active, white0, split: bool):
             """Trace one path per lane. Returns per quadruple: the radiance ``L``, and (``split``) the
             first vertex's diffuse reflectance ``rho``, and the in-path white estimate ``U``, with the
-            masks ``diffuse0`` (first vertex purely diffuse: U = L/ρ) and ``mixed0`` (first vertex
-            has a diffuse lobe and no delta one: U from this path, module docstring).
+            masks ``hit0`` (the camera ray hit something), ``diffuse0`` (first vertex purely diffuse:
+            U = L/ρ) and ``mixed0`` (first vertex has a diffuse lobe and no delta one: U from this
+            path, module docstring).
             ``white0``: lanes whose first vertex *is* a white Lambertian surface (the separate
             illumination path, for every other first vertex)."""
             nq = len(self.quads)
@@ -120,18 +121,19 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             zeros = [mi.Spectrum(0.0) for _ in range(nq)]
             state = (sampler, mi.Ray3f(ray), mi.UInt32(0), [mi.Spectrum(1.0) for _ in range(nq)], list(zeros),
                      list(zeros), list(zeros), list(zeros),
-                     mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0), mi.Bool(True),
-                     mi.Bool(active))
+                     mi.Bool(False), mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0),
+                     mi.Bool(True), mi.Bool(active))
 
-            def cond(sampler, ray, depth, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf, prev_delta,
-                     active):
+            def cond(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
+                     prev_delta, active):
                 return active
 
-            def body(sampler, ray, depth, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf, prev_delta,
-                     active):
+            def body(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
+                     prev_delta, active):
                 si = scene.ray_intersect(ray, mi.RayFlags.All, coherent=depth == 0, active=active)
                 white = white0 & (depth == 0)
                 first = active & (depth == 0) & si.is_valid()
+                hit0 |= first
                 bsdf = si.bsdf(ray)
                 flags = bsdf.flags()
                 if split:  # what the first vertex is, for the illumination estimate
@@ -227,11 +229,11 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
                 prev = dr.select(go, mi.Interaction3f(si), prev)
                 prev_pdf = dr.select(go, pdf, prev_pdf)
                 prev_delta = dr.select(go, delta, prev_delta)
-                return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, diffuse0, mixed0, prev, prev_pdf,
+                return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
                         prev_delta, go)
 
             out = dr.while_loop(state, cond, body, label="illumix band path")
-            return out[4], out[6], out[7], out[8], out[9]
+            return out[4], out[6], out[7], out[8], out[9], out[10]
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             nq = len(self.quads)
@@ -240,7 +242,7 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             # average exactly), other spectra (envmap D65, conductor tables) averaged over the band.
             offset = self.guard + self.width * sampler.next_1d(active)
             self.quads = [low + offset for low in self.lows]
-            L, Uin, rho, diffuse0, mixed0 = self._path(scene, sampler, ray, active, mi.Bool(False), split)
+            L, Uin, rho, hit0, diffuse0, mixed0 = self._path(scene, sampler, ray, active, mi.Bool(False), split)
             bad = mi.Float(0.0)
             aovs = []
 
@@ -256,15 +258,13 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
             if split:
                 # first vertices that are neither purely diffuse nor have a diffuse lobe (glass, metal,
                 # emitters, black): a separate path whose first vertex is a white Lambertian surface
-                si0 = scene.ray_intersect(mi.Ray3f(ray), active)
-                need = mi.Bool(active) & si0.is_valid() & ~diffuse0 & ~mixed0
+                need = hit0 & ~diffuse0 & ~mixed0
                 W = self._path(scene, sampler, ray, need, need, False)[0]
                 for q in range(nq):
                     for k in range(4):
                         u_pure = L[q][k] / dr.maximum(rho[q][k], RHO_MIN)
                         keep(dr.select(diffuse0, u_pure, dr.select(mixed0, Uin[q][k], W[q][k])))
-                hit = mi.Bool(active) & si0.is_valid()
-                aovs += [dr.select(hit & diffuse0, 1.0, 0.0), dr.select(hit & mixed0, 1.0, 0.0),
+                aovs += [dr.select(hit0 & diffuse0, 1.0, 0.0), dr.select(hit0 & mixed0, 1.0, 0.0),
                          dr.select(need, 1.0, 0.0)]
             aovs.append(bad)
             return mi.Spectrum(0.0), mi.Bool(active), aovs

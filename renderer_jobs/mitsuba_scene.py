@@ -309,12 +309,16 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
 
 
 def load_mitsuba_scene(scene: Scene, view: str, groups: list[str] | None, resolution=None, radius=None,
-                       portals="without"):
-    """``(mitsuba Scene, its sensor)`` of :func:`build_scene_dict`; a Mitsuba failure is a :class:`RenderError`."""
+                       portals="without", flat_emission: bool = False, sampler: dict | None = None):
+    """``(mitsuba Scene, its sensor)`` of :func:`build_scene_dict`; a Mitsuba failure is a :class:`RenderError`.
+    ``sampler``: the sensor's sampler dictionary (default: independent, 1 sample)."""
     mi, _ = import_mitsuba()
+    doc = build_scene_dict(scene, view, groups, resolution=resolution, radius=radius, portals=portals,
+                           flat_emission=flat_emission)
+    if sampler is not None:
+        doc["sensor"]["sampler"] = sampler
     try:
-        ms = mi.load_dict(build_scene_dict(scene, view, groups, resolution=resolution, radius=radius,
-                                           portals=portals))
+        ms = mi.load_dict(doc)
     except SceneError:
         raise
     except Exception as exc:

@@ -23,7 +23,8 @@ class RenderSettings:
     rules apply to each band set's share of spp); bands_per_path (``"all-bands"``): the most bands
     one path carries (a multiple of 4); the live bands render in interleaved sets of at most this
     many that share the pixel's ``spp`` paths equally (4 sets of 16 for 63 bands at the default: each
-    band averages spp/4 paths); max_lanes: paths traced per pass (bounds memory); aov_spp: samples per pixel of the
+    band averages spp/4 paths); max_lanes (4-wavelength modes): paths traced per pass (bounds memory; all-bands renders run in Mitsuba's
+    own loop, whose memory is the film's); aov_spp: samples per pixel of the
     AOV pass; resolution: ``(width, height)`` overriding the view's; adaptive (hero wavelength modes
     only): spread the spp budget over the pixels by a pilot's variance (:mod:`renderer_jobs.adaptive_spp`;
     spp ≥ 2 × pilot, else uniform); skip_background (hero modes): trace no paths in pixels that cannot
