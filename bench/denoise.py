@@ -167,6 +167,7 @@ def render_all(args, scene, cache: Path | None) -> dict:
     clean = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.clean_aov_spp, cache, log)
     log(f"test renders at {args.spp} spp, seed {TEST_SEED}")
     test = {g: render(g, args.spp, TEST_SEED) for g in scene.group_names}
+    direct = {g: dl.cached_direct(scene, args.view, g, args.res, TEST_SEED, cache, log) for g in groups}
     curve = {}
     for spp in args.curve_spp:
         log(f"error curve: {spp} spp, seed {curve_seed(args, spp)}")
@@ -180,7 +181,13 @@ def render_all(args, scene, cache: Path | None) -> dict:
         log(f"reference seed {k + 1}/{args.ref_seeds} ({args.ref_spp} spp, seed {REF_SEED0 + k})")
         refs.append({g: render(g, args.ref_spp, REF_SEED0 + k) for g in groups})
     return {"aovs": aovs, "clean_aovs": clean, "test": test, "curve": curve, "mixed": mixed, "refs": refs,
-            "mixed_spp": mixed_spp}
+            "mixed_spp": mixed_spp, "direct": direct}
+
+
+def den(R: dict, g: str, guides, name: str, kind: str = "transport") -> np.ndarray:
+    """Group ``g``'s test cube (``kind``: transport or illumination) denoised by ``name``."""
+    return dl.run_denoise(R["test"][g]["cube" if kind == "transport" else "illumination"], guides, name,
+                          R["direct"][g]["direct"] if g in R["direct"] else None, kind)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -194,7 +201,7 @@ def class_summaries(err: np.ndarray, classes: dict) -> dict:
 
 def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 1 (and 4, 5, 7): each method's denoised test cubes, composed, against the reference."""
-    from retarget.denoise import DENOISE_METHODS, denoise, describe
+    from retarget.denoise import DENOISE_METHODS, denoise, describe, needs_direct
 
     groups = [g for g, _ in PAIR]
     valid = classes["all"]
@@ -206,8 +213,8 @@ def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: di
             T = [R["test"][g]["cube"] for g in groups]
             U = [R["test"][g]["illumination"] for g in groups]
         else:
-            T = [denoise(R["test"][g]["cube"], guides, name) for g in groups]
-            U = [denoise(R["test"][g]["illumination"], guides, name) for g in groups]
+            T = [den(R, g, guides, name) for g in groups]
+            U = [den(R, g, guides, name, "illumination") for g in groups]
         raw = dl.compose(T, M)
         err = dl.rel_chroma_err(raw, ref["raw"])
         s = dl.err_summary(err, valid)
@@ -217,7 +224,7 @@ def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: di
                "mean_G_rel": float(raw[..., 1][valid].mean() / ref["raw"][..., 1][valid].mean() - 1)}
         ang = dl.angle_deg(dl.compose(U, M), u_ref)
         row["gain_angle_deg"] = {c: dl.angle_summary(ang, classes[c]) for c in ("edges", "flat")}
-        if name != "none":
+        if name != "none" and not needs_direct(name):  # one operator for all groups and bands
             und = [R["test"][g]["cube"] for g in groups]
             proj = sum(denoise(dl.compose([c], M[i:i + 1]), guides, name) for i, c in enumerate(und))
             row["projection_commutes_max_rel"] = float(np.abs(proj - raw).max() / np.abs(raw).max())
@@ -264,7 +271,7 @@ def reference_floor(ref: dict, classes: dict) -> dict:
 
 def thesis_protocol(args, R: dict, guides, sensor: str, ref: dict, method: str) -> dict:
     """Part 2: Σ single-group renders as rendered vs one mixed render at 16× spp (thesis Fig. 4.1)."""
-    from retarget.denoise import DENOISE_METHODS, denoise
+    from retarget.denoise import DENOISE_METHODS
 
     groups = [g for g, _ in PAIR]
     Mas = dl.composition_weights(sensor, None, [R["test"][g]["emission"] for g in groups])
@@ -278,7 +285,7 @@ def thesis_protocol(args, R: dict, guides, sensor: str, ref: dict, method: str) 
            "valid_pixels": int(valid.sum())}
     by = {}
     for name in ["none", *DENOISE_METHODS.names]:
-        T = [R["test"][gr]["cube"] if name == "none" else denoise(R["test"][gr]["cube"], guides, name) for gr in groups]
+        T = [R["test"][gr]["cube"] if name == "none" else den(R, gr, guides, name) for gr in groups]
         raw = dl.compose(T, Mas)
         by[name] = {"vs_mixed": dl.err_summary(dl.rel_chroma_err(raw, mixed), valid),
                     "vs_mean_reference": dl.err_summary(dl.rel_chroma_err(raw, mean_ref), ref["valid"])}
@@ -422,7 +429,7 @@ def oidn_part(args, R: dict, guides, aovs: dict, M: np.ndarray, ref: dict, class
 
 def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, classes: dict, args) -> dict:
     """Part 10: the methods with clean (many-ray) guides, and the albedo AOV's noise."""
-    from retarget.denoise import DENOISE_METHODS, Guides, denoise
+    from retarget.denoise import DENOISE_METHODS, Guides
 
     groups = [g for g, _ in PAIR]
     v = classes["all"]
@@ -431,7 +438,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
            "albedo_rms_vs_clean_rgb": [round(float(x), 4) for x in np.sqrt(np.mean(d ** 2, axis=0))], "methods": {}}
     gclean = Guides.from_aovs(clean)
     for name in DENOISE_METHODS.names:
-        raw = dl.compose([denoise(R["test"][g]["cube"], gclean, name) for g in groups], M)
+        raw = dl.compose([den(R, g, gclean, name) for g in groups], M)
         err = dl.rel_chroma_err(raw, ref["raw"])
         out["methods"][name] = {**dl.err_summary(err, v),
                                 "classes": class_summaries(err, {k: classes[k] for k in ("edges", "flat", "chart")})}
@@ -443,7 +450,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
 
 def cost(args, R: dict, guides, aovs: dict) -> dict:
     """Part 6: wall ms per 63-band cube and per 3-channel request (best of ``--cost-repeats``)."""
-    from retarget.denoise import DENOISE_METHODS, Guides, denoise
+    from retarget.denoise import DENOISE_METHODS, Guides, needs_direct
 
     rep = args.cost_repeats
     cube = R["test"][PAIR[0][0]]["cube"]
@@ -454,7 +461,13 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
 
     def synth(shape):
         return Guides(*(dl.upsample_nearest(np.asarray(x), shape) for x in
-                        (aovs["albedo"], aovs["normal"], aovs["depth"], aovs["mask"], aovs["emitter"])))
+                        (aovs["albedo"], aovs["normal"], aovs["depth"], aovs["mask"], aovs["emitter"],
+                         aovs["albedo_bands"])))
+
+    d0 = R["direct"][PAIR[0][0]]["direct"]
+
+    def run(x, g, name, kind="transport"):
+        return dl.run_denoise(x, g, name, dl.upsample_nearest(d0, g.shape) if needs_direct(name) else None, kind)
 
     rng = np.random.default_rng(0)
     big_cube = rng.random((big_h, big_w, cube.shape[-1]), dtype=np.float32)
@@ -463,10 +476,11 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
     raw_crop = rng.random((crop, crop, 3), dtype=np.float32)
     per_cube, request = {}, {}
     for name in DENOISE_METHODS.names:
-        per_cube[name] = {small: dl.best_ms(lambda: denoise(cube, guides, name), rep),
-                          big: dl.best_ms(lambda: denoise(big_cube, gbig, name), rep)}
-        request[name] = {f"{crop}x{crop}": dl.best_ms(lambda: denoise(raw_crop, gcrop, name), rep),
-                         big: dl.best_ms(lambda: denoise(raw_big, gbig, name), rep)}
+        per_cube[name] = {small: dl.best_ms(lambda: run(cube, guides, name), rep),
+                          big: dl.best_ms(lambda: run(big_cube, gbig, name), rep)}
+        # on request there is no per-band albedo to divide a 3-channel raw by: the same filter undivided
+        request[name] = {f"{crop}x{crop}": dl.best_ms(lambda: run(raw_crop, gcrop, name, "illumination"), rep),
+                         big: dl.best_ms(lambda: run(raw_big, gbig, name, "illumination"), rep)}
         log(f"  cost {name}: {per_cube[name]} ms per cube, {request[name]} ms per raw request")
     try:
         al, nr = (dl.upsample_nearest(aovs[k], s) for k, s in (("albedo", (crop, crop)), ("normal", (crop, crop))))
@@ -479,7 +493,11 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
     groups = [g for g, _ in PAIR]
     render = {g: {"cpu_s": round(R["test"][g]["cpu_s"], 2), "wall_s": round(R["test"][g]["wall_s"], 2),
                   "from_cache": R["test"][g]["cached"]} for g in groups}
-    return {"cost_ms_per_cube": per_cube, "cost_ms_request_alternative": request,
+    guide_cpu = {"direct_light_cpu_s_per_group": {g: round(R["direct"][g]["cpu_s"], 3) for g in groups},
+                 "aov_pass_cpu_s": round(float(aovs["cpu_s"]), 2) if "cpu_s" in aovs else None,
+                 "note": "the direct-light guide per group and the AOV pass (with albedo_bands) per view; "
+                         "from the run that made the cache"}
+    return {"cost_ms_per_cube": per_cube, "cost_ms_request_alternative": request, "guide_cost": guide_cpu,
             "render_cpu_s_per_cube": {"spp": args.spp, "includes": "transport + illumination cube", **render},
             "timing": f"wall ms, time.perf_counter, best of {rep}; {big} and the {crop}x{crop} crop: random data, "
                       "the view's AOVs resized nearest-neighbour as guides"}

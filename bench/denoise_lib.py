@@ -69,14 +69,44 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as z:
-            return {k: z[k] for k in z.files}
+            if "albedo_bands" in z.files:  # older caches predate the per-band albedo: render again
+                return {k: z[k] for k in z.files}
     c0 = time.process_time()
     aovs = render_aovs(scene, view, RenderSettings(spp=64, seed=seed, aov_spp=aov_spp))
-    log(f"  rendered AOVs ({aov_spp} rays per pixel): {time.process_time() - c0:.1f} s CPU")
+    aovs["cpu_s"] = np.float64(time.process_time() - c0)
+    log(f"  rendered AOVs ({aov_spp} rays per pixel): {aovs['cpu_s']:.1f} s CPU")
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **aovs)
     return aovs
+
+
+def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int, cache: Path | None,
+                  log: Callable[[str], None]) -> dict:
+    """A group's direct-light guide (``renderer_jobs.denoise_guides.direct_light``), cached:
+    ``{"direct" (H, W), "cpu_s"}``."""
+    from renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_light
+
+    name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}.npz"
+    path = cache / name if cache is not None else None
+    if path is not None and path.exists():
+        with np.load(path) as z:
+            return {"direct": z["direct"], "cpu_s": float(z["cpu_s"])}
+    c0 = time.process_time()
+    d = direct_light(scene, view, group, res, seed)
+    out = {"direct": d, "cpu_s": time.process_time() - c0}
+    log(f"  traced the direct-light guide of {group}: {out['cpu_s']:.2f} s CPU")
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, **out)
+    return out
+
+
+def run_denoise(cube: np.ndarray, guides, name: str, direct: np.ndarray | None, kind: str = "transport") -> np.ndarray:
+    """``retarget.denoise.denoise`` with the group's direct-light guide where the method takes one."""
+    from retarget.denoise import denoise, needs_direct
+
+    return denoise(cube, guides.with_direct(direct) if needs_direct(name) else guides, name, kind=kind)
 
 
 def mean_render(renders: Sequence[dict]) -> dict:

@@ -289,27 +289,42 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
         return True
-    denoised = _denoise(st, scene.name, job.view, result, settings.denoise, meta)
+    denoised = _denoise(st, scene, job, result, settings, meta)
     st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
                   illumination=result.illumination, denoised=denoised)
     return False
 
 
-def _denoise(st, scene: str, view: str, result, method: str | None, meta) -> dict | None:
+def _denoise(st, scene, job, result, settings, meta) -> dict | None:
     """Denoised copies of a rendered cube (and its illumination cube) with the view's stored AOVs as
-    guides (:mod:`retarget.denoise`); records the method in ``meta.denoised``. ``None`` when off."""
+    guides (:mod:`retarget.denoise`), plus what only the renderer can make (the group's direct-light
+    guide; the per-band albedo of a view stored without it, e.g. by Cycles:
+    :mod:`renderer_jobs.denoise_guides`); records the method in ``meta.denoised``. ``None`` when off."""
+    method = settings.denoise
     if method is None:
         return None
-    from retarget.denoise import Guides, denoise, describe
+    from renderer_jobs import denoise_guides as dg
+    from retarget.denoise import Guides, denoise, describe, needs_direct
     from store.schema import DenoisedInfo
 
-    names = ("albedo", "normal", "depth", "mask", "emitter")
-    guides = Guides.from_aovs({n: st.read_aov(scene, view, n) for n in names if n in st.view_meta(scene, view).aovs})
     t = time.perf_counter()
+    stored = st.view_meta(scene.name, job.view).aovs
+    names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter")
+    aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in stored}
+    extra: dict = {}
+    if needs_direct(method):
+        if "albedo_bands" not in aovs:
+            aovs["albedo_bands"] = dg.albedo_bands(dg.Tracer(scene, job.view, None, settings.resolution))
+            extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel), not stored"
+    guides = Guides.from_aovs(aovs)
+    if needs_direct(method):
+        guides = guides.with_direct(dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed))
+        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed}
     out = {"transport": denoise(result.cube, guides, method)}
     if result.illumination is not None:
-        out["illumination"] = denoise(result.illumination, guides, method)
-    meta.denoised = DenoisedInfo(**describe(method), cost_ms=round(1e3 * (time.perf_counter() - t), 2))
+        out["illumination"] = denoise(result.illumination, guides, method, kind="illumination")
+    meta.denoised = DenoisedInfo(**describe(method), cost_ms=round(1e3 * (time.perf_counter() - t), 2),
+                                 **({"guide_passes": extra} if extra else {}))
     return out
 
 

@@ -1,10 +1,11 @@
-"""Geometry AOVs of a view (albedo, normal, depth, hit mask, emitter mask): the denoising guides and
+"""Geometry AOVs of a view (albedo, per-band albedo, normal, depth, hit mask, emitter mask): the denoising guides and
 the validity masks the service serves, from jittered primary rays (no path tracing)."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from renderer_jobs.denoise_guides import albedo_bands as spectral_albedo
 from renderer_jobs.mitsuba_render import RenderSettings
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.scene_model import Scene
@@ -17,7 +18,9 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     """Geometry AOVs of a view, averaged over ``aov_spp`` jittered primary rays per pixel.
 
     albedo ``(H, W, 3)``: mean diffuse reflectance (Mitsuba's ``eval_diffuse_reflectance``) over
-    600–700, 500–600, 400–500 nm (R, G, B); normal ``(H, W, 3)``: world-space shading normal
+    600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)``: the diffuse reflectance
+    per band, exact at the band centres, over ``ALBEDO_RAYS`` Hammersley positions per pixel
+    (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance`` guide); normal ``(H, W, 3)``: world-space shading normal
     (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
     nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``
     bool: most of the pixel's rays hit a light source's own surface (any group's), where the
@@ -47,6 +50,7 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     depth = (out["distance"].reshape(npix, k) * hitf).sum(axis=1) / nh
     emitter = out["emitter"].reshape(npix, k).mean(axis=1) > 0.5
     return {"albedo": albedo.reshape(h, w, 3).astype(np.float32),
+            "albedo_bands": spectral_albedo(tracer),
             "normal": normal.reshape(h, w, 3).astype(np.float32),
             "depth": depth.reshape(h, w).astype(np.float32),
             "mask": hit[:, 0].reshape(h, w),

@@ -112,6 +112,47 @@ class Tracer:
         dr.eval(u)
         return _numpy4(u)
 
+    def spectral_albedo(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
+        """Diffuse reflectance ``(n, len(wavelengths))`` float32 of each camera ray's first hit at
+        every one of ``wavelengths`` (nm, e.g. the band centres; step spectra are exact there):
+        one intersection, then Mitsuba's ``eval_diffuse_reflectance`` four wavelengths at a time.
+        0 where nothing is hit and for BSDFs with no diffuse lobe (metal, glass)."""
+        dr = self.dr
+        lam = np.asarray(wavelengths, np.float64)
+        quads = np.concatenate([lam, np.repeat(lam[-1:], -len(lam) % 4)]).reshape(-1, 4)
+        ray = self._camera_rays(pix, jitter, np.tile(quads[0].astype(np.float32), (len(pix), 1)), False)
+        si = self.ms.ray_intersect(ray)
+        hit = si.is_valid()
+        bsdf = si.bsdf(ray)
+        out = np.empty((len(pix), quads.size), np.float32)
+        for q, quad in enumerate(quads):
+            si.wavelengths = type(si.wavelengths)(*[float(x) for x in quad])
+            alb = bsdf.eval_diffuse_reflectance(si, hit)
+            dr.eval(alb)
+            out[:, 4 * q:4 * q + 4] = _numpy4(alb)
+        return out[:, :len(lam)]
+
+    def direct_irradiance(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int
+                          ) -> np.ndarray:
+        """One next-event sample per ray of the *direct* light a white Lambertian surface at the
+        first hit sends back, ``(n, 4)`` float32 (``E_direct/π``, the direct part of
+        :meth:`white_lambertian`): light sampling with visibility, no bounce. 0 where nothing is hit
+        and on emitting surfaces. Shadows and lit patches have sharp, noise-free edges in its mean
+        over a few dozen samples: the illumination-edge guide of :mod:`retarget.denoise`."""
+        mi, dr = self.mi, self.dr
+        n = len(pix)
+        sampler = self.sensor.sampler().clone()
+        sampler.seed(dr.opaque(mi.UInt32, seed & 0xFFFFFFFF), n)
+        ray = self._camera_rays(pix, jitter, wavelengths, differential=False)
+        si = self.ms.ray_intersect(ray)
+        hit = si.is_valid() & ~si.shape.is_emitter()
+        normal = si.sh_frame.n
+        normal = dr.select(dr.dot(normal, -ray.d) < 0, -normal, normal)  # the side the camera sees
+        ds, weight = self.ms.sample_emitter_direction(si, sampler.next_2d(hit), True, hit)
+        u = mi.unpolarized_spectrum(dr.select(hit, weight * dr.maximum(dr.dot(normal, ds.d), 0.0) / dr.pi, 0.0))
+        dr.eval(u)
+        return _numpy4(u)
+
     def _continuation(self):
         if self._cont is None:
             depth = self.scene.max_depth

@@ -56,7 +56,7 @@ class RenderSettings:
     skip_background: bool = True
     noise_target: float | None = None
     illumination: bool = True
-    denoise: str | None = "dt-guides"
+    denoise: str | None = "dt-irradiance"  # retarget.denoise_methods.DEFAULT_METHOD (tests check they agree)
     backend: str = "mitsuba"
 
     def __post_init__(self) -> None:

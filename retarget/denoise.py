@@ -1,19 +1,29 @@
 """Denoising of transport and illumination cubes that keeps relighting exact (DESIGN.md "Denoising").
 
 Every method here is a *linear* operator ``D`` on a cube ``T (H, W, bands)`` whose weights are
-computed from the view's noise-free geometry AOVs alone (the guides: albedo, normal, depth, the hit
-and emitter masks), never from the cube. ``D`` is the same for every band and every light group, so
+computed from noise-free guides alone (the view's geometry AOVs: albedo, normal, depth, the hit and
+emitter masks; its per-band albedo; the light group's direct light, traced with its own seeds),
+never from the cube. ``D`` acts on every band with the same weights, so for every light group
 
-    D(Σ_g a_g Φ̄_g/Ē_g T_g) = Σ_g a_g Φ̄_g/Ē_g D(T_g)        (relighting and composition stay exact)
-    P(D(T)) = D(P(T))                                          (P: projection to camera raw, a band sum)
+    D(Σ_b s_b T_b) = Σ_b s_b D(T_b)      (relighting by any a Φ̄/Ē per band stays exact)
 
-up to float32 rounding. The thesis' DT filter (§4.2) took its edges from the image it filtered (a
-5000-spp render), which makes it non-linear in the cubes; here the domain transform's edges come
-from the guides.
+up to float32 rounding, and the service composes the groups' denoised cubes, so composition stays
+exact too. The methods without a per-group guide are one operator for every group and commute with
+the projection to camera raw as well (``P(D(T)) = D(P(T))``). The thesis' DT filter (§4.2) took its
+edges from the image it filtered (a 5000-spp render), which makes it non-linear in the cubes; here
+the domain transform's edges come from the guides.
 
 Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHODS`, ``method="DT Guides"``):
 
-- ``"dt-guides"`` (default, alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
+- ``"dt-irradiance"`` (default, aliases ``"demodulated"``, ``"dt-demodulated"``): the transport
+  cube divided band by band by the first hit's diffuse reflectance (the ``albedo_bands`` AOV), so
+  what is filtered is the irradiance, smooth across material and texture edges (no colour can
+  bleed: each pixel gets its own reflectance back after); the domain transform's joint image is
+  the normal, log depth and log of the group's *direct* light (``Guides.direct``): it stops at
+  geometric edges and at the edges of shadows and sunlit patches, which no albedo or normal shows.
+  Illumination cubes are irradiance already: filtered the same way without the division
+  (``kind="illumination"``). Measured in ``bench/DENOISE.md``.
+- ``"dt-guides"`` (alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
   OpenCV ``ximgproc.dtFilter``, joint image = 4 guide channels: albedo R, G, B / ``sigma_albedo`` and
   the normal's component along a fixed oblique axis / ``sigma_normal``. Emitter and background
@@ -24,14 +34,14 @@ Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHO
   taps at strides 1, 2, 4, …), so a crop with a halo of ``2·(2^levels − 1)`` pixels filters exactly
   as the full frame does.
 
-Neither sees illumination edges the guides do not show (a shadow's boundary on a flat wall): it is
-smoothed over by ``sigma_spatial``. ``bench/denoise.py`` measures that cost.
+The last two see no illumination edge (a shadow's boundary on a flat wall): it is smoothed over by
+``sigma_spatial``. ``bench/denoise.py`` measures that cost.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -50,7 +60,10 @@ class Guides:
     """A view's denoising guides, all ``(H, W, …)`` float32/bool from the geometry AOV pass.
 
     albedo ``(H, W, 3)`` diffuse reflectance (R, G, B broad bands); normal ``(H, W, 3)`` unit world
-    normal; depth ``(H, W)`` metres (0 = no hit); hit ``(H, W)`` bool; emitter ``(H, W)`` bool.
+    normal; depth ``(H, W)`` metres (0 = no hit); hit ``(H, W)`` bool; emitter ``(H, W)`` bool;
+    albedo_bands ``(H, W, bands)`` diffuse reflectance per band (0 for metal and glass), or None;
+    direct ``(H, W)`` one light group's direct light on a white Lambertian surface (any linear
+    unit: only its log differences count), or None — a per-group guide, set with :meth:`with_direct`.
     """
 
     albedo: np.ndarray
@@ -58,10 +71,13 @@ class Guides:
     depth: np.ndarray
     hit: np.ndarray
     emitter: np.ndarray
+    albedo_bands: np.ndarray | None = None
+    direct: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
-        """From a view's AOVs (``albedo``, ``normal``, ``depth``; ``mask`` and ``emitter`` optional)."""
+        """From a view's AOVs (``albedo``, ``normal``, ``depth``; ``mask``, ``emitter`` and
+        ``albedo_bands`` optional)."""
         missing = [k for k in ("albedo", "normal", "depth") if k not in aovs]
         if missing:
             raise SpectralError(f"denoising needs the view's AOVs {missing}; re-render the view "
@@ -69,8 +85,17 @@ class Guides:
         depth = np.asarray(aovs["depth"], np.float32)
         hit = np.asarray(aovs["mask"], bool) if "mask" in aovs else depth > 0
         emitter = np.asarray(aovs["emitter"], bool) if "emitter" in aovs else np.zeros_like(hit)
+        bands = np.asarray(aovs["albedo_bands"], np.float32) if "albedo_bands" in aovs else None
         return cls(np.asarray(aovs["albedo"], np.float32), np.asarray(aovs["normal"], np.float32),
-                   depth, hit, emitter)
+                   depth, hit, emitter, bands)
+
+    def with_direct(self, direct: np.ndarray) -> Guides:
+        """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0)."""
+        d = np.asarray(direct, np.float32)
+        if d.shape != self.shape or not np.isfinite(d).all() or (d < 0).any():
+            raise SpectralError(f"denoise: the direct-light guide must be finite, >= 0 and {self.shape}, "
+                                f"got shape {d.shape}")
+        return replace(self, direct=d)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -96,9 +121,40 @@ def dt_guide_image(guides: Guides, sigma_albedo: float, sigma_normal: float) -> 
 
 def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_albedo: float = 0.05,
         sigma_normal: float = 0.2, iterations: int = 3) -> np.ndarray:
+    return _dt_joint(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
+
+
+def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float
+                           ) -> np.ndarray:
+    """``dt-irradiance``'s joint image ``(H, W, 3)`` float32: the normal channel of
+    :func:`dt_guide_image` (pixel classes pushed apart), ``log depth`` (a relative step) and
+    ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it), each over its sigma."""
+    g = np.empty((*guides.shape, 3), np.float32)
+    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * guides.pixel_class()
+    g[..., 1] = np.log(np.maximum(guides.depth, 1e-3)) / sigma_depth
+    d = guides.direct
+    g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
+    return g
+
+
+def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial: float = 4.0,
+                   sigma_normal: float = 0.05, sigma_depth: float = 0.08, sigma_direct: float = 0.4,
+                   albedo_floor: float = 0.01, iterations: int = 3) -> np.ndarray:
+    """Filter ``cube / ρ`` (transport) or ``cube`` (illumination), then multiply ``ρ`` back;
+    ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
+    reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear)."""
+    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct)
+    if kind == "illumination":
+        return _dt_joint(cube, joint, sigma_spatial, iterations)
+    rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))
+    return _dt_joint(cube / rho, joint, sigma_spatial, iterations) * rho
+
+
+def _dt_joint(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int) -> np.ndarray:
+    """OpenCV's domain-transform RF filter of ``cube (H, W, C)`` with the joint image ``joint``
+    (already divided by its sigmas, so sigmaColor is 1), 4 channels per call (OpenCV's limit)."""
     import cv2  # noqa: PLC0415 - heavy; only the filters need it
 
-    joint = dt_guide_image(guides, sigma_albedo, sigma_normal)
     out = np.empty(cube.shape, np.float32)
     for k in range(0, cube.shape[-1], 4):  # dtFilter takes at most 4 source channels
         src = np.ascontiguousarray(cube[..., k:k + 4], dtype=np.float32)
@@ -168,10 +224,18 @@ class DenoiseMethod:
     defaults: Mapping[str, Any]
     reference: str
     guides: tuple[str, ...] = ("albedo", "normal", "depth", "mask", "emitter")
+    per_group: bool = False  # a guide of the light group's own (direct): one operator per group
+    demodulates: bool = False  # divides transport by the per-band albedo (``kind`` matters)
 
 
 #: Implementation of every name of :data:`DENOISE_METHODS`.
 IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
+    "dt-irradiance": DenoiseMethod(
+        _dt_irradiance, {"sigma_spatial": 4.0, "sigma_normal": 0.05, "sigma_depth": 0.08, "sigma_direct": 0.4,
+                         "albedo_floor": 0.01, "iterations": 3},
+        "Gastal & Oliveira 2011 (domain transform, RF) on the albedo-demodulated cube, joint image from the "
+        "normal, depth and the light group's direct light", ("albedo_bands", "normal", "depth", "mask", "emitter",
+                                                            "direct"), per_group=True, demodulates=True),
     "dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2, "iterations": 3},
                                "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides",
                                ("albedo", "normal", "mask", "emitter")),
@@ -197,20 +261,46 @@ def method_params(method: str, **params: Any) -> tuple[str, dict[str, Any]]:
     return name, full
 
 
-def denoise(cube: np.ndarray, guides: Guides, method: str = DEFAULT_METHOD, **params: Any) -> np.ndarray:
-    """Denoise a transport or illumination cube ``(H, W, bands)`` (or any ``(H, W, C)`` linear
-    image of the view, e.g. per-group raw) with guide-only weights; returns float32, same shape.
+def denoise(cube: np.ndarray, guides: Guides, method: str = DEFAULT_METHOD, kind: str = "transport",
+            **params: Any) -> np.ndarray:
+    """Denoise a transport or illumination cube ``(H, W, bands)`` with guide-only weights; returns
+    float32, same shape. ``kind``: ``"transport"`` or ``"illumination"`` (an illumination cube, or
+    any ``(H, W, C)`` linear image of the view that carries no reflectance, e.g. per-group raw for
+    the methods that do not demodulate).
 
-    Linear in ``cube`` and the same operator for every channel (module docstring). Raises
-    :class:`SpectralError` for an unknown method/parameter or a shape that does not match the guides.
+    Linear in ``cube``, the same weights for every channel (module docstring). Raises
+    :class:`SpectralError` for an unknown method/parameter, a shape that does not match the guides,
+    or a guide the method needs and ``guides`` lacks (naming how to get it).
     """
     name, full = method_params(method, **params)
+    impl = IMPLEMENTATIONS[name]
     arr = np.asarray(cube)
     if arr.ndim != 3 or arr.shape[:2] != guides.shape:
         raise SpectralError(f"denoise: cube shape {arr.shape} does not match the guides' {guides.shape} (H, W, C)")
     if not np.isfinite(arr).all():
         raise SpectralError("denoise: the cube has NaN or inf values")
-    return _flush_tails(IMPLEMENTATIONS[name].run(arr, guides, **full))
+    if kind not in ("transport", "illumination"):
+        raise SpectralError(f"denoise: kind must be 'transport' or 'illumination', got {kind!r}")
+    _check_guides(name, impl, guides, arr, kind)
+    if impl.demodulates:
+        full = {**full, "kind": kind}
+    return _flush_tails(impl.run(arr, guides, **full))
+
+
+def _check_guides(name: str, impl: DenoiseMethod, guides: Guides, arr: np.ndarray, kind: str) -> None:
+    if impl.per_group and guides.direct is None:
+        raise SpectralError(f"denoise method {name!r} needs the light group's direct-light guide "
+                            "(Guides.with_direct; the renderer traces it: renderer_jobs.denoise_guides), "
+                            "or use method 'dt-guides'")
+    if impl.demodulates and kind == "transport":
+        bands = guides.albedo_bands
+        if bands is None:
+            raise SpectralError(f"denoise method {name!r} needs the view's 'albedo_bands' AOV; re-render the view "
+                                "(`illumix render … --overwrite`), or use method 'dt-guides'")
+        if bands.shape != arr.shape:
+            raise SpectralError(f"denoise method {name!r} divides a transport cube by the per-band albedo "
+                                f"{bands.shape}, which does not match the cube {arr.shape}; a cube without "
+                                "reflectance (e.g. projected raw) is kind='illumination'")
 
 
 def _flush_tails(out: np.ndarray) -> np.ndarray:
@@ -225,6 +315,11 @@ def _flush_tails(out: np.ndarray) -> np.ndarray:
     return out
 
 
+def needs_direct(method: str) -> bool:
+    """Whether ``method`` needs a per-group direct-light guide (:meth:`Guides.with_direct`)."""
+    return IMPLEMENTATIONS[DENOISE_METHODS.canonical(method)].per_group
+
+
 def describe(method: str, **params: Any) -> dict[str, Any]:
     """The metadata record of a denoising: method, parameters, guides and reference."""
     name, full = method_params(method, **params)
@@ -232,4 +327,4 @@ def describe(method: str, **params: Any) -> dict[str, Any]:
             "linear": True, "reference": IMPLEMENTATIONS[name].reference}
 
 
-__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_params"]
+__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_params", "needs_direct"]

@@ -87,7 +87,7 @@ def _denoised(meta, kind: str, path: str, where: str):
     if storage is None:
         raise StoreKeyError(f"denoised {kind} cube", where, [], where,
                             detail=f"cube {where} has no denoised {kind} copy; re-render it with "
-                                   "`illumix render … --denoise dt-guides --overwrite`")
+                                   "`illumix render … --denoise dt-irradiance --overwrite`")
     return storage, f"{path}/{DENOISED}" + (f"/{ILLUMINATION}" if kind == ILLUMINATION else "")
 
 

@@ -65,7 +65,7 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
         aovs = {"mask": np.ones((h, w), bool), "emitter": emitter,
                 "albedo": refl[..., [50, 30, 10]].astype(np.float32),
                 "normal": np.broadcast_to(np.float32([0, 0, 1]), (h, w, 3)).copy(),
-                "depth": np.full((h, w), 2.0, np.float32)}
+                "depth": np.full((h, w), 2.0, np.float32), "albedo_bands": refl.astype(np.float32)}
     st.write_view("synth", "v0", ViewMeta(width=w, height=h, fov=45.0), aovs)
     rng = np.random.default_rng(11)
     for name, f in (("window", fw), ("lamp", fl)):
@@ -78,8 +78,8 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
 
             noisy = [(x * (1 + 0.1 * rng.standard_normal(x.shape))).astype(np.float32) for x in (cube, u)]
             cube, u = noisy
-            guides = Guides.from_aovs(aovs)
-            copies = {"transport": denoise(cube, guides), "illumination": denoise(u, guides)}
+            guides = Guides.from_aovs(aovs).with_direct(f)  # this group's light (all of it direct here)
+            copies = {"transport": denoise(cube, guides), "illumination": denoise(u, guides, kind="illumination")}
             meta.denoised = DenoisedInfo(**describe(DEFAULT_METHOD))
         st.write_cube("synth", "v0", name, cube, meta, illumination=u if illumination else None, denoised=copies)
     if not extras:

@@ -3,7 +3,8 @@
 The synthetic scene: two materials (ColorChecker patches and a 50 % gray, as in
 tests/synthetic_store.py) under a smooth illumination gradient, with Poisson-like relative noise of
 10 % per band (about what one 5 nm band carries at 64 spp, bench/RENDER_PERF.md). Guides are the
-exact albedo, normal and depth of that scene, as the AOV pass gives them.
+exact albedo (broad-band and per band), normal and depth of that scene, as the AOV pass gives them,
+and the light's direct part (``dt-irradiance``'s per-group guide).
 """
 
 from __future__ import annotations
@@ -28,17 +29,22 @@ def _broadband(refl: np.ndarray) -> np.ndarray:
     return np.stack([refl[..., (wl >= a) & (wl < b)].mean(-1) for a, b in ((600, 700), (500, 600), (400, 500))], -1)
 
 
+def _guides(refl: np.ndarray, direct: np.ndarray) -> Guides:
+    normal = np.zeros((*refl.shape[:2], 3), np.float32)
+    normal[..., 2] = 1
+    return Guides(albedo=_broadband(refl).astype(np.float32), normal=normal,
+                  depth=np.full(refl.shape[:2], 2.0, np.float32), hit=np.ones(refl.shape[:2], bool),
+                  emitter=np.zeros(refl.shape[:2], bool), albedo_bands=refl.astype(np.float32),
+                  direct=direct.astype(np.float32))
+
+
 def _scene(rng: np.random.Generator, noise: float = 0.10):
     refl = reflectance_image(H, W)
-    x = np.linspace(0.3, 1.0, W, dtype=np.float32)
-    light = np.tile(x, (H, 1))[..., None] * np.linspace(0.8, 1.2, NB, dtype=np.float32)  # smooth, coloured
+    x = np.tile(np.linspace(0.3, 1.0, W, dtype=np.float32), (H, 1))
+    light = x[..., None] * np.linspace(0.8, 1.2, NB, dtype=np.float32)  # smooth, coloured
     truth = (refl * light).astype(np.float32)
     noisy = (truth * (1 + noise * rng.standard_normal(truth.shape))).astype(np.float32)
-    normal = np.zeros((H, W, 3), np.float32)
-    normal[..., 2] = 1
-    guides = Guides(albedo=_broadband(refl).astype(np.float32), normal=normal, depth=np.full((H, W), 2.0, np.float32),
-                    hit=np.ones((H, W), bool), emitter=np.zeros((H, W), bool))
-    return truth, noisy, guides
+    return truth, noisy, _guides(refl, x)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -56,13 +62,64 @@ def test_linear_relighting_is_exact(method):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_commutes_with_projection(method):
-    """One operator for every band: denoising the cube then projecting to raw = projecting then denoising."""
+    """One operator for every band: denoising the cube then projecting to raw = projecting then
+    denoising (for a demodulating method: of a cube without reflectance, an illumination cube)."""
     rng = np.random.default_rng(2)
     _, cube, guides = _scene(rng)
     proj = rng.uniform(0, 1, (NB, 3)).astype(np.float32)
-    a = denoise(cube, guides, method) @ proj
-    b = denoise(cube @ proj, guides, method)
+    kind = "illumination" if method == "dt-irradiance" else "transport"
+    a = denoise(cube, guides, method, kind=kind) @ proj
+    b = denoise(cube @ proj, guides, method, kind="illumination")
     np.testing.assert_allclose(a, b, rtol=0, atol=2e-6 * np.abs(b).max())
+
+
+def test_shadow_edges_stay_sharp_with_the_direct_guide():
+    """A shadow's edge on one flat material (the guides' albedo and normal are uniform there): the
+    direct-light guide stops ``dt-irradiance`` at it, where ``dt-guides`` (which cannot see it)
+    carries light across; with a mixture of two groups that is the R/G error at sunlit patches."""
+    rng = np.random.default_rng(7)
+    refl = np.full((H, W, NB), 0.5, np.float32)
+    sun = np.where(np.arange(W) < W // 2, 1.0, 0.05).astype(np.float32) * np.ones((H, 1), np.float32)
+    truth = refl * sun[..., None]
+    noisy = (truth * (1 + 0.1 * rng.standard_normal(truth.shape))).astype(np.float32)
+    guides = _guides(refl, sun)
+    for col in (W // 2 - 1, W // 2):
+        own = truth[:, col].mean()
+        err_irr = abs(denoise(noisy, guides, "dt-irradiance")[:, col].mean() / own - 1)
+        err_dt = abs(denoise(noisy, guides, "dt-guides")[:, col].mean() / own - 1)
+        assert err_irr < 0.02, f"column {col}: light crossed the shadow edge by {err_irr:.1%}"
+        assert err_dt > 0.1  # the test can tell
+
+
+def test_demodulation_keeps_fine_texture():
+    """A one-pixel checker of two reflectances under smooth light: the albedo-demodulated filter
+    averages the irradiance, not the texture, so every pixel keeps its own colour."""
+    rng = np.random.default_rng(8)
+    red = np.where(DEFAULT_GRID.wavelengths > 580, 0.8, 0.05).astype(np.float32)
+    blue = np.where(DEFAULT_GRID.wavelengths < 500, 0.8, 0.05).astype(np.float32)
+    checker = ((np.arange(H)[:, None] + np.arange(W)[None, :]) % 2).astype(bool)
+    refl = np.where(checker[..., None], red, blue)
+    light = np.tile(np.linspace(0.5, 1.0, W, dtype=np.float32), (H, 1))
+    truth = refl * light[..., None]
+    noisy = (truth * (1 + 0.1 * rng.standard_normal(truth.shape))).astype(np.float32)
+    den = denoise(noisy, _guides(refl, light), "dt-irradiance")
+    rel = np.abs(den - truth) / truth
+    assert np.median(rel) < 0.03 and np.median(np.abs(noisy - truth) / truth) > 0.06
+
+
+def test_missing_guides_name_the_fix():
+    _, cube, g = _scene(np.random.default_rng(9))
+    no_direct = Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, g.albedo_bands)
+    with pytest.raises(SpectralError, match="direct-light guide"):
+        denoise(cube, no_direct, "dt-irradiance")
+    with pytest.raises(SpectralError, match="albedo_bands"):
+        denoise(cube, Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter).with_direct(g.direct), "dt-irradiance")
+    with pytest.raises(SpectralError, match="kind='illumination'"):
+        denoise(cube @ np.ones((NB, 3), np.float32), g, "dt-irradiance")
+    with pytest.raises(SpectralError, match="finite"):
+        g.with_direct(np.full(g.shape, np.nan))
+    out = denoise(cube @ np.ones((NB, 3), np.float32), g, "dt-irradiance", kind="illumination")
+    assert out.shape == (H, W, 3)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -99,10 +156,7 @@ def test_edges_between_materials_do_not_bleed(method):
     refl = np.where((np.arange(W) < W // 2)[None, :, None], red, blue) * np.ones((H, 1, 1), np.float32)
     truth = refl.astype(np.float32)
     noisy = (truth * (1 + 0.1 * rng.standard_normal(truth.shape))).astype(np.float32)
-    normal = np.zeros((H, W, 3), np.float32)
-    normal[..., 2] = 1
-    guides = Guides(albedo=_broadband(refl).astype(np.float32), normal=normal, depth=np.full((H, W), 2.0, np.float32),
-                    hit=np.ones((H, W), bool), emitter=np.zeros((H, W), bool))
+    guides = _guides(refl, np.ones((H, W), np.float32))
     den = denoise(noisy, guides, method)
     from scipy.ndimage import uniform_filter
 
@@ -122,10 +176,11 @@ def test_emitters_and_background_are_kept_apart():
     emitter[10:14, 20:24] = True
     cube = noisy.copy()
     cube[emitter] = 1e4
-    guides = Guides(g.albedo, g.normal, g.depth, g.hit, emitter)
-    den = denoise(cube, guides, "dt-guides")
-    assert np.abs(den[~emitter]).max() < 10 * np.abs(noisy).max()
-    np.testing.assert_allclose(den[emitter], 1e4, rtol=1e-4)
+    guides = Guides(g.albedo, g.normal, g.depth, g.hit, emitter, g.albedo_bands, g.direct)
+    for method in METHODS:
+        den = denoise(cube, guides, method)
+        assert np.abs(den[~emitter]).max() < 10 * np.abs(noisy).max(), method
+        np.testing.assert_allclose(den[emitter], 1e4, rtol=1e-4, err_msg=method)
 
 
 def test_registry_names_params_and_errors():
@@ -148,3 +203,10 @@ def test_registry_names_params_and_errors():
         denoise(bad, guides)
     with pytest.raises(SpectralError, match="AOVs"):
         Guides.from_aovs({"albedo": guides.albedo})
+
+
+def test_the_renderer_stores_copies_made_with_the_default_method():
+    from renderer_jobs.render_settings import RenderSettings
+    from retarget.denoise_methods import DEFAULT_METHOD
+
+    assert RenderSettings().denoise == DEFAULT_METHOD == "dt-irradiance"

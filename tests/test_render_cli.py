@@ -57,7 +57,8 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
     for view in st.views(scene):
         vm = st.view_meta(scene, view)
         assert (vm.width, vm.height) == (24, 16) and vm.groups == ["daylight", "ceiling", "desk"]
-        assert set(vm.aovs) >= {"albedo", "normal", "depth", "mask"}
+        assert set(vm.aovs) >= {"albedo", "albedo_bands", "normal", "depth", "mask"}
+        assert st.read_aov(scene, view, "albedo_bands").shape == (16, 24, 63)
         for g in ("daylight", "ceiling", "desk"):
             assert st.is_complete(scene, view, g)
             meta = st.cube_meta(scene, view, g)
@@ -67,11 +68,12 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
             cube = st.read_cube(scene, view, g)
             assert cube.shape == (16, 24, 63) and np.all(np.isfinite(cube))
             # the default stores denoised copies (issue 15), made from the view's AOVs
-            assert meta.denoised.method == "dt-guides" and meta.denoised.cost_ms >= 0
+            assert meta.denoised.method == "dt-irradiance" and meta.denoised.cost_ms >= 0
+            assert meta.denoised.model_extra["guide_passes"]["direct"]["samples_per_pixel"] > 0
             for kind in ("transport", "illumination"):
                 dn = st.read_cube(scene, view, g, kind=kind, denoised=True)
                 assert dn.shape == cube.shape and np.all(np.isfinite(dn))
-    assert summary["denoise"] == "dt-guides"
+    assert summary["denoise"] == "dt-irradiance"
     code, out, err = run_cli(capsys, "render", "--demo", "--store", store, *TINY, "--json")
     assert code == 0 and json.loads(out.strip().splitlines()[-1])["rendered"] == []
     assert "nothing to do" in err

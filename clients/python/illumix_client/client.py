@@ -90,7 +90,7 @@ class Client:
         mixture, albedo, normal, depth, reflectance, illumination, meta (default: raw … mixture and
         meta); ``gt`` ``"physical"`` (bounce light included; the default where the store has
         illumination cubes) or ``"formula"`` (thesis eq. 3.3); ``denoise`` ``"none"`` or a method
-        (``"dt-guides"``): the store's denoised cube copies (default: those where stored); ``exposure`` ``"auto"``/``"adaptive"``/a gain; ``noise`` a preset
+        (``"dt-irradiance"``): the store's denoised cube copies (default: those where stored); ``exposure`` ``"auto"``/``"adaptive"``/a gain; ``noise`` a preset
         (low, phone, high) or a mapping of sensor parameters; ``bayer`` RGGB/BGGR/GRBG/GBRG.
         ``scene``/``view`` omitted are drawn by the service, reproducibly given ``seed``.
         """

@@ -93,7 +93,7 @@ class IllumixDataset(IterableDataset):
     gt
         ``"physical"`` or ``"formula"`` ground truth (default: physical where the store has it).
     denoise
-        ``"none"`` or a denoise method (``"dt-guides"``): the store's denoised cube copies (default:
+        ``"none"`` or a denoise method (``"dt-irradiance"``): the store's denoised cube copies (default:
         those where the store has them).
     exposure, noise, bayer
         Passed to the service (``noise`` a preset like ``"phone"`` or a parameter mapping).

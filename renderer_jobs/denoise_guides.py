@@ -1,0 +1,97 @@
+"""The guides of ``dt-irradiance`` (:mod:`retarget.denoise`) that only the renderer can make.
+
+- **Per-band albedo** (the ``albedo_bands`` AOV, ``(H, W, bands)``): the first hit's diffuse
+  reflectance at every band centre (Mitsuba's ``eval_diffuse_reflectance``; step spectra are exact
+  there), averaged over a Hammersley set of sub-pixel positions. No wavelength is sampled, so it
+  carries no colour noise; the positions stratify both axes, so a pixel that straddles two materials
+  gets its coverage to 1/rays (a regular n×n grid quantises an axis-aligned edge to 1/n, and the
+  remodulated cube inherits that error: bench/DENOISE.md).
+- **Direct light of one group** (``(H, W)``): the mean of next-event samples of the light a white
+  Lambertian surface at the first hit receives straight from the group's emitters, with visibility
+  (:meth:`renderer_jobs.mitsuba_trace.Tracer.direct_irradiance`). Shadows and sunlit patches are
+  sharp steps in it, and a few dozen shadow rays per pixel make it nearly noise-free, at a small
+  fraction of the cube's cost. It is traced with its own seed, so its noise is independent of the
+  cube's (the filter's weights never follow the cube's noise).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from renderer_jobs.band_schedule import mix_seed
+from renderer_jobs.mitsuba_trace import Tracer
+from renderer_jobs.scene_model import Scene
+
+ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
+DIRECT_SAMPLES = 64  # next-event samples per pixel of the direct-light guide
+_CHUNK = 1 << 20  # rays per Dr.Jit batch (bounds memory at any resolution)
+_DIRECT_SEED = 0xD1EC7  # mixed with the render's seed: the guide's random numbers are its own
+
+
+def hammersley(n: int) -> np.ndarray:
+    """``(n, 2)`` float32 sub-pixel positions: x = (i + ½)/n, y = the base-2 radical inverse of i
+    (+ ½/n): one point in each of n columns and in each of n rows."""
+    i = np.arange(n, dtype=np.uint64)
+    y = np.zeros(n)
+    f, j = 0.5, i.copy()
+    while j.any():
+        y += f * (j & np.uint64(1))
+        j >>= np.uint64(1)
+        f *= 0.5
+    return np.stack([(np.arange(n) + 0.5) / n, (y + 0.5 / n) % 1.0], -1).astype(np.float32)
+
+
+def _per_pixel(tracer: Tracer, rays: int, fn: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+    """``fn(pix, jitter) → (n, C)`` over ``rays`` Hammersley positions per pixel, in batches;
+    the per-pixel mean ``(H, W, C)`` float32."""
+    npix = tracer.width * tracer.height
+    jit = hammersley(rays)
+    per = max(1, _CHUNK // rays)
+    out = None
+    for start in range(0, npix, per):
+        p = np.arange(start, min(npix, start + per))
+        vals = fn(np.repeat(p, rays), np.tile(jit, (len(p), 1)))
+        if out is None:
+            out = np.empty((npix, vals.shape[1]), np.float32)
+        out[p] = vals.reshape(len(p), rays, -1).mean(axis=1)
+    return out.reshape(tracer.height, tracer.width, -1)
+
+
+def albedo_bands(tracer: Tracer, rays: int = ALBEDO_RAYS) -> np.ndarray:
+    """The ``albedo_bands`` AOV ``(H, W, bands)`` float32 of the tracer's view (module docstring)."""
+    lam = tracer.grid.wavelengths
+    return _per_pixel(tracer, rays, lambda pix, jit: tracer.spectral_albedo(pix, jit, lam))
+
+
+def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
+    """Four band centres (nm) at the 1/8, 3/8, 5/8 and 7/8 quantiles of a group's emission over the
+    bands: the guide sees the light where the group emits (a narrow-band group too)."""
+    e = np.clip(np.nan_to_num(np.asarray(emission, np.float64)), 0.0, None)
+    if e.sum() <= 0:
+        e = np.ones_like(e)
+    cdf = np.cumsum(e) / e.sum()
+    idx = np.searchsorted(cdf, [0.125, 0.375, 0.625, 0.875])
+    return np.asarray(wavelengths, np.float64)[np.minimum(idx, len(e) - 1)]
+
+
+def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
+                 samples: int = DIRECT_SAMPLES) -> np.ndarray:
+    """The direct-light guide ``(H, W)`` float32 of ``group`` in ``view`` (module docstring): the
+    mean over four wavelengths (:func:`guide_wavelengths`) and ``samples`` sub-pixel positions."""
+    from renderer_jobs.mitsuba_scene import group_emission
+
+    tracer = Tracer(scene, view, [group], resolution)
+    lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
+    batch = [0]
+
+    def one(pix, jit):
+        batch[0] += 1
+        return tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
+                                        mix_seed(seed, _DIRECT_SEED, batch[0])).mean(axis=1, keepdims=True)
+
+    return _per_pixel(tracer, samples, one)[..., 0]
+
+
+__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "albedo_bands", "direct_light", "guide_wavelengths", "hammersley"]

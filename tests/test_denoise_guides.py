@@ -1,0 +1,52 @@
+"""The renderer's guides of ``dt-irradiance`` (renderer_jobs.denoise_guides) against closed forms:
+the per-band albedo AOV is the patches' measured reflectance band by band, the direct-light guide is
+E·cosθ/π under a directional light (a delta light: no noise), and the sub-pixel positions stratify
+both axes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
+
+from renderer_jobs import demo  # noqa: E402
+from renderer_jobs import denoise_guides as dg  # noqa: E402
+from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from renderer_jobs.mitsuba_render import RenderSettings  # noqa: E402
+from renderer_jobs.validate import patch_masks  # noqa: E402
+
+
+def test_hammersley_puts_one_point_in_every_row_and_column():
+    for n in (16, 64):
+        p = dg.hammersley(n)
+        assert p.shape == (n, 2) and p.dtype == np.float32 and (p >= 0).all() and (p < 1).all()
+        for axis in (0, 1):
+            assert sorted(np.floor(p[:, axis] * n).astype(int)) == list(range(n))
+
+
+def test_guide_wavelengths_follow_the_emission():
+    wl = np.arange(395.0, 706.0, 5.0)
+    flat = dg.guide_wavelengths(np.ones(63), wl)
+    assert flat[0] < 450 and flat[-1] > 650  # spread over the grid
+    narrow = np.where(np.abs(wl - 590) <= 10, 1.0, 0.0)  # a sodium-like group
+    assert set(dg.guide_wavelengths(narrow, wl)) <= {580.0, 585.0, 590.0, 595.0, 600.0}
+    assert len(dg.guide_wavelengths(np.zeros(63), wl)) == 4  # a dark group: still four wavelengths
+
+
+def test_albedo_bands_and_direct_light_match_the_closed_forms_on_the_validation_chart():
+    from retarget.reflectances import get_reflectances
+
+    s = demo.validation_chart()
+    aovs = render_aovs(s, "head-on", RenderSettings(spp=16, seed=1))
+    masks = patch_masks(s)
+    _, refl = get_reflectances("ColorChecker N Ohta", s.spectral_grid)
+    got = np.stack([aovs["albedo_bands"][m].mean(axis=0) for m in masks])  # (24, bands)
+    np.testing.assert_allclose(got, refl, rtol=1e-4, atol=1e-6)
+    direct = dg.direct_light(s, "head-on", "light", None, seed=3)
+    assert direct.shape == aovs["depth"].shape and np.isfinite(direct).all() and (direct >= 0).all()
+    expect = math.cos(math.radians(30)) / math.pi  # unit irradiance at 30°, white Lambertian
+    for m in masks:
+        np.testing.assert_allclose(direct[m], expect, rtol=1e-5)
