@@ -201,7 +201,7 @@ def class_summaries(err: np.ndarray, classes: dict) -> dict:
 
 def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 1 (and 4, 5, 7): each method's denoised test cubes, composed, against the reference."""
-    from retarget.denoise import DENOISE_METHODS, denoise, describe, needs_direct
+    from retarget.denoise import DENOISE_METHODS, denoise, describe, method_guides
 
     groups = [g for g, _ in PAIR]
     valid = classes["all"]
@@ -224,7 +224,7 @@ def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: di
                "mean_G_rel": float(raw[..., 1][valid].mean() / ref["raw"][..., 1][valid].mean() - 1)}
         ang = dl.angle_deg(dl.compose(U, M), u_ref)
         row["gain_angle_deg"] = {c: dl.angle_summary(ang, classes[c]) for c in ("edges", "flat")}
-        if name != "none" and not needs_direct(name):  # one operator for all groups and bands
+        if name != "none" and "direct" not in method_guides(name):  # one operator for all groups and bands
             und = [R["test"][g]["cube"] for g in groups]
             proj = sum(denoise(dl.compose([c], M[i:i + 1]), guides, name) for i, c in enumerate(und))
             row["projection_commutes_max_rel"] = float(np.abs(proj - raw).max() / np.abs(raw).max())
@@ -377,13 +377,13 @@ def worse(rows: dict, maps: dict, classes: dict) -> dict:
 
 def ablation(R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 8: the DT with a shading channel in its joint image (module docstring)."""
-    from retarget.denoise import denoise, dt_guide_image, method_params
+    from retarget.denoise import denoise, dt_filter, dt_guide_image, method_params
 
     groups = [g for g, _ in PAIR]
     p = method_params("dt-guides")[1]  # the default parameters
     T = [R["test"][g]["cube"] for g in groups]
-    same = dl.dt_joint(T[0], dt_guide_image(guides, p["sigma_albedo"], p["sigma_normal"]), p["sigma_spatial"],
-                       p["iterations"])
+    same = dt_filter(T[0], dt_guide_image(guides, p["sigma_albedo"], p["sigma_normal"]), p["sigma_spatial"],
+                     p["iterations"])
     check = float(np.abs(same - denoise(T[0], guides, "dt-guides")).max())
     shading = sum(R["test"][g]["illumination"].sum(-1, dtype=np.float64) for g in R["test"])
     joint = dl.shading_joint(guides, shading, p["sigma_albedo"], p["sigma_normal"], 0.4, p["sigma_spatial"])
@@ -391,7 +391,7 @@ def ablation(R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
            "sigma_shading": 0.4, "iterations": p["iterations"], "dt_joint_equals_dt_guides_max_abs_diff": check,
            "rows": []}
     for ss in (4.0, 8.0):
-        raw = dl.compose([dl.dt_joint(t, joint, ss, p["iterations"]) for t in T], M)
+        raw = dl.compose([dt_filter(t, joint, ss, p["iterations"]) for t in T], M)
         err = dl.rel_chroma_err(raw, ref["raw"])
         row = {"sigma_spatial": ss, **dl.err_summary(err, classes["all"]),
                "classes": class_summaries(err, {k: classes[k] for k in ("edges", "flat", "chart")})}
@@ -450,7 +450,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
 
 def cost(args, R: dict, guides, aovs: dict) -> dict:
     """Part 6: wall ms per 63-band cube and per 3-channel request (best of ``--cost-repeats``)."""
-    from retarget.denoise import DENOISE_METHODS, Guides, needs_direct
+    from retarget.denoise import DENOISE_METHODS, Guides, denoise
 
     rep = args.cost_repeats
     cube = R["test"][PAIR[0][0]]["cube"]
@@ -458,17 +458,14 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
     big_w, big_h = args.cost_size
     big = f"{big_w}x{big_h}"
     crop = 256 + 2 * 48
+    direct = R["direct"][PAIR[0][0]]["direct"]  # the test cube's group's own
 
     def synth(shape):
         return Guides(*(dl.upsample_nearest(np.asarray(x), shape) for x in
                         (aovs["albedo"], aovs["normal"], aovs["depth"], aovs["mask"], aovs["emitter"],
-                         aovs["albedo_bands"])))
+                         aovs["albedo_bands"], direct)))
 
-    d0 = R["direct"][PAIR[0][0]]["direct"]
-
-    def run(x, g, name, kind="transport"):
-        return dl.run_denoise(x, g, name, dl.upsample_nearest(d0, g.shape) if needs_direct(name) else None, kind)
-
+    guides = guides.with_direct(direct)
     rng = np.random.default_rng(0)
     big_cube = rng.random((big_h, big_w, cube.shape[-1]), dtype=np.float32)
     gbig, gcrop = synth((big_h, big_w)), synth((crop, crop))
@@ -476,11 +473,11 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
     raw_crop = rng.random((crop, crop, 3), dtype=np.float32)
     per_cube, request = {}, {}
     for name in DENOISE_METHODS.names:
-        per_cube[name] = {small: dl.best_ms(lambda: run(cube, guides, name), rep),
-                          big: dl.best_ms(lambda: run(big_cube, gbig, name), rep)}
+        per_cube[name] = {small: dl.best_ms(lambda: denoise(cube, guides, name), rep),
+                          big: dl.best_ms(lambda: denoise(big_cube, gbig, name), rep)}
         # on request there is no per-band albedo to divide a 3-channel raw by: the same filter undivided
-        request[name] = {f"{crop}x{crop}": dl.best_ms(lambda: run(raw_crop, gcrop, name, "illumination"), rep),
-                         big: dl.best_ms(lambda: run(raw_big, gbig, name, "illumination"), rep)}
+        request[name] = {f"{crop}x{crop}": dl.best_ms(lambda: denoise(raw_crop, gcrop, name, "illumination"), rep),
+                         big: dl.best_ms(lambda: denoise(raw_big, gbig, name, "illumination"), rep)}
         log(f"  cost {name}: {per_cube[name]} ms per cube, {request[name]} ms per raw request")
     try:
         al, nr = (dl.upsample_nearest(aovs[k], s) for k, s in (("albedo", (crop, crop)), ("normal", (crop, crop))))

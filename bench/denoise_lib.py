@@ -104,9 +104,9 @@ def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int,
 
 def run_denoise(cube: np.ndarray, guides, name: str, direct: np.ndarray | None, kind: str = "transport") -> np.ndarray:
     """``retarget.denoise.denoise`` with the group's direct-light guide where the method takes one."""
-    from retarget.denoise import denoise, needs_direct
+    from retarget.denoise import denoise, method_guides
 
-    return denoise(cube, guides.with_direct(direct) if needs_direct(name) else guides, name, kind=kind)
+    return denoise(cube, guides.with_direct(direct) if "direct" in method_guides(name) else guides, name, kind=kind)
 
 
 def mean_render(renders: Sequence[dict]) -> dict:
@@ -290,21 +290,6 @@ def upsample_nearest(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 # Ablation: the domain transform with a shading channel in its joint image
 
 
-def dt_joint(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int = 3) -> np.ndarray:
-    """OpenCV's domain-transform RF filter of ``cube (H, W, C)`` with a given joint image, 4 source
-    channels per call, as ``retarget.denoise``'s ``dt-guides`` does (sigmaColor 1: the joint image
-    is already scaled by its sigmas)."""
-    import cv2
-
-    out = np.empty(cube.shape, np.float32)
-    for k in range(0, cube.shape[-1], 4):
-        src = np.ascontiguousarray(cube[..., k:k + 4], dtype=np.float32)
-        res = cv2.ximgproc.dtFilter(joint, src, sigmaSpatial=float(sigma_spatial), sigmaColor=1.0,
-                                    mode=cv2.ximgproc.DTF_RF, numIters=int(iterations))
-        out[..., k:k + 4] = res.reshape(src.shape)
-    return out
-
-
 def shading_joint(guides, shading_u: np.ndarray, sigma_albedo: float, sigma_normal: float,
                   sigma_shading: float, prefilter_sigma: float) -> np.ndarray:
     """Joint image ``(H, W, 4)`` of the ablation: albedo G / σa, (albedo R − B) / σa, the
@@ -312,11 +297,11 @@ def shading_joint(guides, shading_u: np.ndarray, sigma_albedo: float, sigma_norm
     ``log(S + ε)/σs`` with ``S`` the summed illumination image ``shading_u`` pre-filtered by the
     default ``dt-guides`` operator and ``ε = 10⁻³ max S``. OpenCV takes at most 4 channels, so the
     three albedo channels become two."""
-    from retarget.denoise import dt_guide_image
+    from retarget.denoise import dt_filter, dt_guide_image
 
     g = dt_guide_image(guides, sigma_albedo, sigma_normal)
-    s = dt_joint(shading_u[..., None].astype(np.float32), dt_guide_image(guides, 0.05, 0.2),
-                 prefilter_sigma)[..., 0]
+    s = dt_filter(shading_u[..., None].astype(np.float32), dt_guide_image(guides, 0.05, 0.2),
+                  prefilter_sigma)[..., 0]
     s = np.log(np.maximum(s, 0.0) + 1e-3 * s.max())
     return np.stack([g[..., 1], g[..., 0] - g[..., 2], g[..., 3], s / sigma_shading], -1).astype(np.float32)
 

@@ -30,6 +30,13 @@ _CHUNK = 1 << 20  # rays per Dr.Jit batch (bounds memory at any resolution)
 _DIRECT_SEED = 0xD1EC7  # mixed with the render's seed: the guide's random numbers are its own
 
 
+def guides_needed(method: str | None) -> tuple[str, ...]:
+    """The guides a ``RenderSettings.denoise`` value reads (none for ``None``)."""
+    from retarget.denoise import method_guides
+
+    return () if method is None else method_guides(method)
+
+
 def hammersley(n: int) -> np.ndarray:
     """``(n, 2)`` float32 sub-pixel positions: x = (i + ½)/n, y = the base-2 radical inverse of i
     (+ ½/n): one point in each of n columns and in each of n rows."""
@@ -84,14 +91,13 @@ def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
 
     tracer = Tracer(scene, view, [group], resolution)
     lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
-    batch = [0]
 
-    def one(pix, jit):
-        batch[0] += 1
+    def one(pix, jit):  # a batch's seed: its first pixel
         return tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
-                                        mix_seed(seed, _DIRECT_SEED, batch[0])).mean(axis=1, keepdims=True)
+                                        mix_seed(seed, _DIRECT_SEED, int(pix[0]))).mean(axis=1, keepdims=True)
 
     return _per_pixel(tracer, samples, one)[..., 0]
 
 
-__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "albedo_bands", "direct_light", "guide_wavelengths", "hammersley"]
+__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "albedo_bands", "direct_light", "guide_wavelengths", "guides_needed",
+           "hammersley"]

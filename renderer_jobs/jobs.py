@@ -297,27 +297,30 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
 
 def _denoise(st, scene, job, result, settings, meta) -> dict | None:
     """Denoised copies of a rendered cube (and its illumination cube) with the view's stored AOVs as
-    guides (:mod:`retarget.denoise`), plus what only the renderer can make (the group's direct-light
-    guide; the per-band albedo of a view stored without it, e.g. by Cycles:
-    :mod:`renderer_jobs.denoise_guides`); records the method in ``meta.denoised``. ``None`` when off."""
+    guides (:mod:`retarget.denoise`), plus what only the renderer can make
+    (:mod:`renderer_jobs.denoise_guides`): the group's direct-light guide, and the per-band albedo
+    of a view stored without it (e.g. by Cycles, or before it existed), traced once and added to the
+    view. Records the method in ``meta.denoised``. ``None`` when off."""
     method = settings.denoise
     if method is None:
         return None
     from renderer_jobs import denoise_guides as dg
-    from retarget.denoise import Guides, denoise, describe, needs_direct
+    from renderer_jobs.mitsuba_trace import Tracer
+    from retarget.denoise import Guides, denoise, describe
     from store.schema import DenoisedInfo
 
     t = time.perf_counter()
-    stored = st.view_meta(scene.name, job.view).aovs
+    wanted = dg.guides_needed(method)
+    view_meta = st.view_meta(scene.name, job.view)
     names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter")
-    aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in stored}
+    aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in view_meta.aovs}
     extra: dict = {}
-    if needs_direct(method):
-        if "albedo_bands" not in aovs:
-            aovs["albedo_bands"] = dg.albedo_bands(dg.Tracer(scene, job.view, None, settings.resolution))
-            extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel), not stored"
+    if "albedo_bands" in wanted and "albedo_bands" not in aovs:
+        aovs["albedo_bands"] = dg.albedo_bands(Tracer(scene, job.view, None, settings.resolution))
+        st.write_view(scene.name, job.view, view_meta, {"albedo_bands": aovs["albedo_bands"]})
+        extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel) and added to the view"
     guides = Guides.from_aovs(aovs)
-    if needs_direct(method):
+    if "direct" in wanted:
         guides = guides.with_direct(dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed))
         extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed}
     out = {"transport": denoise(result.cube, guides, method)}

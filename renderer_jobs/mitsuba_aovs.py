@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from renderer_jobs.denoise_guides import albedo_bands as spectral_albedo
+from renderer_jobs.denoise_guides import guides_needed
 from renderer_jobs.mitsuba_render import RenderSettings
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.scene_model import Scene
@@ -18,9 +19,10 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     """Geometry AOVs of a view, averaged over ``aov_spp`` jittered primary rays per pixel.
 
     albedo ``(H, W, 3)``: mean diffuse reflectance (Mitsuba's ``eval_diffuse_reflectance``) over
-    600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)``: the diffuse reflectance
-    per band, exact at the band centres, over ``ALBEDO_RAYS`` Hammersley positions per pixel
-    (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance`` guide); normal ``(H, W, 3)``: world-space shading normal
+    600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)`` (when ``settings.denoise``
+    reads it): the diffuse reflectance per band, exact at the band centres, over ``ALBEDO_RAYS``
+    Hammersley positions per pixel (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance``
+    guide); normal ``(H, W, 3)``: world-space shading normal
     (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
     nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``
     bool: most of the pixel's rays hit a light source's own surface (any group's), where the
@@ -49,9 +51,11 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     normal = np.where(norm > 0, normal / np.where(norm > 0, norm, 1), 0.0)
     depth = (out["distance"].reshape(npix, k) * hitf).sum(axis=1) / nh
     emitter = out["emitter"].reshape(npix, k).mean(axis=1) > 0.5
-    return {"albedo": albedo.reshape(h, w, 3).astype(np.float32),
-            "albedo_bands": spectral_albedo(tracer),
+    aovs = {"albedo": albedo.reshape(h, w, 3).astype(np.float32),
             "normal": normal.reshape(h, w, 3).astype(np.float32),
             "depth": depth.reshape(h, w).astype(np.float32),
             "mask": hit[:, 0].reshape(h, w),
             "emitter": emitter.reshape(h, w)}
+    if "albedo_bands" in guides_needed(settings.denoise):
+        aovs["albedo_bands"] = spectral_albedo(tracer)
+    return aovs

@@ -11,10 +11,10 @@ spectral radiance reaching pixel ``x`` (box pixel filter) when only ``g``'s emit
 emitting ``strength × Ē_g(λ)`` with ``Ē_g`` the group's emission (flat, value 1, by default) held
 constant over each band; every other group's emitters are removed (their geometry and materials
 stay). Unidirectional path tracing with next-event estimation and MIS, emitter selection weighted
-by approximate power via ``sampling_weight``, no denoiser, no clamping, emitters visible. Portal emitters (``emitter.portal``, e.g. the sky filling a window) are not
-geometry: they are traced in a second pass with the same schedule and added (linearity), so they
-never shadow the group's other emitters. Non-finite samples (none seen so far) are dropped and
-counted in the cube's stats.
+by approximate power via ``sampling_weight``, no denoiser, no clamping, emitters visible. Portal
+emitters (``emitter.portal``, e.g. the sky filling a window) are not geometry: they are traced in
+a second pass with the same schedule and added (linearity), so they never shadow the group's other
+emitters. Non-finite samples (none seen so far) are dropped and counted in the cube's stats.
 
 Wavelength sampling (issues 4 and 17, see ``bench/render.py`` for the measurements)
 -------------------------------------------------------------------------------------
@@ -80,6 +80,7 @@ import numpy as np
 
 from renderer_jobs import adaptive_spp
 from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
+from renderer_jobs.mitsuba_bands import RR_DEPTH
 from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
@@ -128,7 +129,7 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
                        f"sharing the spp), {settings.sampler} pixel samples, Mitsuba's render loop" if bands else
                        f"path tracing, 4 {settings.wavelengths} wavelengths per path (illumix sampling)"),
             "settings": {"integrator": "illumix band path" if bands else "path", "max_depth": scene.max_depth,
-                         "rr_depth": 5, "mis": "power heuristic", "rfilter": "box",
+                         "rr_depth": RR_DEPTH, "mis": "power heuristic", "rfilter": "box",
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
                          "passes": passes, "libllvm": libllvm_path()}}

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
 from renderer_jobs.scene_schema import SceneError
+from retarget.denoise_methods import DEFAULT_METHOD
 
 DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
 
@@ -56,7 +57,7 @@ class RenderSettings:
     skip_background: bool = True
     noise_target: float | None = None
     illumination: bool = True
-    denoise: str | None = "dt-irradiance"  # retarget.denoise_methods.DEFAULT_METHOD (tests check they agree)
+    denoise: str | None = DEFAULT_METHOD
     backend: str = "mitsuba"
 
     def __post_init__(self) -> None:

@@ -92,9 +92,11 @@ class Guides:
     def with_direct(self, direct: np.ndarray) -> Guides:
         """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0)."""
         d = np.asarray(direct, np.float32)
-        if d.shape != self.shape or not np.isfinite(d).all() or (d < 0).any():
-            raise SpectralError(f"denoise: the direct-light guide must be finite, >= 0 and {self.shape}, "
-                                f"got shape {d.shape}")
+        if d.shape != self.shape:
+            raise SpectralError(f"denoise: the direct-light guide has shape {d.shape}; the view's is {self.shape}")
+        if not np.isfinite(d).all() or (d < 0).any():
+            raise SpectralError("denoise: the direct-light guide has NaN, inf or negative values; it must be "
+                                "finite and >= 0 (re-trace it: renderer_jobs.denoise_guides.direct_light)")
         return replace(self, direct=d)
 
     @property
@@ -121,7 +123,7 @@ def dt_guide_image(guides: Guides, sigma_albedo: float, sigma_normal: float) -> 
 
 def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_albedo: float = 0.05,
         sigma_normal: float = 0.2, iterations: int = 3) -> np.ndarray:
-    return _dt_joint(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
+    return dt_filter(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
 
 
 def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float
@@ -145,12 +147,12 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear)."""
     joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct)
     if kind == "illumination":
-        return _dt_joint(cube, joint, sigma_spatial, iterations)
+        return dt_filter(cube, joint, sigma_spatial, iterations)
     rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))
-    return _dt_joint(cube / rho, joint, sigma_spatial, iterations) * rho
+    return dt_filter(cube / rho, joint, sigma_spatial, iterations) * rho
 
 
-def _dt_joint(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int) -> np.ndarray:
+def dt_filter(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int = 3) -> np.ndarray:
     """OpenCV's domain-transform RF filter of ``cube (H, W, C)`` with the joint image ``joint``
     (already divided by its sigmas, so sigmaColor is 1), 4 channels per call (OpenCV's limit)."""
     import cv2  # noqa: PLC0415 - heavy; only the filters need it
@@ -224,8 +226,16 @@ class DenoiseMethod:
     defaults: Mapping[str, Any]
     reference: str
     guides: tuple[str, ...] = ("albedo", "normal", "depth", "mask", "emitter")
-    per_group: bool = False  # a guide of the light group's own (direct): one operator per group
-    demodulates: bool = False  # divides transport by the per-band albedo (``kind`` matters)
+
+    @property
+    def per_group(self) -> bool:
+        """Takes a guide of the light group's own (``direct``): one operator per group."""
+        return "direct" in self.guides
+
+    @property
+    def demodulates(self) -> bool:
+        """Divides a transport cube by the per-band albedo (``kind`` matters)."""
+        return "albedo_bands" in self.guides
 
 
 #: Implementation of every name of :data:`DENOISE_METHODS`.
@@ -235,7 +245,7 @@ IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
                          "albedo_floor": 0.01, "iterations": 3},
         "Gastal & Oliveira 2011 (domain transform, RF) on the albedo-demodulated cube, joint image from the "
         "normal, depth and the light group's direct light", ("albedo_bands", "normal", "depth", "mask", "emitter",
-                                                            "direct"), per_group=True, demodulates=True),
+                                                            "direct")),
     "dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2, "iterations": 3},
                                "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides",
                                ("albedo", "normal", "mask", "emitter")),
@@ -315,9 +325,10 @@ def _flush_tails(out: np.ndarray) -> np.ndarray:
     return out
 
 
-def needs_direct(method: str) -> bool:
-    """Whether ``method`` needs a per-group direct-light guide (:meth:`Guides.with_direct`)."""
-    return IMPLEMENTATIONS[DENOISE_METHODS.canonical(method)].per_group
+def method_guides(method: str) -> tuple[str, ...]:
+    """The guides ``method`` reads: AOV names, and ``direct`` for a per-group direct-light guide
+    (:meth:`Guides.with_direct`)."""
+    return IMPLEMENTATIONS[DENOISE_METHODS.canonical(method)].guides
 
 
 def describe(method: str, **params: Any) -> dict[str, Any]:
@@ -327,4 +338,5 @@ def describe(method: str, **params: Any) -> dict[str, Any]:
             "linear": True, "reference": IMPLEMENTATIONS[name].reference}
 
 
-__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_params", "needs_direct"]
+__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_guides", "method_params",
+           "dt_filter"]

@@ -50,3 +50,27 @@ def test_albedo_bands_and_direct_light_match_the_closed_forms_on_the_validation_
     expect = math.cos(math.radians(30)) / math.pi  # unit irradiance at 30°, white Lambertian
     for m in masks:
         np.testing.assert_allclose(direct[m], expect, rtol=1e-5)
+
+
+def test_a_view_stored_without_the_per_band_albedo_gets_it_once(tmp_path):
+    """A store written without ``albedo_bands`` (``--denoise none``, Cycles, or before it existed):
+    the first cube denoised with the default traces it and adds it to the view; the next one reads
+    it (the same guide for every group), and both record the direct-light pass."""
+    from renderer_jobs import jobs
+    from renderer_jobs.mitsuba_render import render_cube
+    from store import CubeStore
+
+    s = demo.validation_chart()
+    plain = RenderSettings(spp=16, seed=1, denoise=None)
+    st = CubeStore.open(str(tmp_path / "store"), mode="a")
+    aovs = render_aovs(s, "head-on", plain)
+    assert "albedo_bands" not in aovs  # not asked for: not traced
+    st.write_view(s.name, "head-on", jobs._view_meta(s, "head-on"), aovs)
+    settings = RenderSettings(spp=16, seed=1)
+    result = render_cube(s, "head-on", "light", settings)
+    for k in range(2):
+        jobs.store_result(st, s, jobs.Job(s.name, "head-on", "light"), result, settings, overwrite=k > 0, extra_stats={})
+        passes = st.cube_meta(s.name, "head-on", "light").denoised.model_extra["guide_passes"]
+        assert ("albedo_bands" in passes) == (k == 0) and passes["direct"]["samples_per_pixel"] > 0
+        assert "albedo_bands" in st.view_meta(s.name, "head-on").aovs
+    assert st.read_aov(s.name, "head-on", "albedo_bands").shape == (*aovs["depth"].shape, 63)
