@@ -46,6 +46,7 @@ import numpy as np
 from renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
 from renderer_jobs.mitsuba_scene import group_emission
 from renderer_jobs.scene_model import Scene
+from renderer_jobs.scene_textures import is_texture
 from renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,
                                         Sphere, SpotLight)
@@ -156,6 +157,9 @@ def material_doc(scene: Scene, name: str, warn) -> dict:
                  "physical-conductor Fresnel takes no tint); used the bare conductor")
         return {"kind": "conductor", "eta": eta.tolist(), "k": k.tolist(), "roughness": math.sqrt(m.alpha),
                 "two_sided": m.two_sided, "albedo_rgb": [0, 0, 0]}
+    if is_texture(m.reflectance):
+        raise SceneError(f"{what}: reflectance: textures render with the Mitsuba backend only; "
+                         "use --backend mitsuba (or a plain spectrum)")
     rho = scene.spectrum(m.reflectance, what)
     if isinstance(m, RoughPlastic):
         eta = m.int_ior / m.ext_ior

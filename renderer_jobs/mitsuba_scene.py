@@ -18,6 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from renderer_jobs.mitsuba_textures import reflectance_dict
 from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
@@ -75,9 +76,9 @@ def _bsdf(scene: Scene, name: str) -> dict:
             d["specular_reflectance"] = step_spectrum(scene.spectrum(m.specular_reflectance, what), scene)
     elif isinstance(m, RoughPlastic):
         d = {"type": "roughplastic", "alpha": m.alpha, "int_ior": m.int_ior, "ext_ior": m.ext_ior,
-             "distribution": "ggx", "diffuse_reflectance": step_spectrum(scene.spectrum(m.reflectance, what), scene)}
+             "distribution": "ggx", "diffuse_reflectance": reflectance_dict(scene, m.reflectance, what, step_spectrum)}
     else:
-        d = {"type": "diffuse", "reflectance": step_spectrum(scene.spectrum(m.reflectance, what), scene)}
+        d = {"type": "diffuse", "reflectance": reflectance_dict(scene, m.reflectance, what, step_spectrum)}
     return {"type": "twosided", "bsdf": d} if m.two_sided else d
 
 
@@ -268,7 +269,7 @@ def _emitter_dicts(mi, scene: Scene, group: str, radius: float, portals: str = "
     return shape_em, lights
 
 
-def _sensor_dict(mi, scene: Scene, view: str, resolution: tuple[int, int] | None = None) -> dict:
+def sensor_dict(mi, scene: Scene, view: str, resolution: tuple[int, int] | None = None) -> dict:
     v = scene.view(view)
     w, h = resolution or v.resolution
     return {"type": "perspective", "fov": v.fov, "fov_axis": "x",
@@ -291,7 +292,7 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
         radius = scene_radius(scene) if groups else 1.0
     doc: dict = {"type": "scene",
                  "integrator": {"type": "path", "max_depth": scene.max_depth, "hide_emitters": False},
-                 "sensor": _sensor_dict(mi, scene, view, resolution)}
+                 "sensor": sensor_dict(mi, scene, view, resolution)}
     shape_em: dict[str, dict] = {}
     for g in groups:
         se, lights = _emitter_dicts(mi, scene, g, radius, portals, flat_emission)

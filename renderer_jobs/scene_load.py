@@ -36,7 +36,7 @@ def _format_loc(doc: Any, loc: tuple) -> str:
                 # Tagged-union branch names (e.g. 'rectangle', 'diffuse') are not document keys.
                 if key in ("rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "point",
                            "spot", "directional", "constant", "envmap", "diffuse", "roughplastic",
-                           "roughconductor", "dielectric") or key.endswith("Spectrum") or key in (
+                           "roughconductor", "dielectric", "spectrum", "pattern", "bitmap") or key.endswith(("Spectrum", "Texture", "Spectrum]")) or key.startswith("function-") or key in (
                                "str", "list[float]", "float", "tuple[float, float, float]"):
                     continue
                 node = None

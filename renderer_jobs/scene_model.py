@@ -24,6 +24,7 @@ from renderer_jobs.scene_schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpec
                                         FileSpectrum, Light, LightGroup, LibrarySpectrum, Material, MeshFile,
                                         Name, RoughConductor, SceneError, Shape, SpectrumSpec, StrictModel,
                                         TableSpectrum, View)
+from renderer_jobs.scene_textures import BitmapTexture, PatternTexture
 from retarget.errors import SpectralError
 from retarget.grid import SpectralGrid
 from retarget.illuminants import illuminant_spd as _library_spd
@@ -49,6 +50,9 @@ class Scene(StrictModel):
     light_groups: list[LightGroup] = Field(default_factory=list)
     views: list[View] = Field(min_length=1)
     max_depth: int = Field(default=8, ge=1, le=64)
+    # Where the scene came from, e.g. {"name": "illumix.scenegen", "version": "1", "seed": 7} or an
+    # importer's {"name": "illumix.import", "format": "gltf", "file": ...}; copied into every cube's metadata.
+    generator: dict[str, str | int | float] | None = None
 
     _base: Path | None = PrivateAttr(default=None)
 
@@ -199,6 +203,10 @@ class Scene(StrictModel):
                                 "not be conserved")
         return out
 
+    def texture_spectra(self, tex: PatternTexture, what: str) -> np.ndarray:
+        """The ``K`` spectra of a pattern texture as band averages ``(K, n_bands)`` float64."""
+        return np.stack([self.spectrum(s, f"{what}.spectra[{i}]") for i, s in enumerate(tex.spectra)])
+
     def emission(self, group: str) -> np.ndarray:
         """The emission spectrum ``Ē_g`` ``(n_bands,)`` of a light group (band averages).
 
@@ -264,6 +272,10 @@ class Scene(StrictModel):
             for spec in (getattr(m, "reflectance", None), getattr(m, "specular_reflectance", None)):
                 if isinstance(spec, FileSpectrum):
                     out.append(spec.file)
+                elif isinstance(spec, BitmapTexture):
+                    out.append(spec.file)
+                elif isinstance(spec, PatternTexture):
+                    out.extend(s.file for s in spec.spectra if isinstance(s, FileSpectrum))
         for g in self.light_groups:
             if isinstance(g.emission, FileSpectrum):
                 out.append(g.emission.file)
@@ -280,9 +292,12 @@ class Scene(StrictModel):
         for name, m in self.materials.items():
             for field in ("reflectance", "specular_reflectance"):
                 spec = getattr(m, field, None)
-                if spec is not None:
+                if spec is not None and not isinstance(spec, BitmapTexture):
                     try:
-                        self.spectrum(spec, f"materials.{name}.{field}")
+                        if isinstance(spec, PatternTexture):
+                            self.texture_spectra(spec, f"materials.{name}.{field}")
+                        else:
+                            self.spectrum(spec, f"materials.{name}.{field}")
                     except (SpectralError, OSError) as exc:
                         errors.append(str(exc))
         for g in self.group_names:
