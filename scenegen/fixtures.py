@@ -1,0 +1,186 @@
+"""Light fixtures of real kinds, each kind one light group: ceiling panels, pendants, fluorescent
+tubes, LED strips, floor and desk lamps with shades, screens.
+
+Ceiling and wall fixtures are placed here in room coordinates; lamps that stand on the floor or a
+table are :class:`scenegen.parts.Item` s placed like furniture (:mod:`scenegen.placement`). Emitting
+parts are area emitters of the group (bulbs: small spheres inside opaque shades, so light leaves
+through the shade's openings; panels, tubes and strips: the emitting surface itself; screens: the
+picture). Emission is flat; the group's ``description`` names the kind and a typical illuminant
+(the service relights every group to any illuminant anyway). Strengths are set by
+:func:`normalise_power` so that the groups of a room carry comparable power.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect, sphere
+from scenegen.rooms import Plan
+
+KINDS = ("ceiling", "pendant", "tubes", "strip", "floor_lamp", "desk_lamp", "screen")
+TYPICAL = {"ceiling": "LED panel, 4000 K", "pendant": "incandescent, 2700 K", "tubes": "fluorescent (F11 / FL3.x)",
+           "strip": "LED strip, 3000 K", "floor_lamp": "incandescent / LED, 2700 K",
+           "desk_lamp": "LED, 3000-4000 K", "screen": "display white, ~6500 K"}
+ON_FLOOR, ON_SURFACE = ("floor_lamp",), ("desk_lamp",)
+
+
+def _em(group: str) -> dict:
+    return {"group": group, "strength": 1.0}
+
+
+def _clear(c, half: tuple[float, float], avoid: list[tuple[float, float]], margin: float = 0.3) -> bool:
+    """Whether no point of ``avoid`` (pendant cords) lies within ``margin`` of a ceiling fixture."""
+    return all(abs(x - c[0]) > half[0] + margin or abs(z - c[2]) > half[1] + margin for x, z in avoid)
+
+
+def ceiling_panels(rng, plan: Plan, mats: MaterialPicker, group: str,
+                   avoid: list[tuple[float, float]] = ()) -> list[dict]:
+    """1–2 panels per rectangle of the plan, centred on its long axis; none where a pendant hangs."""
+    out = []
+    housing = mats.pick("white")
+    for i, (x0, z0, x1, z1) in enumerate(plan.rects):
+        n = 1 if (x1 - x0) * (z1 - z0) < 12 else 2
+        square = rng.random() < 0.6
+        size = (0.6, 0.6) if square else (1.2, 0.3)
+        for k in range(n):
+            fx = (k + 1) / (n + 1) if (x1 - x0) >= (z1 - z0) else 0.5
+            fz = 0.5 if (x1 - x0) >= (z1 - z0) else (k + 1) / (n + 1)
+            c = (x0 + fx * (x1 - x0), plan.height - 0.012, z0 + fz * (z1 - z0))
+            if not _clear(c, (size[0] / 2, size[1] / 2), avoid):
+                continue
+            out.append(rect(f"panel{i}_{k}", None, c, (0, -1, 0), (0, 0, -1), size, emitter=_em(group)))
+            out.append(box(f"panel{i}_{k}_housing", housing, (c[0], plan.height - 0.006, c[2]),
+                           (size[0] / 2 + 0.02, 0.0055, size[1] / 2 + 0.02)))
+    return out
+
+
+def pendants(rng, plan: Plan, mats: MaterialPicker, group: str, over: list[tuple[float, float]],
+             hung: list[tuple[float, float]]) -> list[dict]:
+    """1–3 pendants, over the given points (e.g. table centres) first, else over the rooms' centres;
+    their ``(x, z)`` are appended to ``hung`` (ceiling panels and tubes keep clear of them)."""
+    pts = list(over) or [((r[0] + r[2]) / 2, (r[1] + r[3]) / 2) for r in plan.rects]
+    n = int(min(len(pts), rng.integers(1, 4)))
+    shade, cord = mats.pick(str(rng.choice(["lampshade", "metal", "ceramic"]))), mats.pick("black")
+    out = []
+    for k, (x, z) in enumerate(pts[:n]):
+        hung.append((x, z))
+        r, hgt = float(rng.uniform(0.12, 0.25)), float(rng.uniform(0.18, 0.32))
+        bottom = float(min(plan.height - 0.5, rng.uniform(1.85, 2.2)))
+        out += [cylinder(f"pendant{k}_cord", cord, (x, bottom + hgt, z), (x, plan.height, z), 0.006),
+                cylinder(f"pendant{k}_shade", shade, (x, bottom, z), (x, bottom + hgt, z), r),
+                disk(f"pendant{k}_cap", shade, (x, bottom + hgt, z), (0, -1, 0), r),
+                sphere(f"pendant{k}_bulb", None, (x, bottom + 0.07, z), 0.045) | {"emitter": _em(group)}]
+    return out
+
+
+def tubes(rng, plan: Plan, mats: MaterialPicker, group: str, avoid: list[tuple[float, float]] = ()) -> list[dict]:
+    """1–2 fluorescent tubes in housings under the ceiling per rectangle; none where a pendant hangs."""
+    out = []
+    housing = mats.pick("metal")
+    for i, (x0, z0, x1, z1) in enumerate(plan.rects):
+        along_x = (x1 - x0) >= (z1 - z0)
+        length = float(min(1.5, 0.7 * max(x1 - x0, z1 - z0)))
+        n = int(rng.integers(1, 3))
+        for k in range(n):
+            f = (k + 1) / (n + 1)
+            cx, cz = (x0 + x1) / 2, (z0 + z1) / 2
+            if along_x:
+                cz = z0 + f * (z1 - z0)
+            else:
+                cx = x0 + f * (x1 - x0)
+            y = plan.height - 0.08
+            d = np.array([length / 2, 0, 0]) if along_x else np.array([0, 0, length / 2])
+            c = np.array([cx, y, cz])
+            if not _clear(c, (d[0] + 0.06, d[2] + 0.06), avoid):
+                continue
+            out.append(cylinder(f"tube{i}_{k}", None, c - d, c + d, 0.014) | {"emitter": _em(group)})
+            half = (length / 2 + 0.05, 0.02, 0.06) if along_x else (0.06, 0.02, length / 2 + 0.05)
+            out.append(box(f"tube{i}_{k}_housing", housing, (cx, y + 0.04, cz), half))
+    return out
+
+
+def strips(rng, plan: Plan, mats: MaterialPicker, group: str) -> list[dict]:
+    """LED strips along the top of 1–3 walls (cove light shining down), skipping openings."""
+    cands = [w for w in plan.walls if w.length > 1.5]
+    out = []
+    for k in rng.permutation(len(cands))[: int(rng.integers(1, 4))]:
+        w = cands[int(k)]
+        s0, s1 = 0.2, w.length - 0.2
+        if any(o.y1 > plan.height - 0.3 for o in w.openings):
+            continue
+        mid = w.point((s0 + s1) / 2, 0.06 + (0.05 if w.partition else 0.0))
+        y = plan.height - 0.15
+        n3 = (w.normal[0], 0.0, w.normal[1])
+        # a narrow emitter facing down and slightly into the room, under a small shelf
+        down = np.array([0.3 * n3[0], -1.0, 0.3 * n3[2]])
+        out.append(rect(f"strip{len(out)}", None, (mid[0], y, mid[1]), tuple(down / np.linalg.norm(down)),
+                        n3, (s1 - s0, 0.02), emitter=_em(group)))
+        ledge = mats.pick("paint")
+        out.append(box(f"strip{len(out)}_ledge", ledge, (mid[0] + 0.02 * n3[0], y + 0.02, mid[1] + 0.02 * n3[2]),
+                       tuple(np.abs([(s1 - s0) / 2 * w.direction[0], 0, (s1 - s0) / 2 * w.direction[1]]) +
+                             np.abs([0.05 * n3[0], 0.01, 0.05 * n3[2]]))))
+    return out
+
+
+def floor_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
+    r, hgt = float(rng.uniform(0.16, 0.25)), float(rng.uniform(1.35, 1.75))
+    shade_h = float(rng.uniform(0.25, 0.35))
+    metal, shade = mats.pick("metal"), mats.pick("lampshade")
+    return Item("floor_lamp", [
+        cylinder(f"{name}_base", metal, (0, 0.0, 0), (0, 0.03, 0), 0.15),
+        disk(f"{name}_base_top", metal, (0, 0.03, 0), (0, 1, 0), 0.15),
+        cylinder(f"{name}_pole", metal, (0, 0.03, 0), (0, hgt - shade_h / 2, 0), 0.012),
+        cylinder(f"{name}_shade", shade, (0, hgt - shade_h, 0), (0, hgt, 0), r),
+        sphere(f"{name}_bulb", None, (0, hgt - shade_h / 2, 0), 0.05) | {"emitter": _em(group)},
+    ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
+
+
+def desk_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
+    hgt, r = float(rng.uniform(0.35, 0.5)), float(rng.uniform(0.07, 0.11))
+    metal, shade = mats.pick("metal"), mats.pick(str(rng.choice(["metal", "lampshade", "plastic"])))
+    return Item("desk_lamp", [
+        cylinder(f"{name}_base", metal, (0, 0.0, 0), (0, 0.02, 0), 0.08),
+        disk(f"{name}_base_top", metal, (0, 0.02, 0), (0, 1, 0), 0.08),
+        cylinder(f"{name}_arm", metal, (0, 0.02, 0), (0, hgt - 0.12, 0), 0.008),
+        cylinder(f"{name}_shade", shade, (0, hgt - 0.16, 0), (0, hgt - 0.02, 0), r),
+        disk(f"{name}_cap", shade, (0, hgt - 0.02, 0), (0, 1, 0), r),
+        sphere(f"{name}_bulb", None, (0, hgt - 0.1, 0), 0.03) | {"emitter": _em(group)},
+    ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
+
+
+def screen(rng, mats: MaterialPicker, name: str, group: str) -> Item:
+    """A TV or monitor: frame box, emitting picture on its front (+z); kind ``screen`` hangs on a wall."""
+    w = float(rng.uniform(0.6, 1.4))
+    h = w * 9 / 16
+    frame = mats.pick("screen_frame")
+    return Item("screen", [
+        box(f"{name}_frame", frame, (0, h / 2 + 0.02, 0.0), (w / 2 + 0.02, h / 2 + 0.02, 0.025)),
+        rect(f"{name}_picture", None, (0, h / 2 + 0.02, 0.0265), (0, 0, 1), (0, 1, 0), (w, h), emitter=_em(group)),
+    ], footprint=(w + 0.04, 0.06), height=h + 0.04, against_wall=True)
+
+
+def emitting_area(shape: dict) -> float:
+    """Area (m²) of an emitting shape document (rectangle, disk, sphere, cylinder), for power."""
+    if shape["type"] == "sphere":
+        return 4 * math.pi * shape["radius"] ** 2
+    if shape["type"] == "cylinder":
+        return 2 * math.pi * shape["radius"] * float(np.linalg.norm(np.subtract(shape["p1"], shape["p0"])))
+    m = np.asarray(shape["transform"]["matrix"])
+    a, b = np.linalg.norm(m[:3, 0]), np.linalg.norm(m[:3, 1])
+    return float(4 * a * b if shape["type"] == "rectangle" else math.pi * a * b)
+
+
+def normalise_power(shapes: list[dict], lights: list[dict], groups: dict[str, float]) -> None:
+    """Scale the strengths of each group's emitters (in place) so that the group emits ``groups[g]``
+    (radiance × m² × π for areas, irradiance × m² for the sun through its window — the caller gives
+    the sun's share as its own strength already scaled)."""
+    for g, target in groups.items():
+        ems = [s for s in shapes if s.get("emitter", {}).get("group") == g and not s["emitter"].get("portal")]
+        power = sum(math.pi * emitting_area(s) * s["emitter"]["strength"] for s in ems)
+        if power <= 0:
+            continue
+        k = target / power
+        for s in ems:
+            s["emitter"]["strength"] = round(s["emitter"]["strength"] * k, 4)
