@@ -279,6 +279,17 @@ def sensor_dict(mi, scene: Scene, view: str, resolution: tuple[int, int] | None 
             "sampler": {"type": "independent", "sample_count": 1}}
 
 
+def batch_sensor_dict(mi, scene: Scene, views: list[str], resolution: tuple[int, int], spp: int = 1) -> dict:
+    """One Mitsuba ``batch`` sensor rendering ``views`` side by side into a ``(H, len(views) · W)``
+    film: one render call (one kernel) for many small views — what the view probe and previews use.
+    Split the result with ``np.split(image, len(views), axis=1)``."""
+    w, h = resolution
+    return {"type": "batch", **{f"view{i}": sensor_dict(mi, scene, v, resolution) for i, v in enumerate(views)},
+            "film": {"type": "hdrfilm", "width": int(w) * len(views), "height": int(h), "rfilter": {"type": "box"},
+                     "pixel_format": "rgb"},
+            "sampler": {"type": "independent", "sample_count": int(spp)}}
+
+
 def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
                      resolution: tuple[int, int] | None = None, radius: float | None = None,
                      portals: str = "without", flat_emission: bool = False) -> dict:

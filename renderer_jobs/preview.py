@@ -21,7 +21,7 @@ def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES
                    seed: int = 0) -> np.ndarray:
     """``(V, H, W, 3)`` float32 linear sRGB of each view with every group on."""
     from renderer_jobs.mitsuba_render import emitter_passes
-    from renderer_jobs.mitsuba_scene import build_scene_dict, sensor_dict
+    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
     from renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, _ = import_mitsuba()
@@ -30,11 +30,9 @@ def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES
     for portals in emitter_passes(scene, scene.group_names):
         doc = build_scene_dict(scene, views[0], None, resolution=resolution, portals=portals)
         doc["integrator"] = {"type": "path", "max_depth": min(scene.max_depth, 5)}
-        for i, v in enumerate(views):  # one scene, one sensor per view
-            doc["sensor" if i == 0 else f"sensor_{i}"] = sensor_dict(mi, scene, v, resolution)
-        ms = mi.load_dict(doc)
-        for i in range(len(views)):
-            out[i] += np.asarray(mi.render(ms, sensor=i, spp=spp, seed=seed + i), np.float32)[..., :3]
+        doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, spp)  # all views, one render
+        rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed), np.float32)[..., :3]
+        out += np.stack(np.split(rgb, len(views), axis=1))
     return out
 
 

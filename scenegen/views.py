@@ -10,8 +10,8 @@ emission, every emitter strength as in the scene), luminance ``Y`` per pixel, li
 (3×3) to keep the probe's noise out of the shares, then the strongest group's share
 ``max_g Y_g / Σ_g Y_g``. The mixed fraction is the share of lit pixels (``Σ Y > 0``) where it is
 below :data:`MIXED_SHARE` — where no single illuminant explains the white point, the pixels
-white-balance methods get wrong. One Mitsuba scene per group serves every candidate view (one
-sensor each).
+white-balance methods get wrong. One Mitsuba scene per group renders every candidate view at once
+(a ``batch`` sensor: one kernel per group).
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, s
                     seed: int = 0) -> np.ndarray:
     """``(n_views, H, W)`` luminance of ``group`` alone in each view (Mitsuba ``path``, max depth ≤ 5)."""
     from renderer_jobs.mitsuba_render import emitter_passes
-    from renderer_jobs.mitsuba_scene import build_scene_dict, sensor_dict
+    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
     from renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, _ = import_mitsuba()
@@ -65,12 +65,10 @@ def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, s
     for portals in emitter_passes(scene, [group]):
         doc = build_scene_dict(scene, views[0], [group], resolution=resolution, portals=portals)
         doc["integrator"] = {"type": "path", "max_depth": min(scene.max_depth, 5)}
-        for i, v in enumerate(views):
-            doc["sensor" if i == 0 else f"sensor_{i}"] = sensor_dict(mi, scene, v, resolution)
-        ms = mi.load_dict(doc)
-        for i in range(len(views)):
-            rgb = np.asarray(mi.render(ms, sensor=i, spp=spp, seed=seed + i))
-            out[i] += rgb @ np.array([0.2126, 0.7152, 0.0722])
+        # every view in one batch sensor: one kernel per group instead of one per view (3x faster)
+        doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, spp)
+        rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed))[..., :3]
+        out += np.stack(np.split(rgb @ np.array([0.2126, 0.7152, 0.0722]), len(views), axis=1))
     return out
 
 
