@@ -69,6 +69,11 @@ def _rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([int(seed), int(GENERATOR_VERSION), 0x5CE9E])
 
 
+def _obj(kind: str, i: int) -> str:
+    """An object's name: its shapes are ``{name}_{part}``, so the name itself has no ``_``."""
+    return f"{kind.replace('_', '-')}{i}"
+
+
 def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> list[tuple[float, float]]:
     """Furniture for every room (by a drawn room type); returns table centres (pendants hang there)."""
     from scenegen.catalog import FURNITURE
@@ -81,14 +86,15 @@ def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> 
         names = list(ROOM_TYPES[rtype])
         names += list(rng.choice(names, size=int(area // 8)))  # bigger rooms, more furniture
         for kind in names:
-            item = FURNITURE[kind](rng, mats, f"{kind}{n}")
+            name = _obj(kind, n)
+            item = FURNITURE[kind](rng, mats, name)
             n += 1
             if kind == "chair" and tables:
-                got = _chair_at_table(rng, placer, item, f"{kind}{n}", tables[-1])
+                got = _chair_at_table(rng, placer, item, name, tables[-1])
             elif item.against_wall:
-                got = placer.against_wall(item, f"{kind}{n}")
+                got = placer.against_wall(item, name)
             else:
-                got = placer.free_standing(item, f"{kind}{n}")
+                got = placer.free_standing(item, name)
             if got is None:
                 continue
             shapes += got
@@ -146,19 +152,19 @@ def _clutter(rng, placer: Placer, mats: Materials, shapes: list[dict]) -> None:
 
     for i in range(int(rng.integers(3, 9)) + len(placer.surfaces)):
         kind = TABLETOP[int(rng.integers(len(TABLETOP)))]
-        item = CLUTTER[kind](rng, mats, f"{kind}{i}")
-        got = placer.on_surface(item, f"{kind}{i}")
+        item = CLUTTER[kind](rng, mats, _obj(kind, i))
+        got = placer.on_surface(item, _obj(kind, i))
         shapes += [dict(s, name=f"c{i}_{s['name']}") for s in (got or [])]
     for i in range(int(rng.integers(1, 4))):
         kind = WALL_ITEMS[int(rng.integers(len(WALL_ITEMS)))]
-        got = placer.hang(CLUTTER[kind](rng, mats, f"{kind}{i}"), f"{kind}{i}")
+        got = placer.hang(CLUTTER[kind](rng, mats, _obj(kind, i)), _obj(kind, i))
         shapes += [dict(s, name=f"w{i}_{s['name']}") for s in (got or [])]
     for i in range(int(rng.integers(0, 3))):
         kind = FLOOR_CLUTTER[int(rng.integers(len(FLOOR_CLUTTER)))]
-        item = CLUTTER[kind](rng, mats, f"{kind}{i}")
-        got = placer.free_standing(item, f"{kind}{i}", clearance=0.05) if item.kind == "rug" else \
-            placer.against_wall(item, f"{kind}{i}")
-        shapes += [dict(s, name=f"f{i}_{s['name']}") for s in (got or [])]
+        item = CLUTTER[kind](rng, mats, _obj(kind, i))  # unprefixed: no furniture has these kinds
+        got = placer.free_standing(item, _obj(kind, i), clearance=0.05) if item.kind == "rug" else \
+            placer.against_wall(item, _obj(kind, i))
+        shapes += got or []
 
 
 def _balance(rng, plan, shapes: list[dict], lights: list[dict], groups: list[dict]) -> None:
