@@ -3,8 +3,9 @@ tubes, LED strips, floor and desk lamps with shades, screens.
 
 Ceiling and wall fixtures are placed here in room coordinates; lamps that stand on the floor or a
 table are :class:`scenegen.parts.Item` s placed like furniture (:mod:`scenegen.placement`). Emitting
-parts are area emitters of the group (bulbs: small spheres inside opaque shades, so light leaves
-through the shade's openings; panels, tubes and strips: the emitting surface itself; screens: the
+parts are area emitters of the group (lamps: a glowing disk in each opening of an opaque shade —
+the light a bulb sends out of the shade, without the firefly noise of a small bulb seen only via
+the shade's inside; panels, tubes and strips: the emitting surface itself; screens: the
 picture). Emission is flat; the group's ``description`` names the kind and a typical illuminant
 (the service relights every group to any illuminant anyway). Strengths are set by
 :func:`normalise_power` so that the groups of a room carry comparable power.
@@ -16,7 +17,7 @@ import math
 
 import numpy as np
 
-from scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect, sphere
+from scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect
 from scenegen.rooms import Plan
 
 KINDS = ("ceiling", "pendant", "tubes", "strip", "floor_lamp", "desk_lamp", "screen")
@@ -71,7 +72,7 @@ def pendants(rng, plan: Plan, mats: MaterialPicker, group: str, over: list[tuple
         out += [cylinder(f"pendant{k}_cord", cord, (x, bottom + hgt, z), (x, plan.height, z), 0.006),
                 cylinder(f"pendant{k}_shade", shade, (x, bottom, z), (x, bottom + hgt, z), r),
                 disk(f"pendant{k}_cap", shade, (x, bottom + hgt, z), (0, -1, 0), r),
-                sphere(f"pendant{k}_bulb", None, (x, bottom + 0.07, z), 0.045) | {"emitter": _em(group)}]
+                disk(f"pendant{k}_glow", None, (x, bottom + 0.02, z), (0, -1, 0), 0.92 * r, emitter=_em(group))]
     return out
 
 
@@ -133,7 +134,8 @@ def floor_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
         disk(f"{name}_base_top", metal, (0, 0.03, 0), (0, 1, 0), 0.15),
         cylinder(f"{name}_pole", metal, (0, 0.03, 0), (0, hgt - shade_h / 2, 0), 0.012),
         cylinder(f"{name}_shade", shade, (0, hgt - shade_h, 0), (0, hgt, 0), r),
-        sphere(f"{name}_bulb", None, (0, hgt - shade_h / 2, 0), 0.05) | {"emitter": _em(group)},
+        disk(f"{name}_glow_down", None, (0, hgt - shade_h + 0.02, 0), (0, -1, 0), 0.92 * r, emitter=_em(group)),
+        disk(f"{name}_glow_up", None, (0, hgt - 0.02, 0), (0, 1, 0), 0.92 * r, emitter=_em(group)),
     ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
 
 
@@ -146,7 +148,7 @@ def desk_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
         cylinder(f"{name}_arm", metal, (0, 0.02, 0), (0, hgt - 0.12, 0), 0.008),
         cylinder(f"{name}_shade", shade, (0, hgt - 0.16, 0), (0, hgt - 0.02, 0), r),
         disk(f"{name}_cap", shade, (0, hgt - 0.02, 0), (0, 1, 0), r),
-        sphere(f"{name}_bulb", None, (0, hgt - 0.1, 0), 0.03) | {"emitter": _em(group)},
+        disk(f"{name}_glow", None, (0, hgt - 0.14, 0), (0, -1, 0), 0.92 * r, emitter=_em(group)),
     ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
 
 
