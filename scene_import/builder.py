@@ -1,0 +1,219 @@
+"""The scene document an importer assembles: named materials, shapes, lights, views, the mesh and
+image files beside it, and the light groups (:mod:`scene_import.rules`, :mod:`scene_import.colour_match`).
+
+Importers call :class:`SceneBuilder` with plain data; :meth:`SceneBuilder.finish` returns the
+document (a dict for :func:`renderer_jobs.scene_load.scene_from_dict`). Files go under
+``out_dir/assets`` and are referenced relative to ``out_dir``, where the scene file is written.
+
+Conventions: metres, right-handed, +y up (glTF's and illumix's frame; other frames are the
+importer's business). Meshes are written as binary little-endian PLY with per-vertex normals and
+UVs in Mitsuba's bitmap convention (``(0, 0)`` is the image's top-left texel, as in glTF; OBJ's
+``vt`` has v up and is flipped by the OBJ importer).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from renderer_jobs.blend_import import _Names, sanitize
+from scene_import.colour_match import illuminant_for, uv_distance
+from scene_import.rules import Rules
+
+COLOUR_TOLERANCE_UV = 6e-3  # CIE 1960 Δuv beyond which an emitter's colour is not its group's illuminant
+DEFAULT_WIDTH = 320  # pixels of an imported view (views carry no resolution in glTF/OBJ)
+
+
+@dataclass
+class Emitter:
+    """One light or emitting shape awaiting its group: ``doc`` gets ``group`` (lights) or
+    ``emitter.group`` (shapes). ``names`` are matched by rules; ``key`` is its default group."""
+
+    doc: dict
+    names: list[str]
+    key: str
+    xy: np.ndarray | None
+    what: str
+
+
+@dataclass
+class SceneBuilder:
+    out_dir: Path
+    assets: str
+    source: Path
+    fmt: str
+    warnings: list[str] = field(default_factory=list)
+    materials: dict[str, dict] = field(default_factory=dict)
+    shapes: list[dict] = field(default_factory=list)
+    lights: list[dict] = field(default_factory=list)
+    views: list[dict] = field(default_factory=list)
+    emitters: list[Emitter] = field(default_factory=list)
+    max_depth: int | None = None
+    lo: np.ndarray = field(default_factory=lambda: np.full(3, np.inf))
+    hi: np.ndarray = field(default_factory=lambda: np.full(3, -np.inf))
+
+    def __post_init__(self) -> None:
+        self._shape_names, self._light_names, self._view_names = _Names(), _Names(), _Names()
+        self._mat_names, self._files = _Names(), _Names()
+
+    # -- bookkeeping ------------------------------------------------------------------------------
+
+    def warn(self, msg: str) -> None:
+        if msg not in self.warnings:
+            self.warnings.append(msg)
+
+    def add_material(self, name: str, doc: dict) -> str:
+        key = self._mat_names(name, "material")
+        self.materials[key] = doc
+        return key
+
+    def file_path(self, name: str, suffix: str) -> tuple[Path, str]:
+        """``(absolute path, path relative to out_dir)`` of a new asset file."""
+        stem = self._files(Path(name).stem or "file", "file")
+        rel = f"{self.assets}/{stem}{suffix}"
+        path = self.out_dir / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return path, rel
+
+    def extend_bounds(self, points: np.ndarray) -> None:
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        p = p[np.all(np.isfinite(p), axis=1)]
+        if p.size:
+            self.lo = np.minimum(self.lo, p.min(axis=0))
+            self.hi = np.maximum(self.hi, p.max(axis=0))
+
+    # -- geometry -----------------------------------------------------------------------------------
+
+    def write_ply(self, name: str, positions, faces, normals=None, uv=None) -> str:
+        """Write a triangle mesh (object space) as binary PLY; returns its path relative to ``out_dir``."""
+        v = np.asarray(positions, dtype="<f4").reshape(-1, 3)
+        f = np.asarray(faces, dtype="<i4").reshape(-1, 3)
+        cols, props = [v], ["x", "y", "z"]
+        if normals is not None:
+            cols.append(np.asarray(normals, dtype="<f4").reshape(-1, 3))
+            props += ["nx", "ny", "nz"]
+        if uv is not None:
+            cols.append(np.asarray(uv, dtype="<f4").reshape(-1, 2))
+            props += ["u", "v"]
+        path, rel = self.file_path(name, ".ply")
+        header = ["ply", "format binary_little_endian 1.0", "comment illumix import", f"element vertex {len(v)}",
+                  *[f"property float {p}" for p in props], f"element face {len(f)}",
+                  "property list uchar int vertex_indices", "end_header"]
+        face_rec = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+        face_rec["n"], face_rec["i"] = 3, f
+        with open(path, "wb") as fh:
+            fh.write(("\n".join(header) + "\n").encode("ascii"))
+            fh.write(np.ascontiguousarray(np.hstack(cols), dtype="<f4").tobytes())
+            fh.write(face_rec.tobytes())
+        return rel
+
+    def add_shape(self, name: str, doc: dict, emitter: tuple[list[str], str, np.ndarray | None, float] | None = None,
+                  what: str = "") -> dict:
+        """Add a shape document (``type`` and its fields, ``material`` and/or ``transform``);
+        ``emitter``: ``(names, default group key, xy, strength)`` makes it an area light."""
+        d = {"name": self._shape_names(name, "shape"), **doc}
+        if emitter is not None:
+            names, key, xy, strength = emitter
+            d["emitter"] = {"group": None, "strength": float(strength)}
+            self.emitters.append(Emitter(d, names, key, xy, what or f"shape {name!r}"))
+        if "material" not in d and "emitter" not in d:
+            raise ValueError("a shape needs a material or an emitter")
+        self.shapes.append(d)
+        return d
+
+    def add_light(self, name: str, doc: dict, xy: np.ndarray | None, strength: float,
+                  names: list[str] | None = None, what: str = "") -> dict:
+        d = {"name": self._light_names(name, "light"), **doc, "group": None, "strength": float(strength)}
+        self.emitters.append(Emitter(d, names or [name], name, xy, what or f"light {name!r}"))
+        self.lights.append(d)
+        return d
+
+    def add_view(self, name: str, origin, forward, up, fov: float, resolution: tuple[int, int]) -> None:
+        """A view from a camera frame: ``forward``/``up`` world directions, ``fov`` horizontal (degrees)."""
+        o, f, u = (np.asarray(a, dtype=float) for a in (origin, forward, up))
+        f = f / np.linalg.norm(f)
+        u = u / np.linalg.norm(u)
+        self.views.append({"name": self._view_names(name, "view"), "origin": _r(o), "target": _r(o + f),
+                           "up": _r(u), "fov": round(float(fov), 6), "resolution": [int(resolution[0]),
+                                                                                    int(resolution[1])]})
+
+    def default_view(self, why: str) -> None:
+        """A view framing the scene's bounding box from the front (+z), slightly above (60° fov, 4:3)."""
+        lo, hi = (self.lo, self.hi) if np.all(np.isfinite(self.lo)) else (np.full(3, -1.0), np.ones(3))
+        c, r = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
+        fov, w, h = 60.0, DEFAULT_WIDTH, DEFAULT_WIDTH * 3 // 4
+        vfov = 2 * math.atan(math.tan(math.radians(fov) / 2) * h / w)
+        d = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
+        origin = c + d * (r / math.sin(vfov / 2)) * 1.05
+        self.add_view("default", origin, c - origin, [0.0, 1.0, 0.0], fov, (w, h))
+        self.warn(f"{why}: added a view 'default' framing the scene's bounding box from +z "
+                  f"(origin {_r(origin)}, fov 60°)")
+
+    # -- the document -------------------------------------------------------------------------------
+
+    def finish(self, name: str, rules: Rules | None, description: str = "") -> dict:
+        """The scene document: light groups assigned and their illuminants chosen (module docstring)."""
+        if not self.emitters:
+            self.add_light("sky", {"type": "constant"}, None, 1.0, what="default sky")
+            self.warn(f"{self.source.name}: nothing emits light; added a constant sky 'sky' of radiance 1 (D65)")
+        if not self.views:
+            self.default_view(f"{self.source.name}: no camera")
+        members: dict[str, list[Emitter]] = {}
+        groups = _Names()
+        own: dict[str, str] = {}
+        for e in self.emitters:
+            rule = rules.group_for(e.names) if rules else None
+            if rule is not None:
+                g = rule.name
+            elif rules is not None and rules.default_group:
+                g = rules.default_group
+            else:
+                if e.key not in own:
+                    own[e.key] = groups(e.key, "light")
+                g = own[e.key]
+            members.setdefault(g, []).append(e)
+        if rules:
+            for r in rules.groups:
+                if r.name not in members:
+                    self.warn(f"rules: group {r.name!r} matches no light or emissive material "
+                              f"(patterns {', '.join(r.match)})")
+        light_groups = []
+        for g, es in members.items():
+            emission, how = self._emission(g, es, rules)
+            for e in es:
+                (e.doc if "group" in e.doc else e.doc["emitter"])["group"] = g
+            desc = (rules.description(g) if rules else "") or (
+                f"imported: {', '.join(dict.fromkeys(n for e in es for n in e.names[:1]))} ({how})")
+            light_groups.append({"name": g, "emission": emission, "description": desc[:300]})
+        doc = {"name": sanitize(name, "imported"), "description": description,
+               "generator": {"name": "illumix.import", "format": self.fmt, "file": self.source.name},
+               "materials": self.materials, "shapes": self.shapes, "lights": self.lights,
+               "light_groups": light_groups, "views": self.views}
+        if self.max_depth is not None:
+            doc["max_depth"] = self.max_depth
+        return doc
+
+    def _emission(self, group: str, es: list[Emitter], rules: Rules | None) -> tuple[str, str]:
+        """The group's illuminant name and how it was chosen; warns for members of another colour."""
+        named = rules.illuminant(group) if rules else None
+        xys = [e.xy for e in es if e.xy is not None]
+        if named:
+            emission, how = named, f"illuminant {named} from the rule file"
+        elif xys:
+            mean = np.mean(xys, axis=0)
+            emission, cct = illuminant_for(mean)
+            how = f"{emission}, chosen by colour temperature ~{cct:.0f} K"
+        else:
+            emission, how = "D65", "D65: no colour given"
+        for e in es:
+            if e.xy is not None and (d := uv_distance(e.xy, emission)) > COLOUR_TOLERANCE_UV:
+                self.warn(f"{e.what}: its colour (xy {np.round(e.xy, 4).tolist()}) is Δuv {d:.3f} from its group "
+                          f"{group!r}'s illuminant {emission}; it is rendered with {emission}")
+        return emission, how
+
+
+def _r(v) -> list[float]:
+    return [round(float(x), 9) for x in v]

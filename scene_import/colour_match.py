@@ -1,0 +1,176 @@
+"""Colours of imported scenes as illumix spectra: reflectances, light colours, texture images.
+
+- **Reflectances**: a linear sRGB colour (glTF ``baseColorFactor``, MTL ``Kd``, Mitsuba ``<rgb>``) becomes
+  the smooth Jakob & Hanika (2019) spectrum whose colour under D65 (CIE 1931 2°) is that colour
+  (:func:`renderer_jobs.blend_import.rgb_to_spectrum`: colour-science's ``XYZ_to_sd_Jakob2019``,
+  380–780 nm / 5 nm, given inline). Grey colours become a constant spectrum (exact, and no optimiser run).
+- **Light colours** are reduced to a chromaticity ``xy`` (CIE 1931) and a luminance factor ``Y``
+  (linear sRGB white ``(1, 1, 1)`` and the flat unit spectrum both have ``Y = 1``). A light group's
+  emission is then the CIE illuminant nearest in CIE 1960 ``uv`` (:func:`illuminant_for`): a named one
+  (A, D50, D55, D65, D75) when it is as close as the parametric ones, else ``daylight:K`` or
+  ``blackbody:K`` at the colour's correlated colour temperature (Ohno 2013). Illuminants are
+  photometrically normalised in illumix (:mod:`retarget.illuminants`), so an emitter's strength is its
+  luminance in the source file's units times ``Y``.
+- **Texture images** are 8-bit sRGB files; a constant factor (glTF ``baseColorFactor`` on a texture) is
+  baked into the pixels in linear light, because illumix bitmap textures carry no factor.
+"""
+
+from __future__ import annotations
+
+import warnings
+from functools import lru_cache
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+NAMED = ("A", "D50", "D55", "D65", "D75")  # named CIE illuminants preferred when they fit as well
+NAMED_SLACK_UV = 8e-4  # how much further (CIE 1960 uv) a named illuminant may be than the CCT one
+CCT_RANGE = (1000.0, 25000.0)  # K; outside it xy→CCT is unreliable and no lamp lives there
+GREY_SPREAD = 1e-4  # a colour whose channels differ by less than this is grey: a constant spectrum
+
+# sRGB (linear, D65) → CIE XYZ, IEC 61966-2-1; Y of white = 1.
+SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                        [0.2126729, 0.7151522, 0.0721750],
+                        [0.0193339, 0.1191920, 0.9503041]])
+
+
+# -- reflectances --------------------------------------------------------------------------------
+
+
+def reflectance(rgb, what: str, warn: Callable[[str], None]) -> dict:
+    """The reflectance spectrum spec (a schema ``reflectance`` dict) of a linear sRGB colour in [0, 1].
+
+    Grey → ``{"value": v}``; otherwise Jakob–Hanika inline table. Out-of-range components are
+    clipped and colours the smooth spectra cannot reach are approximated, each with a warning."""
+    c = np.asarray(rgb, dtype=float)[:3]
+    if not np.all(np.isfinite(c)):
+        warn(f"{what}: colour {c.tolist()} is not finite; used grey 0.5")
+        return {"value": 0.5}
+    if np.any(c < 0) or np.any(c > 1):
+        warn(f"{what}: colour {np.round(c, 4).tolist()} is outside [0, 1]; clipped")
+        c = np.clip(c, 0.0, 1.0)
+    if float(c.max() - c.min()) <= GREY_SPREAD:
+        return {"value": round(float(c.mean()), 6)}
+    from renderer_jobs.blend_import import rgb_to_spectrum
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        spec = rgb_to_spectrum(c, what)
+    for w in caught:
+        warn(str(w.message))
+    return spec
+
+
+def mean_rgb(values) -> np.ndarray:
+    """Mean linear colour ``(3,)`` of an image array ``(H, W, ≥3)`` of 8-bit sRGB codes."""
+    a = np.asarray(values)[..., :3].astype(np.float64) / 255.0
+    return srgb_decode(a).reshape(-1, 3).mean(axis=0)
+
+
+def srgb_decode(v: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] → linear (IEC 61966-2-1)."""
+    v = np.asarray(v, dtype=np.float64)
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def srgb_encode(v: np.ndarray) -> np.ndarray:
+    v = np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0)
+    return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055)
+
+
+def write_texture(image, factor, path: Path) -> None:
+    """Write a PIL image as an 8-bit sRGB PNG at ``path``, times the linear ``factor`` ``(3,)`` (the
+    alpha channel is dropped: illumix materials are opaque)."""
+    from PIL import Image
+
+    rgb = image.convert("RGB")
+    f = np.asarray(factor, dtype=float)[:3]
+    if not np.allclose(f, 1.0):
+        a = srgb_decode(np.asarray(rgb, dtype=np.float64) / 255.0) * np.clip(f, 0.0, 1.0)
+        rgb = Image.fromarray(np.round(srgb_encode(a) * 255.0).astype(np.uint8), "RGB")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rgb.save(path, format="PNG")
+
+
+# -- light colours --------------------------------------------------------------------------------
+
+
+def rgb_light(rgb) -> tuple[np.ndarray | None, float]:
+    """``(xy, Y)`` of a linear sRGB light colour (``xy`` None when it is black)."""
+    xyz = SRGB_TO_XYZ @ np.clip(np.asarray(rgb, dtype=float)[:3], 0.0, None)
+    s = float(xyz.sum())
+    return (xyz[:2] / s if s > 0 else None), float(xyz[1])
+
+
+@lru_cache(maxsize=1)
+def _cmfs_1nm() -> tuple[np.ndarray, np.ndarray]:
+    import colour
+
+    c = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return c.wavelengths, c.values
+
+
+def spectrum_light(wavelengths, values) -> tuple[np.ndarray | None, float]:
+    """``(xy, Y)`` of an emission spectrum sampled at ``wavelengths`` (nm), linearly interpolated and
+    zero outside its samples; ``Y`` relative to the flat unit spectrum over the CIE observer's range."""
+    wl, cmf = _cmfs_1nm()
+    s = np.interp(wl, np.asarray(wavelengths, float), np.asarray(values, float), left=0.0, right=0.0)
+    xyz = cmf.T @ s
+    y = float(xyz[1] / cmf[:, 1].sum())
+    return (xyz[:2] / xyz.sum() if xyz.sum() > 0 else None), y
+
+
+def _uv(xy) -> np.ndarray:
+    x, y = float(xy[0]), float(xy[1])
+    d = -2 * x + 12 * y + 3
+    return np.array([4 * x / d, 6 * y / d])
+
+
+@lru_cache(maxsize=256)
+def illuminant_xy(name: str) -> tuple[float, float]:
+    """Chromaticity of a named illumix illuminant (CIE 1931, on the default grid)."""
+    from retarget.grid import DEFAULT_GRID, resample
+    from retarget.illuminants import illuminant_spd
+
+    wl, cmf = _cmfs_1nm()
+    bars = np.stack([resample(wl, cmf[:, i], DEFAULT_GRID) for i in range(3)])
+    xyz = bars @ illuminant_spd(name, DEFAULT_GRID)
+    return float(xyz[0] / xyz.sum()), float(xyz[1] / xyz.sum())
+
+
+def uv_distance(xy, name: str) -> float:
+    """CIE 1960 ``Δuv`` between a chromaticity and an illuminant's."""
+    return float(np.linalg.norm(_uv(xy) - _uv(illuminant_xy(name))))
+
+
+def cct_duv(xy) -> tuple[float, float]:
+    """Correlated colour temperature (K) and ``Duv`` of a chromaticity (Ohno 2013)."""
+    from colour.temperature import uv_to_CCT
+
+    cct, duv = uv_to_CCT(_uv(xy), method="Ohno 2013")
+    return float(cct), float(duv)
+
+
+def illuminant_for(xy) -> tuple[str, float]:
+    """``(illuminant name, CCT in K)``: the CIE illuminant nearest the chromaticity (module docstring).
+
+    CCT is clamped to :data:`CCT_RANGE`; ``daylight:K`` exists for 4000–25000 K only."""
+    import colour
+
+    cct, _ = cct_duv(xy)
+    cct = float(np.clip(cct if np.isfinite(cct) else 6504.0, *CCT_RANGE))
+    candidates = [f"blackbody:{round(cct, -1):.0f}"]
+    if cct >= 4000:
+        # daylight:K is parameterised by the nominal CCT (old c2, as D65 is "6500 K")
+        with warnings.catch_warnings():  # its domain note near 4000 K; the range is checked below
+            warnings.simplefilter("ignore")
+            k = colour.temperature.xy_to_CCT_CIE_D(np.asarray(xy, float)) * 1.4380 / 1.4388
+        if 4000 <= k <= 25000:
+            candidates.append(f"daylight:{round(float(k), -1):.0f}")
+    best = min(candidates, key=lambda n: uv_distance(xy, n))
+    d_best = uv_distance(xy, best)
+    named = min(NAMED, key=lambda n: uv_distance(xy, n))
+    if uv_distance(xy, named) <= d_best + NAMED_SLACK_UV:
+        return named, cct
+    return best, cct
