@@ -78,3 +78,75 @@ def write_gltf(path: Path, *, glb: bool = False, extra_material_ext: bool = True
         doc.convert_buffers(g.BufferFormat.DATAURI)
         doc.save_json(str(path))
     return path
+
+
+def write_obj(path: Path) -> Path:
+    """An OBJ + MTL: a textured floor (map_Kd), a glossy red box side (Kd, Ks, Ns), and an emissive
+    ceiling panel (Ke) — two materials used by faces of the same object, one by another object."""
+    png = path.with_name(path.stem + "-floor.png")
+    texture_png(png, 16)
+    path.with_suffix(".mtl").write_text(
+        "newmtl floor\nKd 1 1 1\nmap_Kd " + png.name + "\nbump floor-bump.png\n\n"
+        "newmtl red\nKd 0.6 0.1 0.1\nKs 0.04 0.04 0.04\nNs 100\n\n"
+        "newmtl lamp\nKd 0.8 0.8 0.8\nKe 4 4 4\n")
+    path.write_text(
+        f"mtllib {path.with_suffix('.mtl').name}\n"
+        "o room\n"
+        "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\n"
+        "v -1 0 -1\nv -1 1 -1\nv -1 1 1\nv -1 0 1\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "vn 0 1 0\nvn 1 0 0\n"
+        "usemtl floor\nf 1/1/1 4/4/1 3/3/1 2/2/1\n"
+        "usemtl red\nf 5//2 6//2 7//2 8//2\n"
+        "o panel\n"
+        "v -0.5 2.5 -0.5\nv 0.5 2.5 -0.5\nv 0.5 2.5 0.5\nv -0.5 2.5 0.5\n"
+        "usemtl lamp\nf 9 10 11 12\n")
+    return path
+
+
+def write_xml(path: Path) -> Path:
+    """A Mitsuba 3 XML scene: $variables, a lookat sensor, a twosided diffuse rgb floor (rectangle scaled
+    and rotated), a sphere with a spectrum reflectance, a cube with a bitmap texture, an area light,
+    a warm point light, an unsupported BSDF and an unsupported emitter."""
+    texture_png(path.with_name("checker.png"), 8)
+    path.write_text("""<scene version="3.0.0">
+  <default name="spp" value="16"/>
+  <default name="res" value="64"/>
+  <integrator type="path"><integer name="max_depth" value="6"/></integrator>
+  <sensor type="perspective" id="cam">
+    <float name="fov" value="45"/>
+    <transform name="to_world"><lookat origin="0, 2, 5" target="0, 0.5, 0" up="0, 1, 0"/></transform>
+    <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="$res"/><integer name="height" value="48"/></film>
+  </sensor>
+  <bsdf type="twosided" id="floor-mat"><bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.4, 0.6"/></bsdf></bsdf>
+  <texture type="bitmap" id="tex"><string name="filename" value="checker.png"/></texture>
+  <bsdf type="diffuse" id="textured"><ref name="reflectance" id="tex"/></bsdf>
+  <shape type="rectangle" id="floor">
+    <transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/><translate y="-0.01"/></transform>
+    <ref id="floor-mat"/>
+  </shape>
+  <shape type="sphere" id="ball">
+    <point name="center" x="0.5" y="0.5" z="0"/><float name="radius" value="0.5"/>
+    <bsdf type="roughplastic"><spectrum name="diffuse_reflectance" value="400:0.1, 500:0.2, 600:0.6, 700:0.7"/>
+      <float name="alpha" value="0.2"/><string name="distribution" value="ggx"/></bsdf>
+  </shape>
+  <shape type="cube" id="box">
+    <transform name="to_world"><scale value="0.3"/><translate x="-1" y="0.3"/></transform>
+    <ref id="textured"/>
+  </shape>
+  <shape type="sphere" id="velvet-ball">
+    <point name="center" x="1.5" y="0.3" z="1"/><float name="radius" value="0.3"/>
+    <bsdf type="hair"/>
+  </shape>
+  <shape type="rectangle" id="ceiling_panel">
+    <transform name="to_world"><rotate x="1" angle="90"/><translate y="3"/></transform>
+    <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
+  </shape>
+  <emitter type="point" id="Lamp1">
+    <point name="position" x="1" y="2" z="1"/><rgb name="intensity" value="10, 6, 3"/>
+  </emitter>
+  <emitter type="sunsky" id="sky"/>
+</scene>
+""")
+    return path

@@ -1,0 +1,448 @@
+"""Mitsuba 3 XML scenes → an illumix scene document, read with ElementTree (plain data, no Mitsuba).
+
+Supported: ``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture``
+objects; transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as
+Mitsuba does: each operation left-multiplies the matrix so far).
+
+- **Shapes** ``obj``/``ply`` (the file is copied beside the scene), ``rectangle``, ``cube``, ``disk``,
+  ``sphere`` (``center``, ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), with ``to_world``.
+- **BSDFs** ``diffuse``, ``roughplastic``, ``plastic`` (α 0.01), ``conductor`` (α 0.01) /
+  ``roughconductor`` (``material`` if illumix knows it, else Al), ``dielectric`` (also ``thindielectric``
+  / ``roughdielectric``, with a warning), a ``twosided`` wrapper (illumix ``two_sided``; Mitsuba's
+  BSDFs are one-sided otherwise); wrappers ``bumpmap``/``normalmap``/``mask`` keep their inner BSDF
+  (warning). Reflectances: ``<rgb>`` (linear) → Jakob–Hanika spectrum; ``<float>``/``<spectrum value="v">``
+  → constant; ``<spectrum value="λ:v, …">`` or ``filename`` → a table; ``bitmap`` textures (PNG/JPEG,
+  copied) → bitmap textures.
+- **Emitters** ``area`` (in a shape), ``point``, ``spot``, ``directional``, ``constant`` and ``envmap``
+  → lights; each emitter's colour (rgb or spectrum) picks its group's CIE illuminant by colour
+  temperature and its strength is the colour's luminance ``Y`` (rgb white and the flat unit spectrum
+  both have ``Y = 1``; blackbody spectra are normalised to ``Y = 1`` × ``scale``).
+- **Sensors** ``perspective`` (``thinlens`` with a warning) → views: ``to_world`` (Mitsuba's camera
+  looks down its +z with +y up), ``fov`` + ``fov_axis`` or ``focal_length`` (35 mm film), film
+  ``width``/``height`` (768×576 default).
+
+Anything else (integrators other than ``path`` ``max_depth``, ``include``, other plugins) is a warning
+naming the object.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from renderer_jobs.scene_schema import CONDUCTORS, SceneError
+from scene_import.builder import SceneBuilder
+from scene_import.colour_match import reflectance, rgb_light, spectrum_light
+
+IOR = {"vacuum": 1.0, "helium": 1.00004, "hydrogen": 1.00013, "air": 1.00028, "carbon dioxide": 1.00045,
+       "water": 1.333, "acetone": 1.36, "ethanol": 1.361, "carbon tetrachloride": 1.461, "glycerol": 1.4729,
+       "benzene": 1.501, "silicone oil": 1.52045, "bromine": 1.661, "water ice": 1.31, "fused quartz": 1.458,
+       "pyrex": 1.47, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "sodium chloride": 1.544,
+       "amber": 1.55, "pet": 1.575, "diamond": 2.419}
+SHAPES = ("obj", "ply", "rectangle", "cube", "disk", "sphere", "cylinder")
+
+
+class _Doc:
+    def __init__(self, root: ET.Element, path: Path, b: SceneBuilder) -> None:
+        self.path, self.b = path, b
+        self.vars: dict[str, str] = {}
+        self.ids: dict[str, ET.Element] = {}
+        self.textures: dict[int, str] = {}
+        for el in root:
+            if el.tag == "default":
+                self.vars.setdefault(el.get("name", ""), el.get("value", ""))
+        for el in root.iter():
+            if el.get("id") and el.tag != "ref":
+                self.ids[self.sub(el.get("id"))] = el
+
+    def sub(self, text: str | None) -> str:
+        """``$name`` / ``${name}`` replaced by ``<default>`` values (unknown ones: an error)."""
+        def repl(m: re.Match) -> str:
+            k = m.group(1) or m.group(2)
+            if k not in self.vars:
+                raise SceneError(f"{self.path}: variable ${k} has no <default>; give one")
+            return self.vars[k]
+        return re.sub(r"\$\{(\w+)\}|\$(\w+)", repl, text or "")
+
+    def get(self, el: ET.Element, attr: str, default: str | None = None) -> str | None:
+        v = el.get(attr)
+        return default if v is None else self.sub(v)
+
+    def child(self, el: ET.Element, name: str) -> ET.Element | None:
+        for c in el:
+            if self.get(c, "name") == name:
+                return self.ids.get(self.get(c, "id"), c) if c.tag == "ref" else c
+        return None
+
+    def value(self, el: ET.Element, name: str, default=None):
+        c = self.child(el, name)
+        if c is None:
+            return default
+        v = self.get(c, "value")
+        if c.tag in ("float", "integer"):
+            return float(v)
+        if c.tag == "boolean":
+            return v.lower() == "true"
+        if c.tag in ("point", "vector"):
+            return _vec(self, c)
+        return v
+
+    def deref(self, el: ET.Element) -> ET.Element:
+        if el.tag == "ref":
+            ref = self.get(el, "id")
+            if ref not in self.ids:
+                raise SceneError(f"{self.path}: <ref id={ref!r}> names no object")
+            return self.ids[ref]
+        return el
+
+
+def _vec(d: _Doc, el: ET.Element) -> np.ndarray:
+    if el.get("value") is not None:
+        parts = [float(x) for x in re.split(r"[,\s]+", d.get(el, "value").strip()) if x]
+        return np.asarray(parts * 3 if len(parts) == 1 else parts, float)
+    return np.array([float(d.get(el, k, "0")) for k in "xyz"])
+
+
+def transform(d: _Doc, el: ET.Element | None) -> np.ndarray:
+    """The 4×4 matrix of a ``<transform>`` element (identity for None)."""
+    m = np.eye(4)
+    if el is None:
+        return m
+    from renderer_jobs.scene_schema import rotation_matrix
+
+    for op in el:
+        t = np.eye(4)
+        if op.tag == "matrix":
+            t = np.asarray([float(x) for x in re.split(r"[,\s]+", d.get(op, "value").strip()) if x]).reshape(4, 4)
+        elif op.tag == "translate":
+            t[:3, 3] = _vec(d, op) if op.get("value") else [float(d.get(op, k, "0")) for k in "xyz"]
+        elif op.tag == "scale":
+            s = _vec(d, op) if op.get("value") else [float(d.get(op, k, "1")) for k in "xyz"]
+            t = np.diag([*s, 1.0])
+        elif op.tag == "rotate":
+            axis = _vec(d, op) if op.get("value") else [float(d.get(op, k, "0")) for k in "xyz"]
+            t = rotation_matrix(tuple(axis), float(d.get(op, "angle", "0")))
+        elif op.tag == "lookat":
+            o, tg = _vec(d, ET.Element("p", value=d.get(op, "origin"))), _vec(d, ET.Element("p", value=d.get(op, "target")))
+            up = _vec(d, ET.Element("p", value=d.get(op, "up", "0, 1, 0")))
+            f = (tg - o) / np.linalg.norm(tg - o)
+            left = np.cross(up, f)
+            left /= np.linalg.norm(left)
+            t[:3, 0], t[:3, 1], t[:3, 2], t[:3, 3] = left, np.cross(f, left), f, o
+        else:
+            d.b.warn(f"{d.path.name}: transform operation <{op.tag}> is not supported; ignored")
+        m = t @ m
+    return m
+
+
+def _to_world(d: _Doc, el: ET.Element) -> np.ndarray:
+    t = next((c for c in el if c.tag == "transform" and d.get(c, "name") == "to_world"), None)
+    return transform(d, t)
+
+
+def _colour(d: _Doc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None, float, str]:
+    """``(xy, Y, kind)`` of an emission value element (rgb / spectrum / float)."""
+    if c is None:
+        return rgb_light([1, 1, 1])[0], 1.0, "default"
+    if c.tag == "rgb":
+        xy, y = rgb_light(_vec(d, c))
+        return xy, y, "rgb"
+    if c.tag == "float":
+        v = float(d.get(c, "value"))
+        return rgb_light([1, 1, 1])[0] if v > 0 else None, v, "float"
+    if c.tag == "spectrum":
+        if d.get(c, "type") == "blackbody":
+            from scene_import.colour_match import illuminant_xy
+
+            t = float(d.value(c, "temperature", 6504.0))
+            return np.asarray(illuminant_xy(f"blackbody:{t:g}")), 1.0, "blackbody"
+        wl, v = _spectrum_samples(d, c)
+        if wl is None:
+            return (rgb_light([1, 1, 1])[0] if v[0] > 0 else None), float(v[0]), "float"
+        xy, y = spectrum_light(wl, v)
+        return xy, y, "spectrum"
+    d.b.warn(f"{what}: emission given as <{c.tag}> (a texture?) is not supported; white of radiance 1 used")
+    return rgb_light([1, 1, 1])[0], 1.0, "default"
+
+
+def _spectrum_samples(d: _Doc, c: ET.Element) -> tuple[np.ndarray | None, np.ndarray]:
+    if c.get("filename"):
+        rows = [ln.split() for ln in (d.path.parent / d.get(c, "filename")).read_text().splitlines()
+                if ln.strip() and not ln.lstrip().startswith("#")]
+        a = np.asarray([[float(x) for x in r[:2]] for r in rows])
+        return a[:, 0], a[:, 1]
+    text = d.get(c, "value").strip()
+    if ":" not in text:
+        return None, np.array([float(text)])
+    pairs = [p.split(":") for p in re.split(r"[,\s]+", text) if p]
+    a = np.asarray([[float(w), float(v)] for w, v in pairs])
+    return a[:, 0], a[:, 1]
+
+
+def _reflectance(d: _Doc, c: ET.Element | None, what: str, default: float = 0.5):
+    """A schema reflectance from a ``reflectance``-like child element."""
+    if c is None:
+        return {"value": default}
+    c = d.deref(c)
+    if c.tag == "rgb":
+        return reflectance(_vec(d, c), what, d.b.warn)
+    if c.tag == "float":
+        return {"value": float(d.get(c, "value"))}
+    if c.tag == "spectrum":
+        if d.get(c, "type") == "blackbody":
+            d.b.warn(f"{what}: a blackbody reflectance makes no sense; grey 0.5 used")
+            return {"value": 0.5}
+        wl, v = _spectrum_samples(d, c)
+        return {"value": float(v[0])} if wl is None else {"wavelengths": wl.tolist(), "values": v.tolist()}
+    if c.tag == "texture" and d.get(c, "type") == "bitmap":
+        src = d.path.parent / (d.value(c, "filename", "") or "")
+        if src.suffix.lower() not in (".png", ".jpg", ".jpeg") or not src.is_file():
+            d.b.warn(f"{what}: bitmap {src.name!r} is not a readable PNG/JPEG; grey {default} used")
+            return {"value": default}
+        if d.value(c, "raw", False):
+            d.b.warn(f"{what}: bitmap {src.name!r} has raw=true; it is read as sRGB")
+        key = id(c)
+        if key not in d.textures:
+            path, rel = d.b.file_path(src.stem, src.suffix.lower())
+            shutil.copyfile(src, path)
+            d.textures[key] = rel
+        out: dict = {"file": d.textures[key]}
+        uv = next((t for t in c if t.tag == "transform" and d.get(t, "name") == "to_uv"), None)
+        if uv is not None:
+            m = transform(d, uv)
+            if np.allclose(m[:3, :3], np.diag(np.diag(m[:3, :3]))) and np.allclose(m[:2, 3], 0):
+                out["scale"] = [float(m[0, 0]), float(m[1, 1])]
+            else:
+                d.b.warn(f"{what}: bitmap to_uv other than a scale is ignored")
+        return out
+    d.b.warn(f"{what}: <{c.tag} type={d.get(c, 'type')!r}> is not supported as a reflectance; grey {default} used")
+    return {"value": default}
+
+
+def _ior(d: _Doc, el: ET.Element, name: str, default: float) -> float:
+    v = d.value(el, name)
+    if v is None:
+        return default
+    try:
+        return float(v)
+    except ValueError:
+        if str(v).lower() in IOR:
+            return IOR[str(v).lower()]
+        d.b.warn(f"{name} {v!r} is not a known IOR name; {default} used")
+        return default
+
+
+def _bsdf(d: _Doc, el: ET.Element, what: str, two: bool = False) -> dict:
+    t = d.get(el, "type")
+    warn = d.b.warn
+    if t == "twosided":
+        inner = next((d.deref(c) for c in el if c.tag in ("bsdf", "ref")), None)
+        return _bsdf(d, inner, what, True) if inner is not None else {"kind": "diffuse", "reflectance": {"value": 0.5}}
+    if t in ("bumpmap", "normalmap", "mask"):
+        warn(f"{what}: <bsdf type={t!r}> is ignored (its inner BSDF is used)")
+        inner = next((d.deref(c) for c in el if c.tag in ("bsdf", "ref")), None)
+        return _bsdf(d, inner, what, two) if inner is not None else {"kind": "diffuse", "reflectance": {"value": 0.5}}
+    dist = d.value(el, "distribution", "beckmann")
+    if t in ("roughplastic", "roughconductor") and dist != "ggx":
+        warn(f"{what}: {dist} microfacets are rendered as GGX of the same alpha")
+    alpha = float(d.value(el, "alpha", 0.1)) if t.startswith("rough") else 0.01
+    if t in ("plastic", "conductor"):
+        warn(f"{what}: smooth {t} is approximated as rough with alpha 0.01")
+    alpha = min(max(alpha, 1e-3), 1.0)
+    if t == "diffuse":
+        return {"kind": "diffuse", "reflectance": _reflectance(d, d.child(el, "reflectance"), what), "two_sided": two}
+    if t in ("plastic", "roughplastic"):
+        return {"kind": "roughplastic", "reflectance": _reflectance(d, d.child(el, "diffuse_reflectance"), what),
+                "alpha": alpha, "int_ior": min(max(_ior(d, el, "int_ior", 1.49), 1.0001), 4.0),
+                "ext_ior": min(max(_ior(d, el, "ext_ior", 1.000277), 1.0), 4.0), "two_sided": two}
+    if t in ("conductor", "roughconductor"):
+        mat = d.value(el, "material", "none" if d.child(el, "eta") is None else None)
+        if mat not in CONDUCTORS:
+            warn(f"{what}: conductor {'given by eta/k' if mat is None else repr(mat)} is not in illumix's table; "
+                 "aluminium (Al) used")
+            mat = "Al"
+        out = {"kind": "roughconductor", "conductor": mat, "alpha": alpha, "two_sided": two}
+        sr = d.child(el, "specular_reflectance")
+        if sr is not None:
+            spec = _reflectance(d, sr, what, 1.0)
+            if "file" in spec:
+                warn(f"{what}: a textured specular_reflectance is not supported; 1 used")
+            else:
+                out["specular_reflectance"] = spec
+        return out
+    if t in ("dielectric", "thindielectric", "roughdielectric"):
+        if t != "dielectric":
+            warn(f"{what}: {t} is imported as a smooth dielectric")
+        return {"kind": "dielectric", "int_ior": min(max(_ior(d, el, "int_ior", 1.5046), 1.0001), 4.0),
+                "ext_ior": min(max(_ior(d, el, "ext_ior", 1.000277), 1.0), 4.0)}
+    warn(f"{what}: <bsdf type={t!r}> is not supported; grey diffuse 0.5 used")
+    return {"kind": "diffuse", "reflectance": {"value": 0.5}, "two_sided": two}
+
+
+def import_mitsuba_xml(path: Path, b: SceneBuilder) -> str:
+    """Fill ``b`` from a Mitsuba 3 XML file; returns the scene's name (module docstring)."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise SceneError(f"{path}: not a readable XML file ({exc})") from None
+    if root.tag != "scene":
+        raise SceneError(f"{path}: the root element is <{root.tag}>, not a Mitsuba <scene>")
+    d = _Doc(root, path, b)
+    mats: dict[int, str] = {}
+    for i, el in enumerate(root):
+        what = f"<{el.tag}{' type=' + repr(d.get(el, 'type')) if el.get('type') else ''}" \
+               f"{' id=' + repr(d.get(el, 'id')) if el.get('id') else ''}>"
+        if el.tag in ("default", "bsdf", "texture", "spectrum", "rgb"):
+            continue
+        if el.tag == "shape":
+            _shape(d, el, i, mats)
+        elif el.tag == "emitter":
+            _emitter(d, el, d.get(el, "id") or f"{d.get(el, 'type')}{i}", np.eye(4))
+        elif el.tag == "sensor":
+            _sensor(d, el, i)
+        elif el.tag == "integrator":
+            depth = d.value(el, "max_depth")
+            if d.get(el, "type") not in ("path", "volpath", "direct"):
+                b.warn(f"{what}: integrator is not used (illumix renders with its own path tracer)")
+            if depth is not None and 1 <= depth <= 64:
+                b.max_depth = int(depth)
+            elif depth is not None:
+                b.warn(f"{what}: max_depth {depth:g} is outside 1..64; illumix's default 8 used")
+        else:
+            b.warn(f"{what}: not supported; ignored")
+    return path.stem
+
+
+def _shape(d: _Doc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
+    t = d.get(el, "type")
+    name = d.get(el, "id") or d.get(el, "name") or f"{t}{i}"
+    what = f"shape {name!r}"
+    b = d.b
+    if t not in SHAPES:
+        b.warn(f"{what}: shape type {t!r} is not supported; skipped")
+        return
+    m = _to_world(d, el)
+    doc: dict = {"type": t}
+    if t in ("obj", "ply"):
+        src = d.path.parent / (d.value(el, "filename", "") or "")
+        if not src.is_file():
+            b.warn(f"{what}: mesh file {src.name!r} does not exist; skipped")
+            return
+        path, rel = b.file_path(src.stem, src.suffix.lower())
+        shutil.copyfile(src, path)
+        doc.update(filename=rel, face_normals=bool(d.value(el, "face_normals", False)))
+    elif t == "sphere":
+        doc.update(center=list(d.value(el, "center", np.zeros(3))), radius=float(d.value(el, "radius", 1.0)))
+    elif t == "cylinder":
+        doc.update(p0=list(d.value(el, "p0", np.zeros(3))), p1=list(d.value(el, "p1", np.array([0, 0, 1.0]))),
+                   radius=float(d.value(el, "radius", 1.0)))
+    if d.value(el, "flip_normals", False):
+        b.warn(f"{what}: flip_normals is ignored")
+    if not np.allclose(m, np.eye(4)):
+        doc["transform"] = {"matrix": np.round(m, 12).tolist()}
+    b.extend_bounds(m[:3, 3])
+    bsdf = next((d.deref(c) for c in el if c.tag in ("bsdf", "ref")), None)
+    if bsdf is not None and bsdf.tag == "bsdf":
+        if id(bsdf) not in mats:
+            mname = d.get(bsdf, "id") or f"{name}-bsdf"
+            mats[id(bsdf)] = b.add_material(mname, _bsdf(d, bsdf, f"bsdf {mname!r}"))
+        doc["material"] = mats[id(bsdf)]
+    em_el = next((c for c in el if c.tag == "emitter"), None)
+    emitter = None
+    if em_el is not None:
+        if d.get(em_el, "type") != "area":
+            b.warn(f"{what}: emitter type {d.get(em_el, 'type')!r} inside a shape is not supported; ignored")
+        else:
+            xy, y, _ = _colour(d, d.child(em_el, "radiance"), what)
+            if xy is not None and y > 0:
+                if doc.get("material") and b.materials[doc["material"]]["kind"] == "dielectric":
+                    b.warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped")
+                else:
+                    emitter = ([name, d.get(em_el, "id") or ""], name, xy, y)
+    if "material" not in doc and emitter is None:
+        # Mitsuba's default BSDF is a grey diffuse (reflectance 0.5), one-sided
+        if "default-diffuse" not in b.materials:
+            b.materials["default-diffuse"] = {"kind": "diffuse", "reflectance": {"value": 0.5}, "two_sided": False}
+        doc["material"] = "default-diffuse"
+    b.add_shape(name, doc, emitter, what=what)
+
+
+def _emitter(d: _Doc, el: ET.Element, name: str, parent: np.ndarray) -> None:
+    t = d.get(el, "type")
+    b = d.b
+    what = f"emitter {name!r}"
+    m = parent @ _to_world(d, el)
+    if t == "point":
+        pos = d.value(el, "position")
+        pos = m[:3, 3] if pos is None else pos
+        xy, y, _ = _colour(d, d.child(el, "intensity"), what)
+        if xy is not None and y > 0:
+            b.add_light(name, {"type": "point", "position": np.asarray(pos, float).tolist()}, xy, y, what=what)
+    elif t == "spot":
+        xy, y, _ = _colour(d, d.child(el, "intensity"), what)
+        cutoff = float(d.value(el, "cutoff_angle", 20.0))
+        beam = float(d.value(el, "beam_width", cutoff * 3 / 4))
+        pos, fwd = m[:3, 3], m[:3, 2] / np.linalg.norm(m[:3, 2])
+        if xy is not None and y > 0:
+            b.add_light(name, {"type": "spot", "position": pos.tolist(), "target": (pos + fwd).tolist(),
+                               "cutoff_angle": min(cutoff, 89.9), "beam_width": min(beam, cutoff, 89.9)}, xy, y,
+                        what=what)
+    elif t == "directional":
+        xy, y, _ = _colour(d, d.child(el, "irradiance"), what)
+        direction = d.value(el, "direction")
+        direction = m[:3, 2] if direction is None else m[:3, :3] @ direction
+        if xy is not None and y > 0:
+            b.add_light(name, {"type": "directional", "direction": np.asarray(direction, float).tolist()}, xy, y,
+                        what=what)
+    elif t == "constant":
+        xy, y, _ = _colour(d, d.child(el, "radiance"), what)
+        if xy is not None and y > 0:
+            b.add_light(name, {"type": "constant"}, xy, y, what=what)
+    elif t == "envmap":
+        src = d.path.parent / (d.value(el, "filename", "") or "")
+        if not src.is_file():
+            b.warn(f"{what}: environment map {src.name!r} does not exist; skipped")
+            return
+        path, rel = b.file_path(src.stem, src.suffix.lower())
+        shutil.copyfile(src, path)
+        b.warn(f"{what}: the environment map's colours are replaced by its light group's illuminant (D65 unless "
+               "a rule names one); its luminance is kept")
+        doc = {"type": "envmap", "filename": rel}
+        if not np.allclose(m, np.eye(4)):
+            doc["transform"] = {"matrix": np.round(m, 12).tolist()}
+        b.add_light(name, doc, rgb_light([1, 1, 1])[0], float(d.value(el, "scale", 1.0)), what=what)
+    else:
+        b.warn(f"{what}: emitter type {t!r} is not supported; skipped")
+
+
+def _sensor(d: _Doc, el: ET.Element, i: int) -> None:
+    t = d.get(el, "type")
+    name = d.get(el, "id") or f"sensor{i}"
+    what = f"sensor {name!r}"
+    if t not in ("perspective", "thinlens"):
+        d.b.warn(f"{what}: sensor type {t!r} cannot be imported; skipped")
+        return
+    if t == "thinlens":
+        d.b.warn(f"{what}: thin-lens depth of field is ignored (a pinhole camera)")
+    film = next((c for c in el if c.tag == "film"), None)
+    w = int(d.value(film, "width", 768)) if film is not None else 768
+    h = int(d.value(film, "height", 576)) if film is not None else 576
+    fov = d.value(el, "fov")
+    axis = (d.value(el, "fov_axis", "x") or "x").lower()
+    if fov is None:
+        f = float(str(d.value(el, "focal_length", "50mm")).removesuffix("mm"))
+        fov, axis = math.degrees(2 * math.atan(36.0 / (2 * f))), "x"
+    t_half = math.tan(math.radians(float(fov)) / 2)
+    if axis == "y" or (axis == "smaller" and h < w) or (axis == "larger" and h > w):
+        t_half *= w / h
+    elif axis == "diagonal":
+        t_half *= w / math.hypot(w, h)
+    m = _to_world(d, el)
+    if np.linalg.det(m[:3, :3]) < 0:
+        d.b.warn(f"{what}: its to_world mirrors the image (e.g. scale x -1); the view is not mirrored")
+    d.b.add_view(name, m[:3, 3], m[:3, 2], m[:3, 1], math.degrees(2 * math.atan(t_half)), (w, h))
