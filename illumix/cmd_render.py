@@ -50,7 +50,10 @@ def _split(text: str | None, flag: str) -> list[str] | None:
 
 
 def render(
-    config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]})."),
+    config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]}), or a "
+                                                    "scene to import: .gltf, .glb, .obj, Mitsuba .xml, .blend."),
+    rules: Path | None = typer.Option(None, "--rules", help="Light-group rule file for an imported CONFIG "
+                                                            "(see `illumix import`)."),
     store: str = typer.Option(..., "--store", help="Cube store directory or fsspec URL (created if missing)."),
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
     demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
@@ -103,10 +106,12 @@ def render(
 
     from renderer_jobs import jobs
     from renderer_jobs.mitsuba_render import RenderSettings
-    from renderer_jobs.scene_load import load_scenes
+    from illumix.scene_files import load_scene_file
     from renderer_jobs.scene_schema import SceneError
 
     try:
+        if rules is not None and config is None:
+            raise UserError("--rules applies to an imported scene file CONFIG")
         if demo == (config is not None):
             raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
         if executor == "local" and address:
@@ -117,7 +122,7 @@ def render(
 
             scenes = [demo_room(demo_seed)]
         else:
-            scenes = load_scenes(config)
+            scenes = load_scene_file(config, rules)
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
         for s in scenes:
             if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified" and backend == "mitsuba":

@@ -1,0 +1,102 @@
+"""Scene files the CLI accepts: illumix YAML/JSON (and ``.blend``) as they are, and glTF / OBJ / Mitsuba XML
+through :mod:`scene_import`.
+
+An imported file is converted once into a cache directory — ``.illumix-import/<stem>-<key>/`` beside
+the file (or ``$ILLUMIX_CACHE/import/`` when that folder is not writable), ``key`` a sha256 of the
+file's bytes, the rule file's and the importer's sources — holding ``scene.yaml``, its meshes and
+images, and ``warnings.json``. A later load of the same file reuses it and repeats its warnings.
+Files the imported one references (glTF buffers and images, MTL, XML meshes) are not part of the key:
+delete the cache directory after changing only them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+
+IMPORTED = (".gltf", ".glb", ".obj", ".xml")
+
+
+def _key(path: Path, rules: Path | None) -> str:
+    import scene_import
+
+    h = hashlib.sha256(path.read_bytes())
+    if rules is not None:
+        h.update(b"rules" + Path(rules).read_bytes())
+    for src in sorted(Path(scene_import.__file__).parent.glob("*.py")):
+        h.update(src.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _cache_dir(path: Path, key: str) -> Path:
+    local = path.parent / ".illumix-import"
+    if os.access(path.parent, os.W_OK):
+        return local / f"{path.stem}-{key}"
+    root = Path(os.environ.get("ILLUMIX_CACHE", Path.home() / ".cache" / "illumix")) / "import"
+    return root / f"{path.stem}-{key}"
+
+
+def import_cached(path: str | Path, rules: str | Path | None = None) -> tuple[Path, list[str]]:
+    """``(scene.yaml in the cache, warnings)`` for an importable file, converting it when not cached."""
+    from renderer_jobs.scene_spectra import SceneError
+    from scene_import import import_scene
+
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"scene file {str(p)!r} {'is a directory' if p.is_dir() else 'does not exist'}")
+    if rules is not None and not Path(rules).is_file():
+        raise SceneError(f"rule file {str(rules)!r} does not exist")
+    out = _cache_dir(p, _key(p, None if rules is None else Path(rules)))
+    if (out / "scene.yaml").is_file() and (out / "warnings.json").is_file():
+        return out / "scene.yaml", json.loads((out / "warnings.json").read_text())
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    try:
+        doc, warns = import_scene(p, tmp, rules, assets="assets")
+        write_yaml(doc, tmp / "scene.yaml")
+        (tmp / "warnings.json").write_text(json.dumps(warns))
+        try:
+            tmp.rename(out)
+        except OSError:  # another process got there first (its copy is as good) or a stale one
+            if not (out / "warnings.json").is_file():
+                shutil.rmtree(out, ignore_errors=True)
+                tmp.rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out / "scene.yaml", warns
+
+
+def write_yaml(doc: dict, path: Path) -> None:
+    """Write a scene document as YAML through a temporary file and a rename (atomic)."""
+    import yaml
+
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    text = yaml.safe_dump(doc, sort_keys=False, allow_unicode=True, width=120)
+    if path.suffix.lower() == ".json":
+        text = json.dumps(doc, indent=1)
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:
+    """The :class:`~renderer_jobs.scene_model.Scene` s of a scene file: ``.yaml``/``.yml``/``.json``/``.blend``
+    via :func:`renderer_jobs.scene_load.load_scenes`; ``.gltf``/``.glb``/``.obj``/``.xml`` imported
+    (module docstring), each import warning re-issued as a ``UserWarning``. ``rules`` applies to
+    imported files only."""
+    from renderer_jobs.scene_load import load_scenes
+    from renderer_jobs.scene_spectra import SceneError
+
+    p = Path(path)
+    if p.suffix.lower() not in IMPORTED:
+        if rules is not None:
+            raise SceneError(f"--rules applies to imported files ({', '.join(IMPORTED)}), not {p.suffix!r}")
+        return load_scenes(p)
+    yaml_path, warns = import_cached(p, rules)
+    for w in warns:
+        warnings.warn(f"{p.name}: {w}", UserWarning, stacklevel=2)
+    return load_scenes(yaml_path)
