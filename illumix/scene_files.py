@@ -20,6 +20,7 @@ import warnings
 from pathlib import Path
 
 IMPORTED = (".gltf", ".glb", ".obj", ".xml")
+NATIVE = (".yaml", ".yml", ".json", ".blend")
 
 
 def _key(path: Path, rules: Path | None) -> str:
@@ -92,6 +93,9 @@ def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:
     from renderer_jobs.scene_spectra import SceneError
 
     p = Path(path)
+    if p.suffix.lower() not in IMPORTED + NATIVE:
+        raise SceneError(f"{p}: cannot read {p.suffix or 'a file without extension'!r} scenes; give "
+                         f"{', '.join(NATIVE)} (illumix scene files) or {', '.join(IMPORTED)} (imported)")
     if p.suffix.lower() not in IMPORTED:
         if rules is not None:
             raise SceneError(f"--rules applies to imported files ({', '.join(IMPORTED)}), not {p.suffix!r}")

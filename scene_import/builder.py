@@ -194,7 +194,7 @@ class SceneBuilder:
                "light_groups": light_groups, "views": self.views}
         if self.max_depth is not None:
             doc["max_depth"] = self.max_depth
-        return doc
+        return _plain(doc)
 
     def _emission(self, group: str, es: list[Emitter], rules: Rules | None) -> tuple[str, str]:
         """The group's illuminant name and how it was chosen; warns for members of another colour."""
@@ -213,6 +213,17 @@ class SceneBuilder:
                 self.warn(f"{e.what}: its colour (xy {np.round(e.xy, 4).tolist()}) is Δuv {d:.3f} from its group "
                           f"{group!r}'s illuminant {emission}; it is rendered with {emission}")
         return emission, how
+
+
+def _plain(x):
+    """The document with numpy scalars and arrays as plain Python (YAML/JSON writable)."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
 
 
 def _r(v) -> list[float]:
