@@ -30,9 +30,9 @@ def import_cmd(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary (with the warnings) on stdout."),
 ) -> None:
     """Convert a glTF / OBJ / Mitsuba XML scene into an illumix scene file."""
+    from illumix.scene_files import write_yaml
     from renderer_jobs.scene_load import scene_from_dict
     from renderer_jobs.scene_spectra import SceneError
-    from illumix.scene_files import write_yaml
     from scene_import import import_scene
 
     if out.suffix.lower() not in (".yaml", ".yml", ".json"):

@@ -104,9 +104,9 @@ def render(
     """Render spectral transport cubes (one per view and light group) into a cube store."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from illumix.scene_files import load_scene_file
     from renderer_jobs import jobs
     from renderer_jobs.mitsuba_render import RenderSettings
-    from illumix.scene_files import load_scene_file
     from renderer_jobs.scene_schema import SceneError
 
     try:

@@ -80,7 +80,7 @@ def parse_obj(path: Path, warn):
                 for c in parts[1:]:
                     ids = (c.split("/") + ["", ""])[:3]
                     out = []
-                    for i, (s, n) in enumerate(zip(ids, (len(v), len(vt), len(vn)))):
+                    for s, n in zip(ids, (len(v), len(vt), len(vn)), strict=True):
                         if s == "":
                             out.append(-1)
                             continue

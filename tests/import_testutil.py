@@ -39,7 +39,7 @@ def write_gltf(path: Path, *, glb: bool = False, extra_material_ext: bool = True
            g.Accessor(bufferView=1, componentType=5126, count=4, type="VEC3"),
            g.Accessor(bufferView=2, componentType=5126, count=4, type="VEC2"),
            g.Accessor(bufferView=3, componentType=5123, count=6, type="SCALAR")]
-    prim = dict(attributes=g.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), indices=3)
+    prim = {"attributes": g.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), "indices": 3}
     mats = [g.Material(name="Painted", doubleSided=True,
                        pbrMetallicRoughness=g.PbrMetallicRoughness(baseColorTexture=g.TextureInfo(index=0),
                                                                    metallicFactor=0.0, roughnessFactor=1.0)),

@@ -233,7 +233,7 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     white = e @ bars  # a white Lambertian facing the sun, × π
     white_xy = colour.XYZ_to_xy(white / white[1])
     # the camera frames [-1, 1]² exactly: patch centres at pixels 8 and 24; average 10×10 inside each
-    for (r, c), (py, px) in zip([(0, 0), (0, 1), (1, 0), (1, 1)], [(8, 8), (8, 24), (24, 8), (24, 24)]):
+    for (r, c), (py, px) in zip([(0, 0), (0, 1), (1, 0), (1, 1)], [(8, 8), (8, 24), (24, 8), (24, 24)], strict=True):
         patch = cube[py - 5:py + 5, px - 5:px + 5].reshape(-1, cube.shape[2]).mean(axis=0) * math.pi
         xyz = patch @ bars / white[1]
         lin = srgb_decode(t.PATCHES[r, c] / 255.0)
