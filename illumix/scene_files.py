@@ -93,7 +93,7 @@ def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:
     from renderer_jobs.scene_spectra import SceneError
 
     p = Path(path)
-    if p.suffix.lower() not in IMPORTED + NATIVE:
+    if p.suffix.lower() not in IMPORTED + NATIVE and p.is_file():  # (load_scenes words a missing file or a folder)
         raise SceneError(f"{p}: cannot read {p.suffix or 'a file without extension'!r} scenes; give "
                          f"{', '.join(NATIVE)} (illumix scene files) or {', '.join(IMPORTED)} (imported)")
     if p.suffix.lower() not in IMPORTED:
