@@ -55,7 +55,7 @@ def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> Non
     from retarget.denoise_methods import DEFAULT_METHOD
 
     d = RenderSettings()  # the renderer's defaults
-    render(config=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
+    render(config=None, rules=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
            wavelengths=d.wavelengths, sampler=d.sampler, bands_per_path=d.bands_per_path, views=None,
            groups=None, workers=workers, executor="local", address=None, skip_dark=True, adaptive=d.adaptive,
            noise_target=None, illumination=True, denoise=DEFAULT_METHOD, backend="mitsuba", overwrite=False,
