@@ -163,7 +163,7 @@ class SceneBuilder:
             self.default_view(f"{self.source.name}: no camera")
         members: dict[str, list[Emitter]] = {}
         groups = _Names()
-        own: dict[str, str] = {}
+        own: dict[tuple[str, str], str] = {}
         for e in self.emitters:
             rule = rules.group_for(e.names) if rules else None
             if rule is not None:
@@ -171,9 +171,11 @@ class SceneBuilder:
             elif rules is not None and rules.default_group:
                 g = rules.default_group
             else:
-                if e.key not in own:
-                    own[e.key] = groups(e.key, "light")
-                g = own[e.key]
+                # keyed by kind too: a light and an emissive material of the same name stay apart
+                k = ("light" if "group" in e.doc else "shape", e.key)
+                if k not in own:
+                    own[k] = groups(e.key, "light")
+                g = own[k]
             members.setdefault(g, []).append(e)
         if rules:
             for r in rules.groups:

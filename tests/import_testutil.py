@@ -139,6 +139,10 @@ def write_xml(path: Path) -> Path:
     <point name="center" x="1.5" y="0.3" z="1"/><float name="radius" value="0.3"/>
     <bsdf type="hair"/>
   </shape>
+  <shape type="cylinder" id="rail">
+    <point name="p0" x="-1" y="0" z="-1"/><point name="p1" x="-1" y="2" z="-1"/><float name="radius" value="0.02"/>
+    <bsdf type="conductor"><string name="material" value="Au"/></bsdf>
+  </shape>
   <shape type="rectangle" id="ceiling_panel">
     <transform name="to_world"><rotate x="1" angle="90"/><translate y="3"/></transform>
     <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>

@@ -129,6 +129,9 @@ def test_mitsuba_xml_round_trip(tmp_path):
     assert scene.group("Lamp1").emission.startswith("blackbody:3")
     assert scene.group("ceiling_panel").emission == "D65"
     assert _has(warns, "velvet-ball", "hair") and _has(warns, "emitter 'sky'", "sunsky")
+    rail = scene.materials[shapes["rail"].material]
+    assert rail.kind == "roughconductor" and rail.conductor == "Au" and _has(warns, "rail", "smooth conductor")
+    assert shapes["rail"].p1 == (-1.0, 2.0, -1.0)
     _mitsuba_loads(scene, "cam")
 
 
@@ -157,10 +160,10 @@ def test_cli_import_and_render_dry_run(tmp_path, capsys):
     src = t.write_xml(tmp_path / "s.xml")
     code, out, err = run_cli(capsys, "import", str(src), "--out", str(tmp_path / "o" / "scene.yaml"))
     assert code == 0, err
-    assert out.startswith("imported s.xml") and "5 shapes" in out and "2 light groups" in out
+    assert out.startswith("imported s.xml") and "6 shapes" in out and "2 light groups" in out
     assert "illumix: warning: bsdf 'velvet-ball-bsdf'" in err
     scene = load_scenes(tmp_path / "o" / "scene.yaml")[0]
-    assert (tmp_path / "o" / "scene_assets" / "checker.png").is_file() and len(scene.shapes) == 5
+    assert (tmp_path / "o" / "scene_assets" / "checker.png").is_file() and len(scene.shapes) == 6
     assert not [p for p in (tmp_path / "o").iterdir() if p.name.startswith(".")]  # no temporary left over
     # `illumix render` takes the imported formats directly (a dry run renders nothing)
     rules = tmp_path / "r.yaml"
