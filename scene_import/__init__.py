@@ -46,7 +46,14 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
         from scene_import.obj import import_obj as run
     else:
         from scene_import.mitsuba_xml import import_mitsuba_xml as run
-    name = run(p, b)
+    try:
+        name = run(p, b)
+    except SceneError:
+        raise
+    except (ValueError, KeyError, IndexError, TypeError, AttributeError, OSError) as exc:
+        # a malformed file (bad numbers, dangling indices, missing referenced files): one line, not a traceback
+        raise SceneError(f"{p}: cannot import this {fmt} file ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:300]})") from None
     doc = b.finish(name, rules, description=f"imported from {p.name} ({fmt})")
     return doc, list(b.warnings)
 

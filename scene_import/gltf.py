@@ -81,7 +81,7 @@ class _Reader:
         """Accessor ``i`` as ``(count, width)`` float64 (normalised integers scaled to [0, 1] / [-1, 1])."""
         a = self.gltf.accessors[i]
         dt, k = np.dtype(COMPONENTS[a.componentType]).newbyteorder("<"), WIDTH[a.type]
-        if a.bufferView is None:
+        if a.bufferView is None or a.count == 0:
             out = np.zeros((a.count, k))
         else:
             bv = self.gltf.bufferViews[a.bufferView]

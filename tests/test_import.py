@@ -246,3 +246,16 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
         de = float(colour.delta_E(colour.XYZ_to_Lab(xyz, white_xy), colour.XYZ_to_Lab(ref, white_xy),
                                   method="CIE 2000"))
         assert de < DELTA_E00_TOLERANCE, (r, c, de, xyz, ref)
+
+
+def test_malformed_files_fail_with_one_line(tmp_path, capsys):
+    bad = {"a.gltf": '{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 3}]}',
+           "b.obj": "v 0 0 0\nv 1 0 0\nf 1 2 7\n", "c.xml": "<scene><shape type='sphere'><float name='radius' "
+           "value='big'/></shape></scene>", "d.xml": "<scene><shape", "e.glb": "not binary"}
+    for name, text in bad.items():
+        (tmp_path / name).write_text(text)
+        with pytest.raises(SceneError) as e:
+            import_scene(tmp_path / name, tmp_path / "out")
+        assert str(e.value).startswith(str(tmp_path / name)) and "\n" not in str(e.value), str(e.value)
+        line = assert_one_line_error(*run_cli(capsys, "import", str(tmp_path / name), "--out", str(tmp_path / "x.yaml")))
+        assert name in line
