@@ -1,7 +1,7 @@
 """Mitsuba 3 XML scenes → an illumix scene document, read with ElementTree (plain data, no Mitsuba).
 
-Supported: ``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture``
-objects; transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as
+Values, references and transforms are read by :mod:`scene_import.mitsuba_xml_values`. Supported:
+``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture`` objects; transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as
 Mitsuba does: each operation left-multiplies the matrix so far).
 
 - **Shapes** ``obj``/``ply`` (the file is copied beside the scene), ``rectangle``, ``cube``, ``disk``,
@@ -28,7 +28,6 @@ naming the object.
 from __future__ import annotations
 
 import math
-import re
 import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -38,119 +37,17 @@ import numpy as np
 from renderer_jobs.scene_schema import CONDUCTORS, SceneError
 from scene_import.builder import SceneBuilder
 from scene_import.colour_match import reflectance, rgb_light, spectrum_light
+from scene_import.mitsuba_xml_values import XmlDoc, ior, spectrum_samples, to_world, transform, vec
 
-IOR = {"vacuum": 1.0, "helium": 1.00004, "hydrogen": 1.00013, "air": 1.00028, "carbon dioxide": 1.00045,
-       "water": 1.333, "acetone": 1.36, "ethanol": 1.361, "carbon tetrachloride": 1.461, "glycerol": 1.4729,
-       "benzene": 1.501, "silicone oil": 1.52045, "bromine": 1.661, "water ice": 1.31, "fused quartz": 1.458,
-       "pyrex": 1.47, "acrylic glass": 1.49, "polypropylene": 1.49, "bk7": 1.5046, "sodium chloride": 1.544,
-       "amber": 1.55, "pet": 1.575, "diamond": 2.419}
 SHAPES = ("obj", "ply", "rectangle", "cube", "disk", "sphere", "cylinder")
 
 
-class _Doc:
-    def __init__(self, root: ET.Element, path: Path, b: SceneBuilder) -> None:
-        self.path, self.b = path, b
-        self.vars: dict[str, str] = {}
-        self.ids: dict[str, ET.Element] = {}
-        self.textures: dict[int, str] = {}
-        for el in root:
-            if el.tag == "default":
-                self.vars.setdefault(el.get("name", ""), el.get("value", ""))
-        for el in root.iter():
-            if el.get("id") and el.tag != "ref":
-                self.ids[self.sub(el.get("id"))] = el
-
-    def sub(self, text: str | None) -> str:
-        """``$name`` / ``${name}`` replaced by ``<default>`` values (unknown ones: an error)."""
-        def repl(m: re.Match) -> str:
-            k = m.group(1) or m.group(2)
-            if k not in self.vars:
-                raise SceneError(f"{self.path}: variable ${k} has no <default>; give one")
-            return self.vars[k]
-        return re.sub(r"\$\{(\w+)\}|\$(\w+)", repl, text or "")
-
-    def get(self, el: ET.Element, attr: str, default: str | None = None) -> str | None:
-        v = el.get(attr)
-        return default if v is None else self.sub(v)
-
-    def child(self, el: ET.Element, name: str) -> ET.Element | None:
-        for c in el:
-            if self.get(c, "name") == name:
-                return self.ids.get(self.get(c, "id"), c) if c.tag == "ref" else c
-        return None
-
-    def value(self, el: ET.Element, name: str, default=None):
-        c = self.child(el, name)
-        if c is None:
-            return default
-        v = self.get(c, "value")
-        if c.tag in ("float", "integer"):
-            return float(v)
-        if c.tag == "boolean":
-            return v.lower() == "true"
-        if c.tag in ("point", "vector"):
-            return _vec(self, c)
-        return v
-
-    def deref(self, el: ET.Element) -> ET.Element:
-        if el.tag == "ref":
-            ref = self.get(el, "id")
-            if ref not in self.ids:
-                raise SceneError(f"{self.path}: <ref id={ref!r}> names no object")
-            return self.ids[ref]
-        return el
-
-
-def _vec(d: _Doc, el: ET.Element) -> np.ndarray:
-    if el.get("value") is not None:
-        parts = [float(x) for x in re.split(r"[,\s]+", d.get(el, "value").strip()) if x]
-        return np.asarray(parts * 3 if len(parts) == 1 else parts, float)
-    return np.array([float(d.get(el, k, "0")) for k in "xyz"])
-
-
-def transform(d: _Doc, el: ET.Element | None) -> np.ndarray:
-    """The 4×4 matrix of a ``<transform>`` element (identity for None)."""
-    m = np.eye(4)
-    if el is None:
-        return m
-    from renderer_jobs.scene_schema import rotation_matrix
-
-    for op in el:
-        t = np.eye(4)
-        if op.tag == "matrix":
-            t = np.asarray([float(x) for x in re.split(r"[,\s]+", d.get(op, "value").strip()) if x]).reshape(4, 4)
-        elif op.tag == "translate":
-            t[:3, 3] = _vec(d, op) if op.get("value") else [float(d.get(op, k, "0")) for k in "xyz"]
-        elif op.tag == "scale":
-            s = _vec(d, op) if op.get("value") else [float(d.get(op, k, "1")) for k in "xyz"]
-            t = np.diag([*s, 1.0])
-        elif op.tag == "rotate":
-            axis = _vec(d, op) if op.get("value") else [float(d.get(op, k, "0")) for k in "xyz"]
-            t = rotation_matrix(tuple(axis), float(d.get(op, "angle", "0")))
-        elif op.tag == "lookat":
-            o, tg = _vec(d, ET.Element("p", value=d.get(op, "origin"))), _vec(d, ET.Element("p", value=d.get(op, "target")))
-            up = _vec(d, ET.Element("p", value=d.get(op, "up", "0, 1, 0")))
-            f = (tg - o) / np.linalg.norm(tg - o)
-            left = np.cross(up, f)
-            left /= np.linalg.norm(left)
-            t[:3, 0], t[:3, 1], t[:3, 2], t[:3, 3] = left, np.cross(f, left), f, o
-        else:
-            d.b.warn(f"{d.path.name}: transform operation <{op.tag}> is not supported; ignored")
-        m = t @ m
-    return m
-
-
-def _to_world(d: _Doc, el: ET.Element) -> np.ndarray:
-    t = next((c for c in el if c.tag == "transform" and d.get(c, "name") == "to_world"), None)
-    return transform(d, t)
-
-
-def _colour(d: _Doc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None, float, str]:
+def _colour(d: XmlDoc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None, float, str]:
     """``(xy, Y, kind)`` of an emission value element (rgb / spectrum / float)."""
     if c is None:
         return rgb_light([1, 1, 1])[0], 1.0, "default"
     if c.tag == "rgb":
-        xy, y = rgb_light(_vec(d, c))
+        xy, y = rgb_light(vec(d, c))
         return xy, y, "rgb"
     if c.tag == "float":
         v = float(d.get(c, "value"))
@@ -161,7 +58,7 @@ def _colour(d: _Doc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None
 
             t = float(d.value(c, "temperature", 6504.0))
             return np.asarray(illuminant_xy(f"blackbody:{t:g}")), 1.0, "blackbody"
-        wl, v = _spectrum_samples(d, c)
+        wl, v = spectrum_samples(d, c)
         if wl is None:
             return (rgb_light([1, 1, 1])[0] if v[0] > 0 else None), float(v[0]), "float"
         xy, y = spectrum_light(wl, v)
@@ -170,34 +67,20 @@ def _colour(d: _Doc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None
     return rgb_light([1, 1, 1])[0], 1.0, "default"
 
 
-def _spectrum_samples(d: _Doc, c: ET.Element) -> tuple[np.ndarray | None, np.ndarray]:
-    if c.get("filename"):
-        rows = [ln.split() for ln in (d.path.parent / d.get(c, "filename")).read_text().splitlines()
-                if ln.strip() and not ln.lstrip().startswith("#")]
-        a = np.asarray([[float(x) for x in r[:2]] for r in rows])
-        return a[:, 0], a[:, 1]
-    text = d.get(c, "value").strip()
-    if ":" not in text:
-        return None, np.array([float(text)])
-    pairs = [p.split(":") for p in re.split(r"[,\s]+", text) if p]
-    a = np.asarray([[float(w), float(v)] for w, v in pairs])
-    return a[:, 0], a[:, 1]
-
-
-def _reflectance(d: _Doc, c: ET.Element | None, what: str, default: float = 0.5):
+def _reflectance(d: XmlDoc, c: ET.Element | None, what: str, default: float = 0.5):
     """A schema reflectance from a ``reflectance``-like child element."""
     if c is None:
         return {"value": default}
     c = d.deref(c)
     if c.tag == "rgb":
-        return reflectance(_vec(d, c), what, d.b.warn)
+        return reflectance(vec(d, c), what, d.b.warn)
     if c.tag == "float":
         return {"value": float(d.get(c, "value"))}
     if c.tag == "spectrum":
         if d.get(c, "type") == "blackbody":
             d.b.warn(f"{what}: a blackbody reflectance makes no sense; grey 0.5 used")
             return {"value": 0.5}
-        wl, v = _spectrum_samples(d, c)
+        wl, v = spectrum_samples(d, c)
         return {"value": float(v[0])} if wl is None else {"wavelengths": wl.tolist(), "values": v.tolist()}
     if c.tag == "texture" and d.get(c, "type") == "bitmap":
         src = d.path.parent / (d.value(c, "filename", "") or "")
@@ -224,20 +107,7 @@ def _reflectance(d: _Doc, c: ET.Element | None, what: str, default: float = 0.5)
     return {"value": default}
 
 
-def _ior(d: _Doc, el: ET.Element, name: str, default: float) -> float:
-    v = d.value(el, name)
-    if v is None:
-        return default
-    try:
-        return float(v)
-    except ValueError:
-        if str(v).lower() in IOR:
-            return IOR[str(v).lower()]
-        d.b.warn(f"{name} {v!r} is not a known IOR name; {default} used")
-        return default
-
-
-def _bsdf(d: _Doc, el: ET.Element, what: str, two: bool = False) -> dict:
+def _bsdf(d: XmlDoc, el: ET.Element, what: str, two: bool = False) -> dict:
     t = d.get(el, "type")
     warn = d.b.warn
     if t == "twosided":
@@ -258,8 +128,8 @@ def _bsdf(d: _Doc, el: ET.Element, what: str, two: bool = False) -> dict:
         return {"kind": "diffuse", "reflectance": _reflectance(d, d.child(el, "reflectance"), what), "two_sided": two}
     if t in ("plastic", "roughplastic"):
         return {"kind": "roughplastic", "reflectance": _reflectance(d, d.child(el, "diffuse_reflectance"), what),
-                "alpha": alpha, "int_ior": min(max(_ior(d, el, "int_ior", 1.49), 1.0001), 4.0),
-                "ext_ior": min(max(_ior(d, el, "ext_ior", 1.000277), 1.0), 4.0), "two_sided": two}
+                "alpha": alpha, "int_ior": min(max(ior(d, el, "int_ior", 1.49), 1.0001), 4.0),
+                "ext_ior": min(max(ior(d, el, "ext_ior", 1.000277), 1.0), 4.0), "two_sided": two}
     if t in ("conductor", "roughconductor"):
         mat = d.value(el, "material", "none" if d.child(el, "eta") is None else None)
         if mat not in CONDUCTORS:
@@ -278,8 +148,8 @@ def _bsdf(d: _Doc, el: ET.Element, what: str, two: bool = False) -> dict:
     if t in ("dielectric", "thindielectric", "roughdielectric"):
         if t != "dielectric":
             warn(f"{what}: {t} is imported as a smooth dielectric")
-        return {"kind": "dielectric", "int_ior": min(max(_ior(d, el, "int_ior", 1.5046), 1.0001), 4.0),
-                "ext_ior": min(max(_ior(d, el, "ext_ior", 1.000277), 1.0), 4.0)}
+        return {"kind": "dielectric", "int_ior": min(max(ior(d, el, "int_ior", 1.5046), 1.0001), 4.0),
+                "ext_ior": min(max(ior(d, el, "ext_ior", 1.000277), 1.0), 4.0)}
     warn(f"{what}: <bsdf type={t!r}> is not supported; grey diffuse 0.5 used")
     return {"kind": "diffuse", "reflectance": {"value": 0.5}, "two_sided": two}
 
@@ -292,7 +162,7 @@ def import_mitsuba_xml(path: Path, b: SceneBuilder) -> str:
         raise SceneError(f"{path}: not a readable XML file ({exc})") from None
     if root.tag != "scene":
         raise SceneError(f"{path}: the root element is <{root.tag}>, not a Mitsuba <scene>")
-    d = _Doc(root, path, b)
+    d = XmlDoc(root, path, b)
     mats: dict[int, str] = {}
     for i, el in enumerate(root):
         what = f"<{el.tag}{' type=' + repr(d.get(el, 'type')) if el.get('type') else ''}" \
@@ -318,7 +188,7 @@ def import_mitsuba_xml(path: Path, b: SceneBuilder) -> str:
     return path.stem
 
 
-def _shape(d: _Doc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
+def _shape(d: XmlDoc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
     t = d.get(el, "type")
     name = d.get(el, "id") or d.get(el, "name") or f"{t}{i}"
     what = f"shape {name!r}"
@@ -326,7 +196,7 @@ def _shape(d: _Doc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
     if t not in SHAPES:
         b.warn(f"{what}: shape type {t!r} is not supported; skipped")
         return
-    m = _to_world(d, el)
+    m = to_world(d, el)
     doc: dict = {"type": t}
     if t in ("obj", "ply"):
         src = d.path.parent / (d.value(el, "filename", "") or "")
@@ -372,11 +242,11 @@ def _shape(d: _Doc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
     b.add_shape(name, doc, emitter, what=what)
 
 
-def _emitter(d: _Doc, el: ET.Element, name: str, parent: np.ndarray) -> None:
+def _emitter(d: XmlDoc, el: ET.Element, name: str, parent: np.ndarray) -> None:
     t = d.get(el, "type")
     b = d.b
     what = f"emitter {name!r}"
-    m = parent @ _to_world(d, el)
+    m = parent @ to_world(d, el)
     if t == "point":
         pos = d.value(el, "position")
         pos = m[:3, 3] if pos is None else pos
@@ -420,7 +290,7 @@ def _emitter(d: _Doc, el: ET.Element, name: str, parent: np.ndarray) -> None:
         b.warn(f"{what}: emitter type {t!r} is not supported; skipped")
 
 
-def _sensor(d: _Doc, el: ET.Element, i: int) -> None:
+def _sensor(d: XmlDoc, el: ET.Element, i: int) -> None:
     t = d.get(el, "type")
     name = d.get(el, "id") or f"sensor{i}"
     what = f"sensor {name!r}"
@@ -442,7 +312,7 @@ def _sensor(d: _Doc, el: ET.Element, i: int) -> None:
         t_half *= w / h
     elif axis == "diagonal":
         t_half *= w / math.hypot(w, h)
-    m = _to_world(d, el)
+    m = to_world(d, el)
     if np.linalg.det(m[:3, :3]) < 0:
         d.b.warn(f"{what}: its to_world mirrors the image (e.g. scale x -1); the view is not mirrored")
     d.b.add_view(name, m[:3, 3], m[:3, 2], m[:3, 1], math.degrees(2 * math.atan(t_half)), (w, h))
