@@ -1,8 +1,9 @@
 """Mitsuba 3 XML scenes → an illumix scene document, read with ElementTree (plain data, no Mitsuba).
 
 Values, references and transforms are read by :mod:`scene_import.mitsuba_xml_values`. Supported:
-``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture`` objects; transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as
-Mitsuba does: each operation left-multiplies the matrix so far).
+``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture`` objects;
+transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as Mitsuba
+does: each operation left-multiplies the matrix so far).
 
 - **Shapes** ``obj``/``ply`` (the file is copied beside the scene), ``rectangle``, ``cube``, ``disk``,
   ``sphere`` (``center``, ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), with ``to_world``.
