@@ -44,7 +44,7 @@ def _plugin_class(mi, dr):
 
         def _label(self, si, active):
             u = si.uv.x * self.su
-            v = 1.0 - si.uv.y * self.sv
+            v = si.uv.y * self.sv  # row 0 at v = 0, as Mitsuba's own bitmap texture
             x = dr.clip(mi.Int32(dr.floor((u - dr.floor(u)) * self.w)), 0, self.w - 1)
             y = dr.clip(mi.Int32(dr.floor((v - dr.floor(v)) * self.h)), 0, self.h - 1)
             t = dr.gather(mi.Float, self.labels, y * self.w + x, active)

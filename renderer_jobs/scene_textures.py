@@ -58,8 +58,8 @@ class PatternTexture(StrictModel):
         return self
 
     def label_map(self) -> np.ndarray:
-        """The label map ``(resolution, resolution)`` float32, values in ``[0, K−1]``; row 0 is v = 1
-        (the top of the image, as Mitsuba's bitmaps)."""
+        """The label map ``(resolution, resolution)`` float32, values in ``[0, K−1]``; row 0 is v = 0,
+        as for Mitsuba's bitmaps (an image's first row lies along a rectangle's bottom edge)."""
         p = {**_PARAMS[self.pattern], **self.params}
         rng = np.random.default_rng([self.seed, PATTERNS.index(self.pattern)])
         t = _GENERATORS[self.pattern](rng, self.resolution, len(self.spectra), p)

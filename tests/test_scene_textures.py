@@ -43,11 +43,13 @@ def test_checker_texture_renders_each_texel_exactly():
 
     scene = scene_from_dict(_doc({"pattern": "checker", "spectra": SPECTRA, "params": {"cells": 2}}))
     cube = render_cube(scene, "v", "g", RenderSettings(spp=16)).cube
-    rho = scene.texture_spectra(scene.materials["m"].reflectance, "m")
-    # the camera frames [-1, 1]² exactly (fov 2·atan(1/4)): quadrant centres at pixels 8 and 24
-    tl, tr = cube[8, 8] * math.pi, cube[8, 24] * math.pi
-    assert np.allclose(tl, rho[0], rtol=1e-4) and np.allclose(tr, rho[1], rtol=1e-4)
-    assert np.allclose(cube[24, 24] * math.pi, rho[0], rtol=1e-4)
+    tex = scene.materials["m"].reflectance
+    rho, labels = scene.texture_spectra(tex, "m"), tex.label_map()
+    # the camera frames [-1, 1]² exactly (fov 2·atan(1/4)): quadrant centres at pixels 8 and 24; the
+    # map's row 0 is v = 0, the rectangle's bottom edge (as Mitsuba's bitmaps)
+    for (py, px), (ly, lx) in (((8, 8), (-1, 0)), ((8, 24), (-1, -1)), ((24, 24), (0, -1)), ((24, 8), (0, 0))):
+        assert np.allclose(cube[py, px] * math.pi, rho[int(labels[ly, lx])], rtol=1e-4), (py, px)
+    assert labels[0, 0] != labels[-1, 0]  # the checker differs between the quadrants compared
 
 
 def test_bad_textures_fail_with_one_line():
