@@ -84,7 +84,7 @@ def dataset(
     quiet = as_json and not console.is_terminal
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
-                  disable=quiet) as prog:
+                  disable=quiet, transient=True) as prog:  # an error after it stays one line
         task = None
 
         def on_start(n: int) -> None:
@@ -98,6 +98,9 @@ def dataset(
         corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
                                     on_room=on_room, on_start=on_start)
     scenes = corpus.scenes
+    if corpus.generated or corpus.cached:
+        console.print(f"rooms: {corpus.generated} generated, {corpus.cached} cached in {scenes_dir or '(memory)'}",
+                      highlight=False)
     try:
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
         settings = render_settings(**opts, scenes=scenes)
