@@ -180,7 +180,7 @@ def preview(
             lin = preview_linear(s, views, (w, h), spp)
             groups = len(s.group_names)
             for v, img in zip(views, lin):
-                tiles.append((f"{s.name}/{v} {groups} groups", to_srgb8(img)))
+                tiles.append((f"{s.name}/{v} {groups}g", to_srgb8(img)))  # 3g: three light groups
             if columns == per_row:  # one scene per row
                 tiles += [("", blank)] * (columns - len(views))
             prog.update(task, advance=1, last=s.name)
