@@ -60,7 +60,7 @@ def dataset(
             res = jobs.parse_resolution(r.resolution)
         except SceneError as exc:
             raise UserError(f"render.resolution: {exc}") from None
-        opts = dict(spp=r.spp, seed=r.seed, wavelengths=r.wavelengths, sampler=r.sampler,
+        opts = dict(spp=r.spp, seed=r.seed, wavelengths=r.wavelengths, sampler=r.sampler,  # noqa: C408
                     bands_per_path=r.bands_per_path, skip_dark=r.skip_dark, adaptive=r.adaptive,
                     noise_target=r.noise_target, illumination=r.illumination, denoise=r.denoise,
                     backend=r.backend, flag=config_flag)

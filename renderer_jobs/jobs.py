@@ -387,7 +387,7 @@ def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
     if keep_going:
         user_done = on_done
 
-        def on_done(job, r, exc):  # noqa: F811 — remember failed views: their cubes cannot be stored
+        def on_done(job, r, exc):  # remember failed views: their cubes cannot be stored
             if exc is not None and job.group is None:
                 failed_views.add((job.scene, job.view))
             user_done(job, r, exc)

@@ -65,7 +65,7 @@ def test_render_accepts_a_generated_file(rooms, capsys):
                            "--config", str(rooms / "gen.yaml"))
     assert code == 0, err
     store = str(rooms / "st")
-    code, stdout, err = run_cli(capsys, "render", str(out / "room-000007.yaml"), "--store", store, "--spp", "16",
+    code, _, err = run_cli(capsys, "render", str(out / "room-000007.yaml"), "--store", store, "--spp", "16",
                                 "--wavelengths", "stratified", "--denoise", "none", "--no-illumination",
                                 "--no-skip-dark", "--views", "view0", "--json")
     assert code == 0, err
