@@ -25,6 +25,7 @@ import os
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -411,7 +412,7 @@ def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
                         exc = fut.exception()
                         if exc is not None:
                             on_done(job, None, exc)
-                            if keep_going:
+                            if keep_going and not isinstance(exc, BrokenProcessPool):  # a dead pool runs nothing
                                 continue
                             raise JobError(f"{job.label}: {exc}") from exc
                         results.append(fut.result())
