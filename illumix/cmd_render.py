@@ -17,6 +17,7 @@ from rich.console import Console
 
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
+from illumix.render_options import check_executor, render_settings
 from renderer_jobs.modes import BACKENDS, EXECUTORS, SAMPLERS
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 
@@ -106,7 +107,6 @@ def render(
 
     from illumix.scene_files import load_scene_file
     from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.scene_schema import SceneError
 
     try:
@@ -114,8 +114,7 @@ def render(
             raise UserError("--rules applies to an imported scene file CONFIG")
         if demo == (config is not None):
             raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
-        if executor == "local" and address:
-            raise UserError("--address is for --executor ray")
+        executor = check_executor(executor, address)
         res = jobs.parse_resolution(resolution)
         if demo:
             from renderer_jobs.demo import demo_room
@@ -124,18 +123,11 @@ def render(
         else:
             scenes = load_scene_file(config, rules)
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
-        for s in scenes:
-            if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified" and backend == "mitsuba":
-                raise UserError(f"--spp {spp} is too low: stratified sampling of {s.spectral_grid.n_bands} "
-                                f"bands needs spp >= {-(-s.spectral_grid.n_bands // 4)}")
-        if noise_target is not None and not 0 < noise_target < 1:
-            raise UserError(f"--noise-target {noise_target} must lie in (0, 1): a relative standard deviation, "
-                            "e.g. 0.05 for 5 %")
-        adaptive = adaptive or noise_target is not None  # a target spreads paths by the adaptive pilot
-        settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
-                                  bands_per_path=bands_per_path, skip_dark=skip_dark,
-                                  adaptive=adaptive, noise_target=noise_target, illumination=illumination,
-                                  denoise=denoise, backend=backend)
+        settings = render_settings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
+                                   bands_per_path=bands_per_path, skip_dark=skip_dark, adaptive=adaptive,
+                                   noise_target=noise_target, illumination=illumination, denoise=denoise,
+                                   backend=backend, scenes=scenes)
+        adaptive = settings.adaptive
         if settings.backend == "cycles" and not dry_run:
             from renderer_jobs.cycles_env import find_blender_python
 

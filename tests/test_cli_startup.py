@@ -47,7 +47,8 @@ def run_fresh(*argv: str) -> tuple[int, str, list[str]]:
 @pytest.mark.parametrize("argv", [
     ["--help"], ["--version"], ["render", "--help"], ["validate", "--help"], ["ccm", "--help"],
     ["whitepoint", "--help"], ["serve", "--help"], ["demo", "--help"], ["store", "verify", "--help"],
-    ["sensors", "list", "--help"],
+    ["sensors", "list", "--help"], ["dataset", "--help"], ["scenes", "generate", "--help"],
+    ["scenes", "preview", "--help"],
 ], ids=" ".join)
 def test_help_and_version_import_nothing_heavy(argv):
     code, printed, heavy = run_fresh(*argv)

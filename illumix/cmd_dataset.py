@@ -1,0 +1,191 @@
+"""``illumix dataset CONFIG.yaml --store PATH [--scenes-dir DIR] [--dry-run] [--json] [--limit N]``.
+
+Renders every scene of a dataset config (:mod:`illumix.dataset_config`: generated rooms and scene
+files) × its views × its light groups into a cube store through the render jobs
+(:func:`renderer_jobs.jobs.plan` / :func:`~renderer_jobs.jobs.execute`, process pool or Ray as the
+config says). Resumable: generated rooms are cached as scene files (:mod:`illumix.scene_corpus`) and
+a rerun renders only the cubes not yet complete. A job that fails is reported and the others go on
+(local executor); the run then exits 1 after its summary.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from illumix.errors import UserError
+
+console = Console(stderr=True)
+
+
+def _is_local(store: str) -> bool:
+    return "://" not in store
+
+
+def dataset(
+    config: Path = typer.Argument(..., help="Dataset config (YAML/JSON): name, generated: {count, seed, generator}, "
+                                            "scenes: [files], render: {illumix render's options}."),
+    store: str = typer.Option(..., "--store", help="Cube store directory or fsspec URL (created if missing)."),
+    scenes_dir: Path | None = typer.Option(None, "--scenes-dir",
+                                           help="Where generated rooms are cached as scene files (default: "
+                                                "STORE/.illumix-scenes; required for a store given by URL)."),
+    limit: int | None = typer.Option(None, "--limit", min=1, help="Only the first N scenes (generated rooms first)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Plan and print what would render; write nothing "
+                                                          "(rooms not yet cached are generated in memory)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
+) -> None:
+    """Render a dataset: generated rooms and scene files × views × light groups, resumable."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from illumix import scene_corpus
+    from illumix.cmd_render import require_renderer
+    from illumix.dataset_config import config_flag, load_config
+    from illumix.render_options import check_executor, render_settings
+    from renderer_jobs import jobs
+    from renderer_jobs.scene_schema import SceneError
+    from scenegen import GENERATOR_VERSION
+    from store import StoreError
+
+    t0 = time.perf_counter()
+    cfg = load_config(config)
+    r = cfg.render
+    try:
+        executor = check_executor(r.executor, r.address, config_flag)
+        try:
+            res = jobs.parse_resolution(r.resolution)
+        except SceneError as exc:
+            raise UserError(f"render.resolution: {exc}") from None
+        opts = dict(spp=r.spp, seed=r.seed, wavelengths=r.wavelengths, sampler=r.sampler,  # noqa: C408
+                    bands_per_path=r.bands_per_path, skip_dark=r.skip_dark, adaptive=r.adaptive,
+                    noise_target=r.noise_target, illumination=r.illumination, denoise=r.denoise,
+                    backend=r.backend, flag=config_flag)
+        render_settings(**opts)  # check before generating anything
+    except SceneError as exc:
+        raise UserError(f"{config}: render: {exc}") from None
+    except UserError as exc:
+        raise UserError(f"{config}: {exc}") from None
+    if scenes_dir is None and _is_local(store):
+        scenes_dir = Path(store) / scene_corpus.SCENES_DIR
+    elif scenes_dir is None and not dry_run and cfg.generated is not None and cfg.generated.count:
+        raise UserError(f"--store {store} is a URL: give --scenes-dir DIR for the generated rooms' scene files")
+    if not dry_run:
+        try:  # made now: the scene cache lives in it, and a bad location should stop us before hours of work
+            from store import CubeStore
+
+            CubeStore.open(store, mode="a")
+        except StoreError as exc:
+            raise UserError(f"store {store}: {exc}") from None
+
+    quiet = as_json and not console.is_terminal
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
+                  disable=quiet, transient=True) as prog:  # an error after it stays one line
+        task = None
+
+        def on_start(n: int) -> None:
+            nonlocal task
+            if n:
+                task = prog.add_task("scenes", total=n, last="")
+
+        def on_room(name: str, status: str) -> None:
+            prog.update(task, advance=1, last=f"{name} {status}")
+
+        corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
+                                    on_room=on_room, on_start=on_start)
+    scenes = corpus.scenes
+    if corpus.generated or corpus.cached:
+        console.print(f"rooms: {corpus.generated} generated, {corpus.cached} cached in {scenes_dir or '(memory)'}",
+                      highlight=False)
+    try:
+        scenes = [jobs.apply_resolution(s, res) for s in scenes]
+        settings = render_settings(**opts, scenes=scenes)
+        p = jobs.plan(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
+    except SceneError as exc:
+        raise UserError(str(exc)) from None
+    except StoreError as exc:
+        raise UserError(f"store {store}: {exc}") from None
+    if p.conflicts and not overwrite:
+        raise UserError(f"{p.conflicts[0]}" + (f" (and {len(p.conflicts) - 1} more)" if len(p.conflicts) > 1 else "")
+                        + "; use another store, or --overwrite to re-render")
+    n_views = sum(len([v for v in s.views if not r.views or v.name in r.views]) for s in scenes)
+    summary = {
+        "name": cfg.name, "store": store, "scenes_dir": str(scenes_dir) if scenes_dir else None,
+        "generator_version": GENERATOR_VERSION, "scenes": len(scenes), "rooms_generated": corpus.generated,
+        "rooms_cached": corpus.cached, "scene_files": corpus.files, "views": n_views,
+        "cubes_planned": len(p.cube_jobs), "cubes_skipped": len([j for j in p.skipped if j.group]),
+        "executor": executor, "workers": r.workers, "settings": settings.to_dict(),
+    }
+    if dry_run:
+        for j in p.jobs:
+            console.print(f"would render {j.label}")
+        console.print(f"dry run: {len(scenes)} scene(s), {n_views} view(s), {len(p.cube_jobs)} cube(s) to render, "
+                      f"{summary['cubes_skipped']} already complete")
+        if as_json:
+            print(json.dumps({**summary, "dry_run": True, "jobs": [j.label for j in p.jobs]}))
+        return
+    done: list[dict] = []
+    failed: list[dict] = []
+    t_render = time.perf_counter()
+    if p.jobs:
+        if executor == "local" and settings.backend == "mitsuba":
+            require_renderer()
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
+                      disable=quiet) as prog:
+            task = prog.add_task("rendering", total=len(p.jobs), last="")
+
+            def on_done(job, result, exc) -> None:
+                if exc is None:
+                    done.append(result)
+                    prog.update(task, advance=1, last=f"{job.label} {result['seconds']:.1f}s")
+                else:
+                    line = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+                    failed.append({"job": job.label, "error": line})
+                    prog.update(task, advance=1, last=f"[red]{job.label} failed")
+                    prog.console.print(f"[red]failed[/red] {job.label}: {line}", markup=True, highlight=False)
+
+            try:
+                jobs.execute(p, store, settings, executor=executor, workers=r.workers, address=r.address,
+                             on_done=on_done, overwrite=overwrite, keep_going=True)
+            except SceneError as exc:
+                raise UserError(str(exc)) from None
+            except jobs.JobError as exc:  # Ray stops at its first failure
+                raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
+                                "and are kept; run again to resume)") from None
+    wall = time.perf_counter() - t0
+    cubes = [d for d in done if d["kind"] == "cube"]
+    lit = [d for d in cubes if not d.get("empty")]
+    cpu = [d["cpu_s"] for d in done if d.get("cpu_s") is not None]
+    summary.update({
+        "cubes_rendered": len(lit), "cubes_empty": len([d for d in cubes if d.get("empty")]),
+        "views_written": len([d for d in done if d["kind"] == "view"]), "failed": failed,
+        "wall_s": round(wall, 3), "render_wall_s": round(time.perf_counter() - t_render, 3),
+        "cpu_s": round(sum(cpu), 3) if cpu and len(cpu) == len(done) else None,
+        "cube_mean_s": round(sum(d["seconds"] for d in lit) / len(lit), 3) if lit else None,
+    })
+    if not p.jobs:
+        console.print(f"nothing to do: all {summary['cubes_skipped']} cube(s) of {len(scenes)} scene(s) are "
+                      f"complete in {store}")
+    else:
+        console.print(
+            f"dataset {cfg.name}: {len(scenes)} scene(s) ({corpus.generated} generated, {corpus.cached} cached, "
+            f"{corpus.files} file(s)), {n_views} view(s); cubes: {summary['cubes_rendered']} rendered, "
+            f"{summary['cubes_empty']} empty, {summary['cubes_skipped']} already complete, {len(failed)} failed; "
+            f"{wall:.1f} s wall" + (f", {summary['cpu_s']:.1f} s CPU" if summary["cpu_s"] is not None else "")
+            + (f", {summary['cube_mean_s']:.2f} s per cube" if summary["cube_mean_s"] is not None else ""),
+            highlight=False)
+    if as_json:
+        print(json.dumps(summary))
+    if failed:
+        console.print(f"{len(failed)} job(s) failed (listed above); the rest are in the store — run again to retry",
+                      highlight=False)
+        raise typer.Exit(1)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("dataset")(dataset)
