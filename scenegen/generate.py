@@ -49,7 +49,7 @@ class GeneratorConfig(BaseModel):
     views: tuple[int, int] = (3, 7)
     resolution: tuple[int, int] = (240, 180)
     probe: bool = True  # choose views by a probe render's mixed-light fraction
-    candidates: int = Field(default=12, ge=1, le=64)  # candidate views the probe chooses from
+    candidates: int = Field(default=16, ge=1, le=64)  # candidate views the probe chooses from
 
     @model_validator(mode="after")
     def _check(self) -> GeneratorConfig:
@@ -243,13 +243,15 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
         doc["views"] = doc["views"][:n_views]
         return doc
     from renderer_jobs.scene_load import scene_from_dict
-    from scenegen.views import probe
+    from scenegen.views import clear_views, probe
 
     scene = scene_from_dict(doc, source=doc["name"], check=False)
     frac, shares = probe(scene)
-    # views that see at least two groups (each >= 5 % of the view's light) first, by mixed fraction
+    clear = clear_views(scene, [v["name"] for v in doc["views"]])
+    # clear views (they see their target, no wall fills them) first, then those that see at least two
+    # groups (each >= 5 % of the view's light), then by mixed fraction
     two = (shares >= GROUP_SEEN).sum(axis=1) >= 2
-    order = np.lexsort((-frac, ~two))[:n_views]
+    order = np.lexsort((-frac, ~two, ~clear))[:n_views]
     doc["views"] = [dict(doc["views"][i], name=f"view{k}") for k, i in enumerate(sorted(order))]
     doc["description"] += "; mixed-light fraction per view " + ", ".join(f"{frac[i]:.2f}" for i in sorted(order))
     return doc

@@ -20,6 +20,7 @@ import numpy as np
 
 CLEARANCE = 0.35
 MIXED_SHARE = 0.8
+TARGET_SEEN, NEAR, NEAR_SHARE = 0.8, 1.0, 0.3  # clear_views: what makes a view show something
 PROBE_RES = (48, 36)
 PROBE_SPP = 16
 
@@ -70,6 +71,33 @@ def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, s
         rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed))[..., :3]
         out += np.stack(np.split(rgb @ np.array([0.2126, 0.7152, 0.0722]), len(views), axis=1))
     return out
+
+
+def view_depth(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
+    """``(n_views, H, W)`` distance (m) along each pixel's centre ray to the first surface (0: none):
+    one ray per pixel, Mitsuba's ``aov`` integrator, every view in one batch sensor."""
+    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
+    from renderer_jobs.mitsuba_variant import import_mitsuba
+
+    mi, _ = import_mitsuba()
+    doc = build_scene_dict(scene, views[0], [], resolution=resolution)
+    doc["integrator"] = {"type": "aov", "aovs": "dd:depth"}
+    doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, 1)
+    img = np.asarray(mi.render(mi.load_dict(doc), spp=1))[..., 0]
+    return np.stack(np.split(img, len(views), axis=1))
+
+
+def clear_views(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
+    """``(n_views,)`` bool: the view sees its target (the centre pixel's depth is at least
+    :data:`TARGET_SEEN` of the distance to it) and is not filled by a close surface (at most
+    :data:`NEAR_SHARE` of the pixels nearer than :data:`NEAR` m) — a view at a wall a door away from
+    its target is lit by every group (mixed) and shows nothing."""
+    depth = view_depth(scene, views, resolution)
+    h, w = depth.shape[1:]
+    dist = np.array([np.linalg.norm(np.subtract(scene.view(v).target, scene.view(v).origin)) for v in views])
+    centre = depth[:, h // 2 - 1:h // 2 + 1, w // 2 - 1:w // 2 + 1].max(axis=(1, 2))
+    near = ((depth > 0) & (depth < NEAR)).mean(axis=(1, 2))
+    return (centre >= TARGET_SEEN * dist) & (near <= NEAR_SHARE)
 
 
 def probe(scene, views: list[str] | None = None, resolution=PROBE_RES,

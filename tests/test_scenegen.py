@@ -124,3 +124,21 @@ def test_config_errors_name_the_field():
         GeneratorConfig(layouts=["round"])
     with pytest.raises(ValueError, match="windows"):
         GeneratorConfig(windows=(2, 5))
+
+
+def test_clear_views_reject_a_wall_between_camera_and_target():
+    """A view 0.5 m in front of a wall with its target behind the wall is not clear; the same view
+    turned to the open floor is."""
+    from scenegen.views import clear_views
+
+    wall = {"name": "wall", "type": "rectangle", "material": "w",
+            "transform": {"matrix": [[3, 0, 0, 0], [0, 3, 0, 1.5], [0, 0, 1, -0.5], [0, 0, 0, 1]]}}
+    floor = {"name": "floor", "type": "rectangle", "material": "w",
+             "transform": {"matrix": [[5, 0, 0, 0], [0, 0, 1, 0], [0, -5, 0, 0], [0, 0, 0, 1]]}}
+    doc = {"name": "clear", "materials": {"w": {"kind": "diffuse", "reflectance": {"value": 0.5}}},
+           "shapes": [wall, floor],
+           "lights": [{"name": "l", "type": "point", "group": "a", "position": [0, 2.0, 1.0], "strength": 5.0}],
+           "views": [{"name": "blocked", "origin": [0, 1.5, 0], "target": [0, 1.0, -3], "fov": 60},
+                     {"name": "open", "origin": [0, 1.5, 0], "target": [0, 0.3, 3], "fov": 60}]}
+    scene = scene_from_dict(doc)
+    assert clear_views(scene, ["blocked", "open"]).tolist() == [False, True]
