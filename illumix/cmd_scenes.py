@@ -58,13 +58,7 @@ def generate(
     """Write COUNT procedural rooms as scene files `illumix render` accepts (existing ones are kept: resume)."""
     import time
 
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-    )
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from illumix import scene_corpus
 
@@ -154,13 +148,7 @@ def preview(
                                                                       "in memory, write nothing)."),
 ) -> None:
     """Write a contact sheet PNG of quick renders of every view of the scenes (labelled scene/view groups)."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-    )
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from illumix.cmd_render import require_renderer
 

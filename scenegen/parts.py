@@ -16,6 +16,8 @@ from typing import Protocol
 
 import numpy as np
 
+from renderer_jobs.demo import frame_matrix
+
 
 class MaterialPicker(Protocol):
     """Hands out material names of a scene by class, defining them on first use."""
@@ -68,24 +70,9 @@ def sphere(name: str, material: str, center, radius: float) -> dict:
             "radius": float(radius)}
 
 
-def _frame(center, normal, up, size) -> np.ndarray:
-    n = np.asarray(normal, dtype=float)
-    n = n / np.linalg.norm(n)
-    u = np.asarray(up, dtype=float)
-    u = u - n * np.dot(u, n)
-    u = u / np.linalg.norm(u)
-    r = np.cross(u, n)
-    m = np.eye(4)
-    m[:3, 0] = r * size[0] / 2
-    m[:3, 1] = u * size[1] / 2
-    m[:3, 2] = n
-    m[:3, 3] = center
-    return m
-
-
 def rect(name: str, material: str | None, center, normal, up, size, emitter: dict | None = None) -> dict:
     """A rectangle ``size = (w, h)`` facing ``normal`` with local +v along ``up``; optional area emitter."""
-    d = {"name": name, "type": "rectangle", "transform": {"matrix": _m(_frame(center, normal, up, size))}}
+    d = {"name": name, "type": "rectangle", "transform": {"matrix": frame_matrix(center, normal, up, size)}}
     if material is not None:
         d["material"] = material
     if emitter is not None:
@@ -95,7 +82,7 @@ def rect(name: str, material: str | None, center, normal, up, size, emitter: dic
 
 def disk(name: str, material: str | None, center, normal, radius: float, emitter: dict | None = None) -> dict:
     up = (0, 0, 1) if abs(normal[1]) > 0.9 else (0, 1, 0)
-    d = {"name": name, "type": "disk", "transform": {"matrix": _m(_frame(center, normal, up, (2 * radius,) * 2))}}
+    d = {"name": name, "type": "disk", "transform": {"matrix": frame_matrix(center, normal, up, (2 * radius,) * 2)}}
     if material is not None:
         d["material"] = material
     if emitter is not None:
