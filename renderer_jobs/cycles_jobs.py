@@ -7,7 +7,15 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from renderer_jobs.jobs import Job, JobError, Plan, _open_store, _view_meta, run_guarded, store_result
+from renderer_jobs.jobs import (
+    Job,
+    JobError,
+    Plan,
+    _open_store,
+    _view_meta,
+    store_result,
+)
+from renderer_jobs.local_executor import run_guarded
 from renderer_jobs.scene_schema import SceneError
 
 

@@ -24,8 +24,6 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -341,89 +339,6 @@ def _denoise(st, scene, job, result, settings, meta) -> dict | None:
 ProgressFn = Callable[[Job, dict | None, BaseException | None], None]
 
 
-def run_guarded(job: Job, fn: Callable[[], dict], on_done: ProgressFn, results: list[dict],
-                keep_going: bool = False) -> None:
-    """Run one job in this process: its summary goes to ``results`` and ``on_done``; a failure is
-    reported to ``on_done`` and raised as :class:`JobError` naming the job (a bad scene as itself),
-    or, with ``keep_going``, only reported."""
-    try:
-        r = fn()
-    except SceneError as exc:
-        if keep_going:
-            on_done(job, None, exc)
-            return
-        raise
-    except Exception as exc:
-        on_done(job, None, exc)
-        if keep_going:
-            return
-        raise JobError(f"{job.label}: {type(exc).__name__}: {exc}") from exc
-    results.append(r)
-    on_done(job, r, None)
-
-
-class _ViewFailed(RuntimeError):
-    """A cube job not run because its view job failed (keep-going runs)."""
-
-
-def _cube_jobs_left(phase: list[Job], failed_views: set[tuple[str, str]], on_done: ProgressFn) -> list[Job]:
-    """The jobs of ``phase`` whose view did not fail; the others are reported failed, not run."""
-    keep = []
-    for job in phase:
-        if job.group is not None and (job.scene, job.view) in failed_views:
-            on_done(job, None, _ViewFailed(f"its view {job.scene}/{job.view} failed"))
-        else:
-            keep.append(job)
-    return keep
-
-
-def _run_local(plan_: Plan, store_path: str, settings_dict: dict, workers: int,
-               on_done: ProgressFn, overwrite: bool = False, keep_going: bool = False) -> list[dict]:
-    payloads = {n: _scene_payload(s) for n, s in plan_.scenes.items()}
-    results: list[dict] = []
-    cpu = os.cpu_count() or 1
-    threads = max(1, cpu // max(1, workers))
-    phases = [plan_.view_jobs, plan_.cube_jobs]
-    failed_views: set[tuple[str, str]] = set()
-    if keep_going:
-        user_done = on_done
-
-        def on_done(job, r, exc):  # remember failed views: their cubes cannot be stored
-            if exc is not None and job.group is None:
-                failed_views.add((job.scene, job.view))
-            user_done(job, r, exc)
-    if workers <= 1:
-        for phase in phases:
-            for job in _cube_jobs_left(phase, failed_views, on_done):
-                run_guarded(job, lambda job=job: run_job(payloads[job.scene], job, store_path, settings_dict, None,
-                                                         overwrite), on_done, results, keep_going)
-        return results
-    import multiprocessing as mp
-
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
-        for phase in phases:
-            pending = {pool.submit(run_job, payloads[j.scene], j, store_path, settings_dict, threads, overwrite): j
-                       for j in _cube_jobs_left(phase, failed_views, on_done)}
-            try:
-                while pending:
-                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in done:
-                        job = pending.pop(fut)
-                        exc = fut.exception()
-                        if exc is not None:
-                            on_done(job, None, exc)
-                            if keep_going and not isinstance(exc, BrokenProcessPool):  # a dead pool runs nothing
-                                continue
-                            raise JobError(f"{job.label}: {exc}") from exc
-                        results.append(fut.result())
-                        on_done(job, fut.result(), None)
-            except BaseException:
-                for fut in pending:
-                    fut.cancel()
-                raise
-    return results
-
-
 def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,
             address: str | None = None, on_done: ProgressFn | None = None,
             ray_init: dict | None = None, overwrite: bool = False,
@@ -456,7 +371,9 @@ def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", 
         from renderer_jobs.ray_executor import run_ray
 
         return run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)
-    return _run_local(plan_, store_path, settings_dict, workers, cb, overwrite, keep_going)
+    from renderer_jobs.local_executor import run_local
+
+    return run_local(plan_, store_path, settings_dict, workers, cb, overwrite, keep_going)
 
 
 __all__ = ["EXECUTORS", "Job", "JobError", "Plan", "apply_resolution", "execute", "parse_resolution", "plan",

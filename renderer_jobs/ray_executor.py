@@ -1,4 +1,4 @@
-"""The Ray executor of :mod:`renderer_jobs.jobs`: the same jobs as the local pool, as Ray tasks on a
+"""The Ray executor of :mod:`renderer_jobs.jobs`: the same jobs as the local pool (:mod:`renderer_jobs.local_executor`), as Ray tasks on a
 cluster (one CPU and a one-thread Dr.Jit pool per task, so Ray packs as many tasks as a node has
 cores). Imported only when ``--executor ray`` is asked for."""
 
