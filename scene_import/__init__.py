@@ -50,7 +50,7 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
         name = run(p, b)
     except SceneError:
         raise
-    except (ValueError, KeyError, IndexError, TypeError, AttributeError, OSError) as exc:
+    except (ValueError, KeyError, IndexError, TypeError, AttributeError, ArithmeticError, OSError) as exc:
         # a malformed file (bad numbers, dangling indices, missing referenced files): one line, not a traceback
         raise SceneError(f"{p}: cannot import this {fmt} file ({type(exc).__name__}: "
                          f"{' '.join(str(exc).split())[:300]})") from None

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from renderer_jobs.blend_import import _Names, sanitize
+from renderer_jobs.scene_spectra import SceneError
 from scene_import.colour_match import illuminant_for, uv_distance
 from scene_import.rules import Rules
 
@@ -126,6 +127,11 @@ class SceneBuilder:
 
     def add_light(self, name: str, doc: dict, xy: np.ndarray | None, strength: float,
                   names: list[str] | None = None, what: str = "") -> dict:
+        for key in ("position", "direction"):
+            v = np.asarray(doc.get(key, (0.0, 0.0, 1.0)), dtype=float)
+            if not np.all(np.isfinite(v)) or (key == "direction" and np.linalg.norm(v) < 1e-12):
+                raise SceneError(f"{what or f'light {name!r}'}: its {key} is degenerate (zero scale?); "
+                                 "fix the light in the source file")
         d = {"name": self._light_names(name, "light"), **doc, "group": None, "strength": float(strength)}
         self.emitters.append(Emitter(d, names or [name], name, xy, what or f"light {name!r}"))
         self.lights.append(d)
@@ -134,7 +140,15 @@ class SceneBuilder:
     def add_view(self, name: str, origin, forward, up, fov: float, resolution: tuple[int, int]) -> None:
         """A view from a camera frame: ``forward``/``up`` world directions, ``fov`` horizontal (degrees)."""
         o, f, u = (np.asarray(a, dtype=float) for a in (origin, forward, up))
+        what = f"camera {name!r}"
+        if not (np.all(np.isfinite(o)) and np.all(np.isfinite(f)) and np.linalg.norm(f) > 1e-12):
+            raise SceneError(f"{what}: its position or direction is degenerate (zero scale or target at the "
+                             "origin); fix the camera in the source file")
         f = f / np.linalg.norm(f)
+        if not np.all(np.isfinite(u)) or np.linalg.norm(np.cross(f, u)) < 1e-9 * max(np.linalg.norm(u), 1e-300):
+            # looking straight along its up (a top-down lookat with up +y): any perpendicular up frames it
+            u = np.array([0.0, 0.0, -1.0]) if abs(f[1]) > 0.9 else np.array([0.0, 1.0, 0.0])
+            self.warn(f"{what}: its up vector is parallel to its view direction; used {_r(u)}")
         u = u / np.linalg.norm(u)
         self.views.append({"name": self._view_names(name, "view"), "origin": _r(o), "target": _r(o + f),
                            "up": _r(u), "fov": round(float(fov), 6), "resolution": [int(resolution[0]),

@@ -24,15 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from retarget.isp import encode_srgb
+
 NAMED = ("A", "D50", "D55", "D65", "D75")  # named CIE illuminants preferred when they fit as well
 NAMED_SLACK_UV = 8e-4  # how much further (CIE 1960 uv) a named illuminant may be than the CCT one
 CCT_RANGE = (1000.0, 25000.0)  # K; outside it xy→CCT is unreliable and no lamp lives there
 GREY_SPREAD = 1e-4  # a colour whose channels differ by less than this is grey: a constant spectrum
 
-# sRGB (linear, D65) → CIE XYZ, IEC 61966-2-1; Y of white = 1.
-SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
-                        [0.2126729, 0.7151522, 0.0721750],
-                        [0.0193339, 0.1191920, 0.9503041]])
 
 
 # -- reflectances --------------------------------------------------------------------------------
@@ -74,11 +72,6 @@ def srgb_decode(v: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
-def srgb_encode(v: np.ndarray) -> np.ndarray:
-    v = np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0)
-    return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055)
-
-
 def write_texture(image, factor, path: Path) -> None:
     """Write a PIL image as an 8-bit sRGB PNG at ``path``, times the linear ``factor`` ``(3,)`` (the
     alpha channel is dropped: illumix materials are opaque)."""
@@ -88,7 +81,7 @@ def write_texture(image, factor, path: Path) -> None:
     f = np.asarray(factor, dtype=float)[:3]
     if not np.allclose(f, 1.0):
         a = srgb_decode(np.asarray(rgb, dtype=np.float64) / 255.0) * np.clip(f, 0.0, 1.0)
-        rgb = Image.fromarray(np.round(srgb_encode(a) * 255.0).astype(np.uint8), "RGB")
+        rgb = Image.fromarray(np.round(encode_srgb(a) * 255.0).astype(np.uint8), "RGB")
     path.parent.mkdir(parents=True, exist_ok=True)
     rgb.save(path, format="PNG")
 
@@ -98,7 +91,10 @@ def write_texture(image, factor, path: Path) -> None:
 
 def rgb_light(rgb) -> tuple[np.ndarray | None, float]:
     """``(xy, Y)`` of a linear sRGB light colour (``xy`` None when it is black)."""
-    xyz = SRGB_TO_XYZ @ np.clip(np.asarray(rgb, dtype=float)[:3], 0.0, None)
+    import colour
+
+    # sRGB (linear, D65) → CIE XYZ, Y of white = 1 (IEC 61966-2-1)
+    xyz = colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ @ np.clip(np.asarray(rgb, dtype=float)[:3], 0.0, None)
     s = float(xyz.sum())
     return (xyz[:2] / s if s > 0 else None), float(xyz[1])
 

@@ -107,8 +107,14 @@ def transform(d: XmlDoc, el: ET.Element | None) -> np.ndarray:
         elif op.tag == "lookat":
             o, tg = vec(d, ET.Element("p", value=d.get(op, "origin"))), vec(d, ET.Element("p", value=d.get(op, "target")))
             up = vec(d, ET.Element("p", value=d.get(op, "up", "0, 1, 0")))
+            if np.linalg.norm(tg - o) < 1e-12:
+                raise ValueError(f"<lookat> with origin = target ({d.get(op, 'origin')}): no view direction")
             f = (tg - o) / np.linalg.norm(tg - o)
             left = np.cross(up, f)
+            if np.linalg.norm(left) < 1e-9:  # looking along its up (a top-down camera with up +y)
+                up = np.array([0.0, 0.0, -1.0]) if abs(f[1]) > 0.9 else np.array([0.0, 1.0, 0.0])
+                d.b.warn(f"{d.path.name}: <lookat> up is parallel to its view direction; used up {up.tolist()}")
+                left = np.cross(up, f)
             left /= np.linalg.norm(left)
             t[:3, 0], t[:3, 1], t[:3, 2], t[:3, 3] = left, np.cross(f, left), f, o
         else:

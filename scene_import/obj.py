@@ -125,7 +125,7 @@ def _material(b: SceneBuilder, base: Path, name: str, m: dict) -> tuple[str, tup
     if "pr" in m:
         alpha = float(m["pr"][0]) ** 2
     else:
-        alpha = float(np.sqrt(2.0 / (float(m.get("ns", ["0"])[0]) + 2.0)))
+        alpha = float(np.sqrt(2.0 / (max(float(m.get("ns", ["0"])[0]), 0.0) + 2.0)))  # Ns < 0: as 0
     alpha = min(max(alpha, 1e-3), 1.0)
     metal = float(m.get("pm", ["0"])[0]) >= 0.5
     plastic = not metal and ks.max() > 0 and alpha < 0.999
