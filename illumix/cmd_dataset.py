@@ -22,10 +22,6 @@ from illumix.errors import UserError
 console = Console(stderr=True)
 
 
-def _is_local(store: str) -> bool:
-    return "://" not in store
-
-
 def dataset(
     config: Path = typer.Argument(..., help="Dataset config (YAML/JSON): name, generated: {count, seed, generator}, "
                                             "scenes: [files], render: {illumix render's options}."),
@@ -40,11 +36,10 @@ def dataset(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Render a dataset: generated rooms and scene files × views × light groups, resumable."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from illumix import scene_corpus
     from illumix.cmd_render import require_renderer
     from illumix.dataset_config import config_flag, load_config
+    from illumix.progress import progress_bar
     from illumix.render_options import check_executor, render_settings
     from renderer_jobs import jobs
     from renderer_jobs.scene_schema import SceneError
@@ -69,8 +64,10 @@ def dataset(
         raise UserError(f"{config}: render: {exc}") from None
     except UserError as exc:
         raise UserError(f"{config}: {exc}") from None
-    if scenes_dir is None and _is_local(store):
-        scenes_dir = Path(store) / scene_corpus.SCENES_DIR
+    from store.backend import is_local
+
+    if scenes_dir is None and is_local(store):
+        scenes_dir = Path(store.removeprefix("file://")) / scene_corpus.SCENES_DIR
     elif scenes_dir is None and not dry_run and cfg.generated is not None and cfg.generated.count:
         raise UserError(f"--store {store} is a URL: give --scenes-dir DIR for the generated rooms' scene files")
     if not dry_run:
@@ -82,9 +79,7 @@ def dataset(
             raise UserError(f"store {store}: {exc}") from None
 
     quiet = as_json and not console.is_terminal
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
-                  disable=quiet, transient=True) as prog:  # an error after it stays one line
+    with progress_bar(console, disable=quiet, transient=True) as prog:  # an error after it stays one line
         task = None
 
         def on_start(n: int) -> None:
@@ -112,7 +107,7 @@ def dataset(
     if p.conflicts and not overwrite:
         raise UserError(f"{p.conflicts[0]}" + (f" (and {len(p.conflicts) - 1} more)" if len(p.conflicts) > 1 else "")
                         + "; use another store, or --overwrite to re-render")
-    n_views = sum(len([v for v in s.views if not r.views or v.name in r.views]) for s in scenes)
+    n_views = len(p.view_jobs) + sum(j.group is None for j in p.skipped)
     summary = {
         "name": cfg.name, "store": store, "scenes_dir": str(scenes_dir) if scenes_dir else None,
         "generator_version": GENERATOR_VERSION, "scenes": len(scenes), "rooms_generated": corpus.generated,
@@ -134,9 +129,7 @@ def dataset(
     if p.jobs:
         if executor == "local" and settings.backend == "mitsuba":
             require_renderer()
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
-                      disable=quiet) as prog:
+        with progress_bar(console, disable=quiet) as prog:
             task = prog.add_task("rendering", total=len(p.jobs), last="")
 
             def on_done(job, result, exc) -> None:

@@ -103,8 +103,7 @@ def render(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
 ) -> None:
     """Render spectral transport cubes (one per view and light group) into a cube store."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
+    from illumix.progress import progress_bar
     from illumix.scene_files import load_scene_file
     from renderer_jobs import jobs
     from renderer_jobs.scene_schema import SceneError
@@ -166,9 +165,7 @@ def render(
         require_renderer()  # ray: the workers render (their image has Mitsuba); the driver needs none
     t0 = time.perf_counter()
     done: list[dict] = []
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), TextColumn("{task.fields[last]}"), console=console,
-                  transient=False, disable=as_json and not console.is_terminal) as prog:
+    with progress_bar(console, disable=as_json and not console.is_terminal) as prog:
         task = prog.add_task("rendering", total=len(p.jobs), last="")
         passes = None
 

@@ -58,9 +58,8 @@ def generate(
     """Write COUNT procedural rooms as scene files `illumix render` accepts (existing ones are kept: resume)."""
     import time
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from illumix import scene_corpus
+    from illumix.progress import progress_bar
 
     if seed + count > 1_000_000:
         raise UserError(f"--seed {seed} + --count {count} must be <= 1000000 (room names are room-NNNNNN)")
@@ -73,9 +72,7 @@ def generate(
         raise UserError(f"--out {out}: cannot create ({exc.strerror})") from None
     t0 = time.perf_counter()
     counts = {"generated": 0, "regenerated": 0, "cached": 0}
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.fields[last]}"), console=console,
-                  disable=as_json and not console.is_terminal) as prog:
+    with progress_bar(console, disable=as_json and not console.is_terminal) as prog:
         task = prog.add_task("rooms", total=count, last="")
         for s in range(seed, seed + count):
             scene, status = scene_corpus.room(s, gen, out)
@@ -148,9 +145,8 @@ def preview(
                                                                       "in memory, write nothing)."),
 ) -> None:
     """Write a contact sheet PNG of quick renders of every view of the scenes (labelled scene/view groups)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from illumix.cmd_render import require_renderer
+    from illumix.progress import progress_bar
 
     if out.suffix.lower() != ".png":
         raise UserError(f"--out {out}: give a .png file name")
@@ -173,8 +169,7 @@ def preview(
     columns = per_row if per_row <= 8 else 4
     tiles: list[tuple[str, np.ndarray]] = []
     blank = np.full((h, w, 3), 32, np.uint8)
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.fields[last]}"), console=console) as prog:
+    with progress_bar(console) as prog:
         task = prog.add_task("previews", total=len(scenes), last="")
         for s in scenes:
             views = [v.name for v in s.views]

@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from illumix.errors import UserError
-from illumix.scene_files import load_scene_file
+from illumix.scene_files import load_scene_file, write_yaml
 
 SCENES_DIR = ".illumix-scenes"
 HEADER = "# illumix.scenegen version={version} config={config}"
@@ -50,21 +49,6 @@ def _cached(path: Path, want: str) -> bool:
         return False
 
 
-def write_scene_atomic(scene, path: Path, first_line: str | None = None) -> None:
-    """Write ``scene`` as YAML at ``path`` via a temporary file in the same folder (never half a file)."""
-    import yaml
-
-    text = yaml.safe_dump(scene.model_dump(mode="json", exclude_defaults=False), sort_keys=False)
-    if first_line:
-        text = first_line + "\n" + text
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.yaml")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def room(seed: int, gen, out_dir: Path | None, *, write: bool = True):
     """Room ``seed``: ``(scene, status)`` with status ``"cached"`` (read from ``out_dir``),
     ``"generated"`` (and written there unless ``write`` is False) or ``"regenerated"`` (the cached
@@ -83,10 +67,13 @@ def room(seed: int, gen, out_dir: Path | None, *, write: bool = True):
             except SceneError:
                 pass
         status = "regenerated"
-    scene = generate_scene(seed, gen)
+    try:
+        scene = generate_scene(seed, gen)
+    except SceneError as exc:  # a generator bug: name the seed, say how to reproduce
+        raise UserError(f"generated room seed {seed}: {str(exc).splitlines()[0]}") from None
     if path is not None and write:
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_scene_atomic(scene, path, want)
+        write_yaml(scene.model_dump(mode="json"), path, first_line=want)
     return scene, status
 
 
@@ -112,10 +99,7 @@ def build(config, config_dir: Path, scenes_dir: Path | None, *, limit: int | Non
     if on_start:
         on_start(len(seeds))
     for seed in seeds:
-        try:
-            scene, status = room(seed, config.generated.generator, scenes_dir, write=write)
-        except SceneError as exc:  # a generator bug: name the seed, say how to reproduce
-            raise UserError(f"generated room seed {seed}: {str(exc).splitlines()[0]}") from None
+        scene, status = room(seed, config.generated.generator, scenes_dir, write=write)
         out.scenes.append(scene)
         if status == "cached":
             out.cached += 1

@@ -72,16 +72,22 @@ def import_cached(path: str | Path, rules: str | Path | None = None) -> tuple[Pa
     return out / "scene.yaml", warns
 
 
-def write_yaml(doc: dict, path: Path) -> None:
-    """Write a scene document as YAML through a temporary file and a rename (atomic)."""
+def write_yaml(doc: dict, path: Path, first_line: str | None = None) -> None:
+    """Write a scene document as YAML (JSON for a ``.json`` path) through a temporary file in the same
+    folder and a rename: never half a file. ``first_line``: a ``#`` comment line put first (YAML)."""
     import yaml
 
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    text = yaml.safe_dump(doc, sort_keys=False, allow_unicode=True, width=120)
     if path.suffix.lower() == ".json":
         text = json.dumps(doc, indent=1)
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    else:
+        text = yaml.safe_dump(doc, sort_keys=False, allow_unicode=True, width=120)
+        text = f"{first_line}\n{text}" if first_line else text
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:

@@ -32,7 +32,8 @@ STAGING = "_staging"
 TRASH = "_trash"
 
 
-def _is_local(location: str) -> bool:
+def is_local(location: str) -> bool:
+    """A local path (or ``file://`` URL) rather than another fsspec protocol."""
     return "://" not in location or location.startswith("file://")
 
 
@@ -46,7 +47,7 @@ class Backend:
                  storage_options: dict[str, Any] | None = None, atomic_rename: bool | None = None) -> None:
         loc = os.fspath(location)
         self.read_only = read_only
-        self.local = _is_local(loc)
+        self.local = is_local(loc)
         if self.local:
             self.root: Path | None = Path(loc.removeprefix("file://")).expanduser().absolute()
             self.url = str(self.root)
