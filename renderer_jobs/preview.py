@@ -40,9 +40,9 @@ def to_srgb8(linear: np.ndarray) -> np.ndarray:
     """Auto-exposed (97th percentile of luminance → 0.9) 8-bit sRGB of a linear ``(H, W, 3)`` image."""
     y = linear @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     p = float(np.percentile(y, 97)) if np.any(y > 0) else 1.0
-    x = np.clip(linear * (0.9 / max(p, 1e-12)), 0, 1)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-    return (srgb * 255 + 0.5).astype(np.uint8)
+    from retarget.isp import encode_srgb
+
+    return (encode_srgb(linear * (0.9 / max(p, 1e-12))) * 255 + 0.5).astype(np.uint8)
 
 
 def contact_sheet(tiles: list[tuple[str, np.ndarray]], columns: int = 4) -> np.ndarray:

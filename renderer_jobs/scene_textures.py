@@ -20,6 +20,7 @@ cylinder, meshes' ``vt``); ``scale`` repeats the texture ``(su, sv)`` times per 
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Annotated, Literal, Union
 
 import numpy as np
@@ -60,10 +61,16 @@ class PatternTexture(StrictModel):
     def label_map(self) -> np.ndarray:
         """The label map ``(resolution, resolution)`` float32, values in ``[0, K−1]``; row 0 is v = 0,
         as for Mitsuba's bitmaps (an image's first row lies along a rectangle's bottom edge)."""
-        p = {**_PARAMS[self.pattern], **self.params}
-        rng = np.random.default_rng([self.seed, PATTERNS.index(self.pattern)])
-        t = _GENERATORS[self.pattern](rng, self.resolution, len(self.spectra), p)
-        return np.clip(t, 0, len(self.spectra) - 1).astype(np.float32)
+        return _label_map(self.pattern, self.seed, self.resolution, len(self.spectra),
+                          tuple(sorted({**_PARAMS[self.pattern], **self.params}.items())))
+
+
+@lru_cache(maxsize=512)  # a scene is built once per group and per pass (probe, cubes): draw each map once
+def _label_map(pattern: str, seed: int, resolution: int, k: int, params: tuple) -> np.ndarray:
+    rng = np.random.default_rng([seed, PATTERNS.index(pattern)])
+    t = np.clip(_GENERATORS[pattern](rng, resolution, k, dict(params)), 0, k - 1).astype(np.float32)
+    t.flags.writeable = False  # shared by every caller
+    return t
 
 
 class BitmapTexture(StrictModel):

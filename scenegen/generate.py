@@ -176,11 +176,12 @@ def _balance(rng, plan, shapes: list[dict], lights: list[dict], groups: list[dic
         if g["name"] == "daylight":
             sky = [s for s in shapes if s.get("emitter", {}).get("group") == "daylight"]
             a = sum(fx.emitting_area(s) for s in sky)
-            # sky portals emit π L A; the sun through a window about E A cos — split the level 1 : 2
+            # sky portals emit π L A; the sun through a window about E A cos θ — split the level 1 : 2,
+            # with cos θ ≈ 2/3 (sun 20–55° high, ±35° off the wall normal: cos elev · cos azim ≈ 0.6–0.9)
             for s in sky:
                 s["emitter"]["strength"] = round(k / 3 / (math.pi * a), 4)
             for light in lights:
-                light["strength"] = round(2 * k / 3 / max(a, 1e-6) * 1.5, 4)
+                light["strength"] = round(2 * k / 3 / max(a, 1e-6) / (2 / 3), 4)
         elif g["name"] == "screen":
             targets[g["name"]] = 0.15 * k
         else:
