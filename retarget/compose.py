@@ -17,7 +17,7 @@ from retarget import exposure as aec
 from retarget import groundtruth as gt
 from retarget.ccm import fit_ccm
 from retarget.errors import SpectralError
-from retarget.isp import apply_ccm, render_srgb
+from retarget.isp import apply_ccm, encode_srgb
 from retarget.basis import BasisCube, project_groups_any
 from retarget.relight import band_scales, raw_weights
 from retarget.sensors import Sensor
@@ -144,8 +144,9 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
     out.gain = gain if "gain" in want else None
     out.ccm = ccm if "ccm" in want else None
     if "srgb" in want:
-        srgb_exposure = 1.0
+        # one CCM pass: the AEC of the sRGB rendering measures the very image it then encodes
+        linear = apply_ccm(raw * gain, ccm)
         if exposure is None:
-            srgb_exposure = aec.aec_gain(apply_ccm(raw * gain, ccm), method="constant")
-        out.srgb = render_srgb(raw, gain, ccm, srgb_exposure)
+            linear *= np.float32(aec.aec_gain(linear, method="constant"))
+        out.srgb = encode_srgb(linear)
     return out

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from retarget.errors import SpectralError
+from retarget.finite import all_finite
 from retarget.registry import MethodRegistry
 
 EXPOSURE_METHODS: MethodRegistry[str] = MethodRegistry(
@@ -38,7 +39,8 @@ class AECParams:
 
 def _stats(image: np.ndarray, p: AECParams) -> tuple[float, float]:
     x = np.asarray(image, dtype=np.float32).ravel()
-    x = x[np.isfinite(x)]
+    if not all_finite(x):
+        x = x[np.isfinite(x)]
     if x.size == 0:
         return 0.0, 0.0
     return float(x.mean(dtype=np.float64)), float(np.percentile(x, p.h_percentile))

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from retarget.errors import SpectralError
+from retarget.finite import all_finite
 
 _ROW_BLOCK = 1 << 18  # pixels per block when widening float16 to float32 (bounds temporaries)
 
@@ -135,7 +136,7 @@ def project_groups(cubes: Sequence[np.ndarray], weights: np.ndarray, *, skip_ban
         bands = np.flatnonzero(live) if skip_bands and not live.all() else None
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite results are refused below
             out[g] = _matmul_f32(cube, m[bands] if bands is not None else m, bands)
-    if not np.all(np.isfinite(out)):
+    if not all_finite(out):
         raise SpectralError("project: a cube contains NaN or inf (or overflowed float32); "
                             "check the store with `illumix store verify`")
     return out

@@ -58,18 +58,35 @@ def sensor_dirs() -> list[Path]:
 
 
 def _dir_sensors() -> dict[str, Path]:
+    """``name → file`` of the sensors in ILLUMIX_SENSOR_PATH. Listed again only when the path or a
+    folder's modification time changes (the service resolves a sensor name on every request)."""
+    dirs = sensor_dirs()
+    stamp = []
+    for d in dirs:
+        try:
+            stamp.append((str(d), d.stat().st_mtime_ns))
+        except OSError:
+            stamp.append((str(d), None))
+    return _list_dirs(tuple(stamp))
+
+
+@lru_cache(maxsize=8)
+def _list_dirs(stamp: tuple[tuple[str, int | None], ...]) -> dict[str, Path]:
     found: dict[str, Path] = {}
-    for d in sensor_dirs():
-        if d.is_dir():
-            for f in sorted(d.iterdir()):
+    for d, mtime in stamp:
+        if mtime is not None and Path(d).is_dir():
+            for f in sorted(Path(d).iterdir()):
                 if f.suffix.lower() in (".json", ".csv"):
                     found.setdefault(_RANGE_SUFFIX.sub("", f.stem), f)
     return found
 
 
+_CAMERAS = tuple(colour.MSDS_CAMERA_SENSITIVITIES.keys())  # a CanonicalMapping slugifies on every .keys()
+
+
 def builtin_names() -> list[str]:
     """All sensor names known without uploads: XYZ, colour-science cameras, ILLUMIX_SENSOR_PATH files."""
-    return [XYZ, *colour.MSDS_CAMERA_SENSITIVITIES.keys(), *_dir_sensors()]
+    return [XYZ, *_CAMERAS, *_dir_sensors()]
 
 
 def availability(grid: SpectralGrid = DEFAULT_GRID) -> tuple[list[str], dict[str, str]]:

@@ -21,6 +21,7 @@ import numpy as np
 from retarget.compose import GT_OUTPUTS, compose
 from retarget.compose import OUTPUTS as COMPOSED
 from retarget.errors import SpectralError, unknown_name
+from retarget.finite import all_finite
 from retarget.relight import band_scales
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
@@ -328,7 +329,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
         arrays |= extra.spectral_outputs(cubes, illum, scales, want, *p.out_size)
     del cubes, illum
     for k, a in arrays.items():
-        if a.dtype.kind == "f" and not np.isfinite(a).all():
+        if not all_finite(a):
             raise SpectralError(f"the composed {k} overflows float32 (intensities × exposure × the stored "
                                 "radiance is too large); lower intensities= or exposure=")
     noise = spec.noise_model()
