@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from retarget.errors import SpectralError
+from retarget.projected import Projected
+from retarget.finite import all_finite
 from retarget.relight import project_groups
 
 #: Pixels sampled for the basis fit (plenty for 63 bands; the 63 × 63 Gram matrix takes ~30 ms).
@@ -144,12 +146,13 @@ def compress(cube: np.ndarray, k: int, *, sample: int = DEFAULT_SAMPLE, seed: in
 
 def project_groups_any(cubes: Sequence[np.ndarray | BasisCube], weights: np.ndarray, *,
                        skip_bands: bool = True) -> np.ndarray:
-    """:func:`retarget.relight.project_groups` for cubes that may be :class:`BasisCube`.
+    """:func:`retarget.relight.project_groups` for cubes that may be :class:`BasisCube` or
+    :class:`retarget.projected.Projected`.
 
     cubes : G arrays ``(H, W, B)`` or basis cubes of that shape; weights : ``(G, B, 3)``.
     Returns ``(G, H, W, 3)`` float32; a group whose weights are all zero is not read.
     """
-    if not any(isinstance(c, BasisCube) for c in cubes):
+    if not any(isinstance(c, (BasisCube, Projected)) for c in cubes):
         return project_groups(cubes, weights, skip_bands=skip_bands)
     if len(cubes) != weights.shape[0]:
         raise SpectralError(f"project: {len(cubes)} cubes but weights for {weights.shape[0]} groups")
@@ -161,12 +164,12 @@ def project_groups_any(cubes: Sequence[np.ndarray | BasisCube], weights: np.ndar
                                 f"{weights.shape[1]}) matching cube 0 {shape}")
         if not np.any(weights[g] != 0):
             continue
-        if isinstance(cube, BasisCube):
+        if isinstance(cube, (BasisCube, Projected)):
             with np.errstate(invalid="ignore", over="ignore"):
                 out[g] = cube.project(weights[g])
         else:
             out[g] = project_groups([cube], weights[g:g + 1], skip_bands=skip_bands)[0]
-    if not np.all(np.isfinite(out)):
+    if not all_finite(out):
         raise SpectralError("project: a cube contains NaN or inf (or overflowed float32); "
                             "check the store with `illumix store verify`")
     return out

@@ -22,6 +22,7 @@ from service.body_guard import BodyGuard
 from service.budget import MemoryBudget
 from service.library import Library
 from service.limits import Limits
+from service.projections import ProjectionCache, projection_share
 from service.routes import registries, samples, status
 from service.sampling import Context
 from service.spec import SAMPLE_PARAMETERS
@@ -32,23 +33,29 @@ _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an upload
 _NO_BODY = 64 * 1024  # GET/DELETE: nothing is read, but do not let a huge claimed body hold a socket
 
 
-def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits: Limits | None = None) -> FastAPI:
+def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits: Limits | None = None,
+               projection_mb: int | None = None) -> FastAPI:
     """The service over an open :class:`store.CubeStore`.
 
     ``token``: bearer token required for writes (``None`` or empty: writes are open, with a warning
-    in the log). ``cache_mb``: bound of the decoded-cube cache. ``limits``: :class:`Limits`.
+    in the log). ``cache_mb``: bound of all cached pixels: decoded cubes plus ``projection_mb`` of
+    whole-frame projections (:mod:`service.projections`; default a quarter, at most 512; 0 turns
+    them off). ``limits``: :class:`Limits`.
     """
     limits = limits or Limits()
     token = token or None  # an empty token would accept an empty Bearer header: treat as none
     if token is None:
         log.warning("no token set: uploads and deletes are open to anyone who can reach this service")
-    cache = LRUCache(cache_mb * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
+    projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
+    cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
+    projections = ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None
     memory = MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s, per_request=limits.max_request_mb * 2**20)
     app = FastAPI(title="illumix", version="0.1.0",
                   description="Mixed-illuminant colour-constancy samples with exact ground truth. Every error "
                               "answer is an ErrorBody: {detail, status, code, loc}.",
                   responses=errors.error_responses(405))
-    app.state.ctx = Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory)
+    app.state.ctx = Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,
+                            projections=projections)
     app.state.token = token
     errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
     routers = (samples.router, registries.router, status.router)

@@ -30,6 +30,8 @@ class Health(BaseModel):
     cache_hits: int
     cache_misses: int
     cache: CacheStats
+    projections: CacheStats | None = Field(None, description="whole-frame projections kept per (cube, sensor, "
+                                                             "illuminant), carved out of --cache-mb; null when off")
     memory: MemoryStats
     auth: bool = Field(description="whether writes need a token")
 

@@ -22,13 +22,14 @@ from retarget.compose import GT_OUTPUTS, compose
 from retarget.compose import OUTPUTS as COMPOSED
 from retarget.errors import SpectralError, unknown_name
 from retarget.finite import all_finite
-from retarget.relight import band_scales
+from retarget.relight import band_scales, raw_weights
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
 from service import extra_outputs as extra
 from service.errors import NotFound, fail
 from service.library import Library
 from service.limits import Limits
+from service.projections import ProjectionCache
 from service.spec import SPECTRAL_OUTPUTS, SampleSpec
 from store.lru import LRUCache
 
@@ -40,6 +41,7 @@ class Context:
     cache: LRUCache
     limits: Limits
     memory: budget.MemoryBudget
+    projections: ProjectionCache | None = None
 
 
 @dataclass
@@ -64,6 +66,8 @@ class Plan:
     aovs: list[str] = field(default_factory=list)  # the view's stored AOVs
     denoise: str = "none"  # the denoise method whose stored copies are read ("none": the raw cubes)
     denoise_why: str = ""
+    sensor_key: str = ""  # set by build: identify the sensor and illuminants in projection keys
+    illuminant_keys: tuple = ()
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -232,7 +236,7 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
         for g, lit in zip(p.groups, p.reads()):
             if not lit:
                 continue
-            cube = ctx.cache.lookup(_key(p, g, kind)) if cacheable else None
+            cube = ctx.cache.lookup(_key(p, g, kind), count=False) if cacheable else None
             if cube is not None:
                 p.held[(g, kind)] = cube
                 continue
@@ -255,20 +259,52 @@ def _resizer(out_w: int, out_h: int, w: int, h: int):
     return resize
 
 
+def whole_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.ndarray:
+    """The decoded whole cube from the LRU cache (decoded and kept on first use; held by the plan
+    from :func:`price` on)."""
+    cube = p.held.pop((group, kind), None)
+    if cube is not None:
+        ctx.cache.count_hit()  # found by price() without counting, used now
+        return cube
+    dn = p.denoise != "none"
+    return ctx.cache.get(_key(p, group, kind),
+                         lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind, denoised=dn),
+                         expected_cost=_cube_bytes(p))
+
+
 def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.ndarray:
     """The window of a cube (``kind`` transport or illumination), sliced from the decoded whole cube in
-    the LRU cache (decoded and kept on first use, so every later crop of it is a hit); a cube larger
-    than the whole cache is read window by window, uncached."""
+    the LRU cache (so every later crop of it is a hit); a cube larger than the whole cache is read
+    window by window, uncached."""
     x, y, w, h = p.window
-    cube = p.held.pop((group, kind), None)
-    if cube is None:
-        dn = p.denoise != "none"
-        if _cube_bytes(p) > ctx.cache.max_cost:
-            return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind, denoised=dn)
-        cube = ctx.cache.get(_key(p, group, kind),
-                             lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind, denoised=dn),
-                             expected_cost=_cube_bytes(p))
-    return cube[y:y + h, x:x + w]
+    if _cube_bytes(p) > ctx.cache.max_cost:
+        return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind, denoised=p.denoise != "none")
+    return whole_cube(ctx, p, group, kind)[y:y + h, x:x + w]
+
+
+def group_inputs(ctx: Context, p: Plan, kind: str, unit_weights: list[np.ndarray | None]) -> list:
+    """Per group what :func:`retarget.compose.compose` projects: zeros for a group not read, else the
+    window of the frame's cached projection (:mod:`service.projections`) or of the cube itself.
+
+    unit_weights : per group the ``(B, 3)`` band weights at intensity 1 (``None``: do not use
+    projections, e.g. when spectral outputs need the cube's bands)."""
+    x, y, w, h = p.window
+    zero = np.broadcast_to(np.float32(0), (h, w, p.metas[0].n_bands))
+    whole = (w, h) == p.full
+    frame_bytes = p.full[0] * p.full[1] * 3 * 4
+    proj = ctx.projections if _cube_bytes(p) <= ctx.cache.max_cost else None
+    out = []
+    for i, (g, r) in enumerate(zip(p.groups, p.reads())):
+        if not r:
+            out.append(zero)
+            continue
+        win = None
+        if proj is not None and unit_weights[i] is not None:
+            key = (_key(p, g, kind), p.sensor_key, p.illuminant_keys[i])
+            win = proj.window(key, lambda g=g: whole_cube(ctx, p, g, kind), unit_weights[i], p.window,
+                              frame_bytes, whole)
+        out.append(win if win is not None else read_cube(ctx, p, g, kind))
+    return out
 
 
 def _aov_reader(ctx: Context, p: Plan):
@@ -306,17 +342,20 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     sensor, skey = lib.sensor(spec.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
     ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
+    emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
+    want = set(spec.array_outputs())
+    p.sensor_key, p.illuminant_keys = skey, ikeys
+    unit = [None] * len(p.groups)
+    if ctx.projections is not None and not (want & SPECTRAL_OUTPUTS):
+        unit = [raw_weights(band_scales(s[None], e[None], np.ones(1), [g], grid.wavelengths), sensor.weights())[0]
+                if r else None for s, e, g, r in zip(spds, emissions, p.groups, p.reads())]
     t_setup = time.perf_counter()
     x, y, w, h = p.window
-    zero = np.broadcast_to(np.float32(0), (h, w, grid.n_bands))
-    cubes = [read_cube(ctx, p, g) if r else zero for g, r in zip(p.groups, p.reads())]
-    illum = [read_cube(ctx, p, g, "illumination") if r else zero for g, r in zip(p.groups, p.reads())] \
-        if p.illumination else None
-    emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
+    cubes = group_inputs(ctx, p, "transport", unit)
+    illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     aov = _aov_reader(ctx, p)
     valid, reasons = extra.view_validity(aov, *p.out_size)
     t_read = time.perf_counter()
-    want = set(spec.array_outputs())
     exposure = exposure_for(spec)
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
                    sensor=sensor, ccms=np.stack(ccms), outputs=(want & set(COMPOSED)) | ({"raw"} if spec.noise else set()),

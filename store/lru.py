@@ -71,15 +71,22 @@ class LRUCache(Generic[V]):
         with self._lock:
             return key in self._items
 
-    def lookup(self, key: Hashable) -> V | None:
-        """The kept value (a hit, made most recent), or ``None`` (not counted: a :meth:`get` follows)."""
+    def lookup(self, key: Hashable, count: bool = True) -> V | None:
+        """The kept value (made most recent; a hit if ``count``), or ``None`` (not counted: a
+        :meth:`get` follows). ``count=False`` for a caller that may not use the value: it calls
+        :meth:`count_hit` when it does."""
         with self._lock:
             item = self._items.get(key)
             if item is None:
                 return None
             self._items.move_to_end(key)
-            self.hits += 1
+            self.hits += count
             return item[0]
+
+    def count_hit(self) -> None:
+        """Count a hit for a value found earlier by ``lookup(key, count=False)`` and now used."""
+        with self._lock:
+            self.hits += 1
 
     def get(self, key: Hashable, load: Callable[[], V], expected_cost: int | None = None) -> V:
         """The kept value, or ``load()`` kept under ``key`` (evicting the least recently used).

@@ -15,15 +15,20 @@ router = APIRouter(tags=["status"])
 async def health(request: Request, ctx: CtxDep) -> Health:
     """Liveness plus cache and working-memory figures. Runs on the event loop, not in the worker
     threads, so it answers even while every worker waits for working memory."""
-    c, m = ctx.cache, ctx.memory
+    c, m, pc = ctx.cache, ctx.memory, ctx.projections
     return Health(status="ok", scenes=len(ctx.store.scenes()), cache_bytes=c.total_cost, cache_hits=c.hits,
                   cache_misses=c.misses,
-                  cache=CacheStats(bytes=c.total_cost, evicted_in_use_bytes=c.evicted_cost, max_bytes=c.max_cost,
-                                   hits=c.hits, misses=c.misses),
+                  cache=_stats(c),
+                  projections=None if pc is None else _stats(pc.cache),
                   memory=MemoryStats(inflight_bytes=m.used, inflight_limit_bytes=m.capacity,
                                      request_limit_bytes=m.per_request, peak_inflight_bytes=m.peak,
                                      refused_busy=m.refused_busy),
                   auth=request.app.state.token is not None)
+
+
+def _stats(c) -> CacheStats:
+    return CacheStats(bytes=c.total_cost, evicted_in_use_bytes=c.evicted_cost, max_bytes=c.max_cost,
+                      hits=c.hits, misses=c.misses)
 
 
 @router.get("/scenes", response_model=Scenes, responses=error_responses(503))

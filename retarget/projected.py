@@ -1,0 +1,50 @@
+"""A group's camera raw, already projected: the cube's product with one set of band weights.
+
+Relight + projection is linear in the weights: ``T @ (s · M) = s · (T @ M)``. A window of ``T @ M``
+computed once (for a sensor and illuminant at intensity 1) therefore serves every later request
+with the same sensor and illuminant at any intensity ``s`` by one scalar product, exactly, instead
+of a 63-band product per pixel. :func:`retarget.basis.project_groups_any` accepts a
+:class:`Projected` in place of a cube and checks that the request's weights are a multiple of the
+ones it was computed with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from retarget.errors import SpectralError
+
+# Weights of one sensor and illuminant at two intensities differ by a float64 scalar multiple up
+# to rounding of that multiplication (~1e-16); anything beyond 1e-9 is a different request.
+_PARALLEL_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Projected:
+    """``raw`` ``(H, W, 3)`` float32 = ``cube @ weights`` for ``weights`` ``(B, 3)``."""
+
+    raw: np.ndarray
+    weights: np.ndarray
+    n_bands: int
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return (*self.raw.shape[:2], self.n_bands)
+
+    def project(self, weights: np.ndarray) -> np.ndarray:
+        """``cube @ weights`` ``(H, W, 3)`` for ``weights`` parallel to :attr:`weights`."""
+        ref = np.asarray(self.weights, np.float64)
+        w = np.asarray(weights, np.float64)
+        norm = float(np.abs(ref).sum())
+        s = float(np.abs(w).sum()) / norm if norm > 0 else 0.0
+        if not np.allclose(w, s * ref, rtol=_PARALLEL_RTOL, atol=_PARALLEL_RTOL * float(np.abs(w).max(initial=0))):
+            raise SpectralError("project: a cached projection was asked for different band weights "
+                                "(another sensor or illuminant); this is a bug in its cache key")
+        if s == 1.0:
+            return self.raw
+        return self.raw * np.float32(s)
+
+    def window(self, x: int, y: int, w: int, h: int) -> Projected:
+        return Projected(self.raw[y:y + h, x:x + w], self.weights, self.n_bands)
