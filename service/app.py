@@ -19,14 +19,10 @@ from fastapi import FastAPI
 
 from service import errors
 from service.body_guard import BodyGuard
-from service.budget import MemoryBudget
-from service.library import Library
 from service.limits import Limits
-from service.projections import ProjectionCache, projection_share
 from service.routes import registries, samples, status
-from service.sampling import Context
+from service.sampling import make_context
 from service.spec import SAMPLE_PARAMETERS
-from store.lru import LRUCache, nbytes_cost
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file
@@ -46,16 +42,11 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     token = token or None  # an empty token would accept an empty Bearer header: treat as none
     if token is None:
         log.warning("no token set: uploads and deletes are open to anyone who can reach this service")
-    projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
-    cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
-    projections = ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None
-    memory = MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s, per_request=limits.max_request_mb * 2**20)
     app = FastAPI(title="illumix", version="0.1.0",
                   description="Mixed-illuminant colour-constancy samples with exact ground truth. Every error "
                               "answer is an ErrorBody: {detail, status, code, loc}.",
                   responses=errors.error_responses(405))
-    app.state.ctx = Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,
-                            projections=projections)
+    app.state.ctx = make_context(store, cache_mb=cache_mb, projection_mb=projection_mb, limits=limits)
     app.state.token = token
     errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
     routers = (samples.router, registries.router, status.router)
@@ -66,10 +57,6 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.add_middleware(BodyGuard, limit_for=_body_limits(limits), timeout=limits.body_timeout_s,
                        total=limits.body_total_s)
     return app
-
-
-def _read_only(arr) -> None:
-    arr.flags.writeable = False  # one cached cube serves every request: nobody may change it
 
 
 def _body_limits(limits: Limits):
