@@ -26,40 +26,10 @@ from retarget.relight import band_scales, raw_weights
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
 from service import extra_outputs as extra
+from service.context import Context, make_context  # noqa: F401 - re-exported
 from service.errors import NotFound, fail
-from service.library import Library
 from service.limits import Limits
-from service.projections import ProjectionCache, projection_share
 from service.spec import SPECTRAL_OUTPUTS, SampleSpec
-from store.lru import LRUCache, nbytes_cost
-
-
-@dataclass
-class Context:
-    store: object
-    library: Library
-    cache: LRUCache
-    limits: Limits
-    memory: budget.MemoryBudget
-    projections: ProjectionCache | None = None
-
-
-def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = None,
-                 limits: Limits | None = None) -> Context:
-    """The composition context over an open store: ``cache_mb`` bounds all cached pixels, decoded
-    cubes plus ``projection_mb`` of whole-frame projections (default: a quarter, at most 512 MiB;
-    0 turns them off). Used by the service and by the client's local mode."""
-    limits = limits or Limits()
-    projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
-    cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
-    memory = budget.MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s,
-                                 per_request=limits.max_request_mb * 2**20)
-    return Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,
-                   projections=ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None)
-
-
-def _read_only(arr) -> None:
-    arr.flags.writeable = False  # one cached cube serves every request: nobody may change it
 
 
 @dataclass
@@ -306,7 +276,7 @@ def group_inputs(ctx: Context, p: Plan, kind: str, unit_weights: list[np.ndarray
 
     unit_weights : per group the ``(B, 3)`` band weights at intensity 1 (``None``: do not use
     projections, e.g. when spectral outputs need the cube's bands)."""
-    x, y, w, h = p.window
+    w, h = p.window[2:]
     zero = np.broadcast_to(np.float32(0), (h, w, p.metas[0].n_bands))
     whole = (w, h) == p.full
     frame_bytes = p.full[0] * p.full[1] * 3 * 4
@@ -368,7 +338,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
         unit = [raw_weights(band_scales(s[None], e[None], np.ones(1), [g], grid.wavelengths), sensor.weights())[0]
                 if r else None for s, e, g, r in zip(spds, emissions, p.groups, p.reads())]
     t_setup = time.perf_counter()
-    x, y, w, h = p.window
+    w, h = p.window[2:]
     cubes = group_inputs(ctx, p, "transport", unit)
     illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     aov = _aov_reader(ctx, p)

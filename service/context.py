@@ -1,0 +1,42 @@
+"""The composition context: store, sensor/illuminant library, caches and memory budget.
+
+One per service (:func:`service.app.create_app`) or per local client (``illumix_client.local``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from service import budget
+from service.library import Library
+from service.limits import Limits
+from service.projections import ProjectionCache, projection_share
+from store.lru import LRUCache, nbytes_cost
+
+
+@dataclass
+class Context:
+    store: object
+    library: Library
+    cache: LRUCache
+    limits: Limits
+    memory: budget.MemoryBudget
+    projections: ProjectionCache | None = None
+
+
+def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = None,
+                 limits: Limits | None = None) -> Context:
+    """The composition context over an open store: ``cache_mb`` bounds all cached pixels, decoded
+    cubes plus ``projection_mb`` of whole-frame projections (default: a quarter, at most 512 MiB;
+    0 turns them off). Used by the service and by the client's local mode."""
+    limits = limits or Limits()
+    projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
+    cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
+    memory = budget.MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s,
+                                 per_request=limits.max_request_mb * 2**20)
+    return Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,
+                   projections=ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None)
+
+
+def _read_only(arr) -> None:
+    arr.flags.writeable = False  # one cached cube serves every request: nobody may change it
