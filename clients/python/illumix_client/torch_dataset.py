@@ -51,6 +51,7 @@ import os
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from itertools import islice
 from typing import Any
 
@@ -73,6 +74,15 @@ class IllumixDataset(IterableDataset):
     ----------
     base_url, token, timeout, retry
         Where the service is (see :class:`illumix_client.Client`).
+    store, cache_mb, warm
+        Local mode: compose in this process from a store path or fsspec URL instead of asking a
+        service (:class:`illumix_client.local.LocalClient`; needs ``illumix-client[local]``), with
+        ``cache_mb`` of decoded cubes and projections. ``warm`` decodes every cube at construction,
+        so DataLoader workers forked afterwards share them instead of decoding them each.
+    device
+        Local mode only: compose with torch on this device (``"cuda"``; items are then tensors on
+        it; use ``num_workers=0``). Serves raw, gain, mask, weights, illum and mixture at the crop
+        size (:mod:`illumix_client.local_torch`); raw_norm ``"max"`` or ``"none"``.
     scenes
         Which views to draw from: ``None`` (all), scene names, ``"scene/view"`` keys or fnmatch
         patterns, or a predicate on :class:`illumix_client.draw.ViewInfo`. Views smaller than
@@ -113,7 +123,8 @@ class IllumixDataset(IterableDataset):
     here rather than in a worker.
     """
 
-    def __init__(self, base_url: str = "http://127.0.0.1:8000", *, token: str | None = None,
+    def __init__(self, base_url: str = "http://127.0.0.1:8000", *, store: str | None = None,
+                 cache_mb: int = 2048, warm: bool = True, device: str | None = None, token: str | None = None,
                  timeout: float | None = 60.0, retry: RetryPolicy | None = None,
                  scenes: str | Sequence[str] | Callable[[ViewInfo], bool] | None = None,
                  illuminants: Any = ("A", "D65", "FL11", "blackbody:2500-7500", "daylight:4000-10000"),
@@ -133,6 +144,10 @@ class IllumixDataset(IterableDataset):
         if raw_norm == "exposure" and exposure is None:
             exposure = "auto"
         self.base_url, self.token, self.timeout, self.retry = base_url, token, timeout, retry
+        self.store, self.cache_mb, self.device = store, int(cache_mb), device
+        if device is not None and (store is None or raw_norm == "exposure"):
+            raise ValueError("device= composes in the local mode (give store=) with raw_norm 'max' or 'none'")
+        self._local = None
         self.raw_norm, self.epoch_length = raw_norm, int(epoch_length)
         self.batch_size, self.prefetch = int(batch_size), int(prefetch)
         self.seed = int(seed) if seed is not None else int.from_bytes(os.urandom(4), "little")
@@ -147,9 +162,11 @@ class IllumixDataset(IterableDataset):
         self.rank, self.world_size = int(rank), int(world_size)
         pool = IlluminantPool(illuminants, cct_step=cct_step)
         crop_wh = (crop, crop) if isinstance(crop, int) else (tuple(crop) if crop is not None else None)
-        with self._client() as c:
+        with self._client() if store is None else nullcontext(self._client()) as c:
             views = select_views(views_from_scenes(c.scenes()), scenes, min_groups=min_groups, crop=crop_wh)
             _check_names(c, pool, sensors)
+            if store is not None and warm:
+                c.warm()
         self.sampler = SpecSampler(views, pool, sensors, intensity_range=intensity_range, crop=crop_wh,
                                    size=size, outputs=outputs, exposure=exposure, noise=noise,
                                    bayer=bayer, distinct=distinct_illuminants, gt=gt,
@@ -178,8 +195,20 @@ class IllumixDataset(IterableDataset):
         return self.sampler.spec(np.random.default_rng([self.seed, e, int(index)]))
 
     # -- iteration -------------------------------------------------------------------------------
-    def _client(self) -> Client:
-        return Client(self.base_url, token=self.token, timeout=self.timeout, retry=self.retry)
+    def _client(self):
+        """An HTTP :class:`Client` (closed after use), or the dataset's one local client (kept: it
+        holds the decoded cubes)."""
+        if self.store is None:
+            return Client(self.base_url, token=self.token, timeout=self.timeout, retry=self.retry)
+        if self._local is None:
+            from illumix_client.local import LocalClient
+
+            self._local = LocalClient(self.store, cache_mb=self.cache_mb, device=self.device)
+        return self._local
+
+    def __getstate__(self) -> dict:
+        # a worker started by pickling (spawn) opens its own local client; forked workers inherit it
+        return self.__dict__ | {"_local": None}
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
         info = get_worker_info()
@@ -214,12 +243,15 @@ class IllumixDataset(IterableDataset):
             for f in pending:
                 f.cancel()
             pool.shutdown(wait=True, cancel_futures=True)
-            client.close()
+            if self.store is None:
+                client.close()
 
     # -- conversion ------------------------------------------------------------------------------
     def to_item(self, index: int, s: Sample) -> dict[str, Any]:
         """A :class:`Sample` → the item dict (layout in the module docstring)."""
         item: dict[str, Any] = {}
+        if isinstance(s.raw if s.raw is not None else s.gain, torch.Tensor):
+            return self._tensor_item(index, s)
         if s.raw is not None:
             item["raw"] = torch.from_numpy(self._norm_raw(s))
         for k in ("gain", "srgb", "weights", "illum", "mixture", "albedo", "normal", "reflectance", "illumination"):
@@ -232,6 +264,22 @@ class IllumixDataset(IterableDataset):
             item["ccm"] = torch.from_numpy(np.ascontiguousarray(s.ccm.transpose(2, 3, 0, 1), dtype=np.float32))
         if s.mask is not None:
             item["mask"] = torch.from_numpy(np.ascontiguousarray(s.mask[None], dtype=bool))
+        item["index"] = int(index)
+        item["meta"] = json.dumps(s.meta)
+        return item
+
+    def _tensor_item(self, index: int, s: Sample) -> dict[str, Any]:
+        """The item of a sample composed with torch on a device (local mode with ``device=``)."""
+        item: dict[str, Any] = {}
+        for k in ("raw", "gain", "weights", "illum", "mixture"):
+            a = getattr(s, k)
+            if a is not None:
+                item[k] = a.permute(2, 0, 1).contiguous()
+        if "raw" in item and self.raw_norm == "max":
+            peak = item["raw"].amax()
+            item["raw"] = torch.where(peak > 0, item["raw"] / torch.where(peak > 0, peak, 1), item["raw"])
+        if s.mask is not None:
+            item["mask"] = s.mask[None]
         item["index"] = int(index)
         item["meta"] = json.dumps(s.meta)
         return item

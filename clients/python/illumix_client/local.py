@@ -1,0 +1,139 @@
+"""``LocalClient``: the client's interface composed in-process from a store, with no HTTP.
+
+For single-machine training: ``IllumixDataset(store="./illumix-store")`` composes each sample here,
+with the service's own code (:mod:`service.sampling`), so a sample is identical to what
+``GET /sample`` answers for the same parameters. Needs the physics core: ``pip install
+"illumix-client[local]"`` (or the illumix package itself); ``import illumix_client`` alone still
+imports no server code.
+
+Decoded cubes and whole-frame projections are cached in the process (``cache_mb``, as ``illumix
+serve --cache-mb``). :meth:`LocalClient.warm` decodes every cube once; do it before a DataLoader
+forks its workers and they share the decoded cubes (copy-on-write pages) instead of decoding them
+again each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+from illumix_client.errors import IllumixError, InvalidRequestError, NotFoundError
+from illumix_client.sample import Sample, as_specs, encode_spec
+
+try:
+    from pydantic import ValidationError
+    from retarget.errors import SpectralError, UnknownName
+    from service.context import make_context
+    from service.errors import NotFound, ServiceError
+    from service.routes.registries import illuminants as _illuminants
+    from service.routes.registries import sensors as _sensors
+    from service.routes.status import scenes as _scenes
+    from service.sampling import build, plan, price
+    from service.spec import SampleSpec
+    from store import CubeStore, StoreError, StoreKeyError
+except ImportError as exc:  # pragma: no cover - depends on the install
+    raise ImportError(f"the local mode needs the illumix physics core ({exc}); install it with "
+                      "`pip install \"illumix-client[local]\"` or `pip install illumix`") from None
+
+
+class LocalClient:
+    """:class:`illumix_client.Client`'s read methods (``scenes``, ``sensors``, ``illuminants``,
+    ``sample``, ``batch``) over a store path or fsspec URL, composed in this process.
+
+    cache_mb, projection_mb : the cache bounds (see ``illumix serve``).
+    device, device_cache_mb : compose with torch on ``device`` (``"cuda"``, ``"cpu"``;
+    :mod:`illumix_client.local_torch`: outputs raw, gain, mask, weights, illum, mixture) with up to
+    ``device_cache_mb`` of cubes kept there; ``None`` (default): the service's numpy path.
+    """
+
+    def __init__(self, store: str, *, cache_mb: int = 2048, projection_mb: int | None = None,
+                 device: str | None = None, device_cache_mb: int = 8192) -> None:
+        try:
+            if not CubeStore.exists(store):
+                raise NotFoundError(f"no illumix store at {store}; render one with `illumix render --store {store}`")
+            self.store = CubeStore.open(store, mode="r")
+        except StoreError as exc:
+            raise IllumixError(str(exc)) from None
+        self.url = store
+        self.ctx = make_context(self.store, cache_mb=cache_mb, projection_mb=projection_mb)
+        self.torch = None
+        if device is not None:
+            from illumix_client.local_torch import TorchComposer
+
+            self.torch = TorchComposer(self.ctx, device, device_cache_mb)
+
+    # -- what the store holds ------------------------------------------------------------------
+    def scenes(self) -> dict:
+        return _call(lambda: _scenes(self.ctx).model_dump())
+
+    def sensors(self) -> dict:
+        return _call(lambda: _sensors(self.ctx).model_dump())
+
+    def illuminants(self) -> dict:
+        return _call(lambda: _illuminants(self.ctx).model_dump())
+
+    # -- samples -------------------------------------------------------------------------------
+    def sample(self, **spec: Any) -> Sample:
+        """One sample; ``spec`` as for :meth:`illumix_client.Client.sample`."""
+        return self._one(encode_spec(spec))
+
+    def batch(self, specs: Iterable[Mapping[str, Any]]) -> list[Sample]:
+        """Samples for each spec, in order (no batch-size limit: they are composed one by one)."""
+        return [self._one(s) for s in as_specs(specs)]
+
+    def _one(self, wire: dict[str, Any]) -> Sample:
+        def run() -> Sample:
+            spec = SampleSpec(**wire)
+            if spec.format != "npz":
+                raise InvalidRequestError("the local mode returns arrays; leave out format=", 422)
+            if self.torch is not None:
+                return self.torch.sample(spec)
+            p = plan(spec, self.ctx)
+            price(p, self.ctx)  # holds the cubes it finds cached, as the service does
+            arrays, meta = build(p, self.ctx)
+            s = Sample(meta=meta if "meta" in spec.outputs else {})
+            for k, v in arrays.items():
+                setattr(s, k, np.asarray(v))
+            return s
+        return _call(run)
+
+    def warm(self, progress: bool = False) -> dict:
+        """Decode every cube /sample reads by default into the cache (until it is full).
+        Returns ``{"cubes", "bytes"}``."""
+        from service.warm import warm_cache
+
+        return warm_cache(self.ctx, log=print if progress else None)
+
+    def close(self) -> None:
+        self.ctx.cache.clear()
+        if self.ctx.projections is not None:
+            self.ctx.projections.clear()
+
+    def __enter__(self) -> LocalClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _call(fn):
+    """Run ``fn``, raising the client's typed errors for what the service would answer 4xx/5xx."""
+    try:
+        return fn()
+    except IllumixError:
+        raise
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(x) for x in first.get("loc", ()))
+        raise InvalidRequestError(f"{where}: {first.get('msg')}", 422, code="invalid_parameter") from None
+    except (UnknownName, NotFound, StoreKeyError) as exc:
+        raise NotFoundError(str(exc), 404, code="not_found") from None
+    except SpectralError as exc:
+        raise InvalidRequestError(str(exc), 422, code="invalid_parameter") from None
+    except ServiceError as exc:
+        cls = InvalidRequestError if 400 <= exc.status < 500 else IllumixError
+        raise cls(exc.detail, exc.status, code=exc.code) from None
+    except StoreError as exc:
+        raise IllumixError(f"store problem: {exc}; run `illumix store verify`", 503, code="store_damaged") from None
