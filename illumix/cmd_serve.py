@@ -62,13 +62,22 @@ def serve(
     token: str | None = typer.Option(None, "--token", envvar="ILLUMIX_TOKEN",
                                      help="Bearer token required for uploads/deletes (or ILLUMIX_TOKEN); "
                                           "without one, writes are open."),
-    cache_mb: int = typer.Option(1024, "--cache-mb", min=0, help="Decoded-cube LRU cache size, MiB."),
+    cache_mb: int = typer.Option(1024, "--cache-mb", min=0,
+                                 help="Cached pixels, MiB: decoded cubes plus whole-frame projections."),
+    projection_mb: int | None = typer.Option(None, "--projection-cache-mb", min=0,
+                                             help="Part of --cache-mb kept for whole-frame projections per "
+                                                  "(cube, sensor, illuminant), so crops are slices (default a "
+                                                  "quarter, at most 512; 0: off)."),
     max_request_mb: int = typer.Option(160, "--max-request-mb", min=1,
                                        help="Most working memory one request or batch may need, MiB "
                                             "(priced before any work; above it: 413 with a hint)."),
     inflight_mb: int = typer.Option(160, "--inflight-mb", min=1,
                                     help="Working memory of all requests in flight, MiB (beyond it "
                                          "requests wait, then 503). RSS ≈ 200 MB + --cache-mb + this."),
+    warm: bool = typer.Option(False, "--warm",
+                              help="Before serving, decode the cubes a default /sample of each view reads "
+                                   "into the cache (one line per cube on stderr), until the cache is full, "
+                                   "so the first requests are hits."),
 ) -> None:
     """Serve samples over HTTP (OpenAPI docs at /docs)."""
     check_address(host, port)  # refuse before anything starts or is created
@@ -85,8 +94,12 @@ def serve(
 
     tune_for_service()
     limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
-    uvicorn.run(create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits), host=host, port=port,
-                log_level="info")
+    app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb)
+    if warm:  # before uvicorn binds: once the port answers, the cache is warm
+        from service.warm import warm_cache
+
+        warm_cache(app.state.ctx, log=lambda line: print(f"illumix: {line}", file=sys.stderr, flush=True))
+    uvicorn.run(app, host=host, port=port, log_level="info")
 
 
 def register(app: typer.Typer) -> None:

@@ -8,7 +8,8 @@ inf (pixels with no light are flagged in ``mask``). Memory is bounded per reques
 
 Routers (one per resource): :mod:`service.routes.samples` (``/sample``, ``/batch``),
 :mod:`service.routes.registries` (``/sensors``, ``/illuminants``), :mod:`service.routes.status`
-(``/health``, ``/scenes``).
+(``/health``, ``/scenes``), :mod:`service.routes.metrics` (``/metrics``, Prometheus; collected by
+:mod:`service.metrics`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from fastapi import FastAPI
 from service import errors
 from service.body_guard import BodyGuard
 from service.limits import Limits
-from service.routes import registries, samples, status
+from service.metrics import Metrics, RequestMetrics
+from service.routes import metrics, registries, samples, status
 from service.sampling import make_context
 from service.spec import SAMPLE_PARAMETERS
 
@@ -49,13 +51,16 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.state.ctx = make_context(store, cache_mb=cache_mb, projection_mb=projection_mb, limits=limits)
     app.state.token = token
     errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
-    routers = (samples.router, registries.router, status.router)
+    app.state.metrics = Metrics(app.state.ctx)
+    routers = (samples.router, registries.router, status.router, metrics.router)
     for router in routers:
         app.include_router(router)
     # every concrete route, for the Allow header of a 405 (FastAPI wraps included routers)
     app.state.routes = [r for r in app.routes if hasattr(r, "methods")] + [r for x in routers for r in x.routes]
     app.add_middleware(BodyGuard, limit_for=_body_limits(limits), timeout=limits.body_timeout_s,
                        total=limits.body_total_s)
+    # outermost: the answers BodyGuard gives before routing are counted too
+    app.add_middleware(RequestMetrics, metrics=app.state.metrics, routes=app.state.routes)
     return app
 
 

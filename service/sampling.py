@@ -201,11 +201,20 @@ def _cube_bytes(p: Plan) -> int:
     return p.full[0] * p.full[1] * p.metas[0].n_bands * 4
 
 
+def cube_key(scene: str, view: str, group: str, kind: str, denoise: str, created: str) -> tuple:
+    """The cube cache's key of a decoded whole cube (public so ``serve --warm`` fills the same entries).
+    ``created`` names the render: a cube re-rendered while the service runs is a new entry, so the
+    transport and illumination cubes of one sample always come from the same render."""
+    return (scene, view, group, kind, denoise, created)
+
+
+def aov_key(scene: str, view: str, name: str, stamp: tuple) -> tuple:
+    """The cube cache's key of a view's whole AOV; ``stamp``: the render stamps of all its groups' cubes."""
+    return (scene, view, "aov", name, stamp)
+
+
 def _key(p: Plan, group: str, kind: str) -> tuple:
-    # ``created`` names the render: a cube re-rendered while the service runs is a new entry, so the
-    # transport and illumination cubes of one sample always come from the same render
-    meta = p.metas[p.groups.index(group)]
-    return (p.scene, p.view, group, kind, p.denoise, meta.created)
+    return cube_key(p.scene, p.view, group, kind, p.denoise, p.metas[p.groups.index(group)].created)
 
 
 def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
@@ -308,7 +317,7 @@ def _aov_reader(ctx: Context, p: Plan):
     def read(name: str) -> np.ndarray | None:
         if name not in p.aovs:
             return None
-        full = ctx.cache.get((p.scene, p.view, "aov", name, stamp),
+        full = ctx.cache.get(aov_key(p.scene, p.view, name, stamp),
                              lambda: ctx.store.read_aov(p.scene, p.view, name))
         return full[y:y + h, x:x + w]
     return read

@@ -103,3 +103,23 @@ def test_bad_host_or_taken_port_is_one_line_before_anything_starts(tmp_path, cap
         code, out, err = run_cli(capsys, "serve", *new, "--port", str(port))
     assert code == 2 and err.count("\n") == 1 and f"cannot listen on 127.0.0.1:{port}" in err
     assert not served and not (tmp_path / "new").exists()
+
+
+def test_warm_is_listed_in_help(capsys):
+    code, out, _ = run_cli(capsys, "serve", "--help")
+    assert code == 0 and "--warm" in out
+
+
+def test_warm_fills_the_cache_before_serving(tmp_path, capsys, served):
+    """--warm decodes before uvicorn starts: one line per entry on stderr, and the first sample is all hits."""
+    from fastapi.testclient import TestClient
+
+    synthetic_store.build(tmp_path / "st", illumination=True)
+    code, _, err = run_cli(capsys, *SERVE, "--store", str(tmp_path / "st"), "--token", "s3cret", "--warm")
+    assert code == 0 and len(served) == 1, err
+    lines = err.strip("\n").split("\n")
+    assert all(line.startswith("illumix: warm: ") for line in lines) and "synth/v0 window transport" in err
+    c = TestClient(served[0]["app"])
+    assert c.get("/sample", params={"scene": "synth", "view": "v0", "crop": "0,0,16,16"}).status_code == 200
+    metrics = dict(line.rsplit(" ", 1) for line in c.get("/metrics").text.splitlines() if not line.startswith("#"))
+    assert float(metrics["illumix_cache_hits_total"]) > 0 and float(metrics["illumix_cache_misses_total"]) == 0
