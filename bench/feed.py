@@ -32,9 +32,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "bench"), str(ROOT / "clients" / "python")]
 
-import numpy as np  # noqa: E402
-
-import feed_lib as fl  # noqa: E402
+import feed_lib as fl
+import numpy as np
 
 CACHE_MB, PROJECTION_MB = 1280, 256  # cubes get 1024 MiB: the 996 MiB store fits
 

@@ -57,7 +57,7 @@ class ServiceCollector(Collector):
         yield CounterMetricFamily("illumix_cache_misses", "Decoded-cube cache misses (a cube was decoded)",
                                   value=c.misses)
         yield GaugeMetricFamily("illumix_cache_bytes", "Decoded cube bytes the cache holds", value=c.total_cost)
-        yield GaugeMetricFamily("illumix_cache_max_bytes", "The cache's bound (--cache-mb)", value=c.max_cost)
+        yield GaugeMetricFamily("illumix_cache_max_bytes", "The cube cache's bound (--cache-mb less --projection-cache-mb)", value=c.max_cost)
         yield GaugeMetricFamily("illumix_cache_evicted_in_use_bytes",
                                 "Evicted cubes that requests still use (counted against the bound)",
                                 value=c.evicted_cost)

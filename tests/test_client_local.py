@@ -19,6 +19,7 @@ except ImportError:  # not installed yet: use the source tree
     import illumix_client as ic
 import synthetic_store
 from illumix_client.local import LocalClient
+
 from service.app import create_app
 from store import CubeStore
 
@@ -41,7 +42,7 @@ def http(store_path):
 
 def test_local_samples_equal_the_service(store_path, http):
     with LocalClient(store_path, cache_mb=64) as local:
-        assert local.scenes() == http.get("/scenes").json()
+        assert local.scenes() == http.get("/scenes").json()["scenes"]
         assert local.sensors() == http.get("/sensors").json()
         for outputs in ("raw,gain,mask,meta", "raw,gain,srgb,illum,mixture,weights,meta"):
             spec = SPEC | {"outputs": outputs}

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import synthetic_store as synth
+
 from service.app import create_app
 from service.sampling import build_sample
 from service.spec import SampleSpec

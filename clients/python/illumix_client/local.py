@@ -24,6 +24,7 @@ from illumix_client.sample import Sample, as_specs, encode_spec
 
 try:
     from pydantic import ValidationError
+
     from retarget.errors import SpectralError, UnknownName
     from service.context import make_context
     from service.errors import NotFound, ServiceError
@@ -66,7 +67,7 @@ class LocalClient:
 
     # -- what the store holds ------------------------------------------------------------------
     def scenes(self) -> dict:
-        return _call(lambda: _scenes(self.ctx).model_dump())
+        return _call(lambda: _scenes(self.ctx).model_dump()["scenes"])
 
     def sensors(self) -> dict:
         return _call(lambda: _sensors(self.ctx).model_dump())

@@ -11,6 +11,8 @@ numpy ones.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import torch
 
@@ -31,10 +33,15 @@ class TorchComposer:
         self.ctx, self.device = ctx, torch.device(device)
         self.cubes: LRUCache[torch.Tensor] = LRUCache(cache_mb * 2**20, cost=lambda t: t.numel() * t.element_size())
 
+    def _to_device(self, cube: np.ndarray) -> torch.Tensor:
+        with warnings.catch_warnings():
+            # the cached cube is read-only; nothing here writes to it (on "cpu" the tensor shares it)
+            warnings.simplefilter("ignore", UserWarning)
+            return torch.from_numpy(cube).to(self.device)
+
     def _window(self, p, group: str, kind: str) -> torch.Tensor:
         x, y, w, h = p.window
-        full = self.cubes.get(_key(p, group, kind),
-                              lambda: torch.from_numpy(np.asarray(whole_cube(self.ctx, p, group, kind))).to(self.device),
+        full = self.cubes.get(_key(p, group, kind), lambda: self._to_device(whole_cube(self.ctx, p, group, kind)),
                               expected_cost=p.full[0] * p.full[1] * p.metas[0].n_bands * 4)
         return full[y:y + h, x:x + w]
 
@@ -50,7 +57,7 @@ class TorchComposer:
         grid = p.metas[0].spectral_grid
         sensor, _ = ctx.library.sensor(spec.sensor, grid)
         spds = np.stack([ctx.library.illuminant(n or "E", grid)[0] for n in p.names])
-        lit = [r for r in p.reads()]
+        lit = p.reads()
         emissions = [np.asarray(m.emission, np.float64) for m in p.metas]
         unit = [raw_weights(band_scales(s[None], e[None], np.ones(1), [g], grid.wavelengths), sensor.weights())[0]
                 if r else None for s, e, g, r in zip(spds, emissions, p.groups, lit)]
