@@ -338,7 +338,11 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     grid = p.metas[0].spectral_grid
     sensor, skey = lib.sensor(spec.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
-    ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
+    # a CCM fit costs ~0.1 s the first time per (sensor, illuminant): only when something uses it
+    if {"ccm", "srgb", "meta"} & set(spec.outputs) or spec.format != "npz":
+        ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
+    else:
+        ccms, fit_de = None, [None] * len(spds)
     emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
     want = set(spec.array_outputs())
     p.sensor_key, p.illuminant_keys = skey, ikeys
@@ -355,7 +359,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     t_read = time.perf_counter()
     exposure = exposure_for(spec)
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
-                   sensor=sensor, ccms=np.stack(ccms), outputs=(want & set(COMPOSED)) | ({"raw"} if spec.noise else set()),
+                   sensor=sensor, ccms=None if ccms is None else np.stack(ccms), outputs=(want & set(COMPOSED)) | ({"raw"} if spec.noise else set()),
                    exposure=exposure, group_names=p.groups, resize=_resizer(*p.out_size, w, h),
                    illumination=illum if p.gt == "physical" and illum is not None else None, valid=valid)
     arrays = {k: v for k, v in comp.outputs().items() if k in want}
@@ -380,8 +384,9 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
         "illuminants": [
             {"group": g, "illuminant": n, "intensity": a,
              "white_point_rgb": [float(v) for v in wp],
-             "ccm": np.asarray(c).round(8).tolist(), "ccm_fit_delta_e00_mean": float(de)}
-            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms, fit_de)
+             "ccm": None if c is None else np.asarray(c).round(8).tolist(),
+             "ccm_fit_delta_e00_mean": None if de is None else float(de)}
+            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms or fit_de, fit_de)
         ],
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "denoise": _denoise_meta(p),
