@@ -52,7 +52,7 @@ def _little(a: np.ndarray) -> np.ndarray:
         raise ValueError(f"the arrays format holds bool/int/float arrays, not {a.dtype}")
     if a.dtype.byteorder == ">":
         a = a.astype(a.dtype.newbyteorder("<"))
-    return np.ascontiguousarray(a)
+    return a if a.flags.c_contiguous else a.copy(order="C")  # (ascontiguousarray makes 0-d arrays 1-d)
 
 
 def _align(n: int) -> int:

@@ -92,6 +92,14 @@ class Sample:
         """The outputs that are present, by name."""
         return {k: getattr(self, k) for k in OUTPUTS if getattr(self, k) is not None}
 
+    def value(self, name: str) -> np.ndarray | None:
+        """Output ``name``'s values: a float16 output kept as sent (``keep_float16=True``) as float32
+        ``stored × scale``; any other output as it is; ``None`` when absent."""
+        a = getattr(self, name)
+        if a is None or name not in self.scales:
+            return a
+        return np.multiply(a, np.float32(self.scales[name]), dtype=np.float32)
+
     def ccm_map(self) -> np.ndarray:
         """``(H, W, 3, 3)`` float32 per-pixel CCM, ``CCM(x) = Σ_g m_g(x) CCM_g``, computed as the
         service computes its ``ccm`` output: ``m`` is ``mixture`` (either ground truth; for the
@@ -99,7 +107,7 @@ class Sample:
         ``meta["illuminants"][g]["ccm"]``. Needs ``meta`` and ``mixture`` (or, with
         ``meta["ground_truth"]["method"] == "formula"``, ``weights``) among the outputs."""
         if self.ccm is not None:
-            return self.ccm
+            return self.value("ccm")
         if not self.meta.get("illuminants"):
             raise ValueError("ccm_map() needs the sample's meta: request outputs including 'meta'")
         method = self.meta.get("ground_truth", {}).get("method")
@@ -107,9 +115,7 @@ class Sample:
         if name is None or getattr(self, name) is None:
             raise ValueError(f"ccm_map() needs the 'mixture' output{' (or weights)' if method == 'formula' else ''}"
                              " with this sample's ground truth: request outputs including 'mixture' and 'meta'")
-        m = getattr(self, name)
-        m = np.multiply(m, np.float32(self.scales[name]), dtype=np.float32) if name in self.scales else \
-            m.astype(np.float32, copy=False)
+        m = self.value(name).astype(np.float32, copy=False)
         ccms = np.asarray([i["ccm"] for i in self.meta["illuminants"]], dtype=np.float32).reshape(-1, 9)
         if ccms.shape[0] != m.shape[-1]:
             raise ValueError(f"{name} has {m.shape[-1]} groups but meta lists {ccms.shape[0]} CCMs")
