@@ -36,7 +36,7 @@ class Sample:
       level) or ``noise`` was set (then digital numbers, black level included).
     - ``gain``: ``(H, W, 3)`` float32 white-balance gain map, ``max_j W_j / W_k`` (≥ 1, G ≈ 1).
     - ``ccm``: ``(H, W, 3, 3)`` float32 per-pixel colour-correction matrix, white-balanced camera RGB
-      → linear sRGB (``out = ccm @ rgb``).
+      → linear sRGB (``out = ccm @ rgb``); sent only when requested — :meth:`ccm_map` rebuilds it.
     - ``srgb``: ``(H, W, 3)`` float32 rendered sRGB in [0, 1].
     - ``weights``: ``(H, W, G)`` float32 illuminant weights per light group, in ``meta["groups"]``
       order; they sum to 1 where ``mask`` is True.
