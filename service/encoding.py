@@ -1,8 +1,14 @@
 """Response encodings.
 
-- ``npz``: one array per output (``raw``/``gain`` ``(H, W, 3)`` float32 — raw ``(H, W)`` when Bayer
-  mosaicked — ``ccm`` ``(H, W, 3, 3)``, ``srgb`` ``(H, W, 3)`` float32 in [0, 1], ``weights``
-  ``(H, W, G)``, ``mask`` ``(H, W)`` bool) plus ``meta``, the metadata JSON as a 0-d string array.
+- ``npz`` (the default): one array per output (``raw``/``gain`` ``(H, W, 3)`` float32 — raw
+  ``(H, W)`` when Bayer mosaicked — ``ccm`` ``(H, W, 3, 3)``, ``srgb`` ``(H, W, 3)`` float32 in
+  [0, 1], ``weights`` ``(H, W, G)``, ``mask`` ``(H, W)`` bool) plus ``meta``, the metadata JSON as a
+  0-d string array; with ``dtype=float16`` also ``scales`` (0-d JSON string ``{output: scale}``).
+- ``arrays``: the same arrays in the flat container of :mod:`service.arrays_format` (faster to
+  encode and decode than npz for large arrays; what the Python client asks for).
+- ``dtype=float16`` (npz and arrays): every float output is sent as float16 with a power-of-two
+  scale per output and sample, ``value = stored × scale`` (:func:`half_precision`); the scales are
+  in ``meta["encoding"]["scales"]``, in the npz's ``scales`` and in the arrays header.
 - ``png``: one image output, 16-bit unless noted, with a fixed, documented scale (never the frame's
   own peak, which would crush every mid-tone of a frame with a lamp in view):
 
@@ -36,7 +42,10 @@ from retarget.errors import SpectralError
 GAIN_PNG_SCALE = 4096.0
 RAW_PNG_WHITE = 65535
 IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights")}
-MEDIA = {"npz": "application/octet-stream", "png": "image/png", "tiff": "image/tiff"}
+MEDIA = {"npz": "application/octet-stream", "arrays": "application/x-illumix-arrays", "png": "image/png",
+         "tiff": "image/tiff"}
+#: float16 scaling puts each output's largest magnitude in [2^(HALF_TOP-1), 2^HALF_TOP) as stored
+HALF_TOP = 15
 
 
 def meta_json(meta: dict) -> str:
@@ -44,14 +53,53 @@ def meta_json(meta: dict) -> str:
     return json.dumps(meta, allow_nan=False)
 
 
-def encode_npz(arrays: dict[str, np.ndarray], meta: dict | None) -> memoryview:
-    """An uncompressed ``.npz`` of ``arrays`` (+ ``meta``), as a view of one buffer (no copy)."""
+def encode_npz(arrays: dict[str, np.ndarray], meta: dict | None, scales: dict | None = None) -> memoryview:
+    """An uncompressed ``.npz`` of ``arrays`` (+ ``meta``, + ``scales`` when given), as a view of one
+    buffer (no copy)."""
     buf = io.BytesIO()
     payload = dict(arrays)
     if meta is not None:
         payload["meta"] = np.array(meta_json(meta))
+    if scales:
+        payload["scales"] = np.array(meta_json(scales))
     np.savez(buf, **payload)
     return buf.getbuffer()
+
+
+def half_scale(a: np.ndarray) -> int:
+    """The exponent ``k`` of the power-of-two scale ``2^k`` for sending float ``a`` as float16.
+
+    ``a``'s largest magnitude ``m·2^e`` (``m`` in [0.5, 1)) is stored as ``m·2^HALF_TOP``, in
+    [2^14, 2^15): below float16's maximum (65504) with a factor 2 to spare, so rounding never
+    overflows, and 28 binades above its smallest normal number (2^-14), so every value down to
+    2^-28 of the maximum keeps float16's full relative precision (≤ 2^-11, round to nearest).
+    ``k`` stays within [-126, 127] so the scale is a normal float32 (an array whose maximum is below
+    2^-111 is then stored smaller than 2^14, with fewer binades to spare). ``0`` for an all-zero or
+    empty array.
+    """
+    if a.size == 0:
+        return 0
+    peak = max(float(a.max()), -float(a.min()))
+    if not np.isfinite(peak):
+        raise SpectralError("an output is not finite; it cannot be sent (lower intensities= or exposure=)")
+    if peak == 0:
+        return 0
+    return int(np.clip(np.frexp(peak)[1] - HALF_TOP, -126, 127))
+
+
+def half_precision(arrays: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """``(arrays, scales)``: every float array as float16 ``stored = value / 2^k`` (exact scaling,
+    one rounding to float16), ``scales[name] = 2^k`` (see :func:`half_scale`); other dtypes (the
+    bool ``mask``) unchanged."""
+    out, scales = {}, {}
+    for name, a in arrays.items():
+        if a.dtype.kind != "f":
+            out[name] = a
+            continue
+        k = half_scale(a)
+        out[name] = np.ldexp(a, np.int32(-k), out=np.empty(a.shape, np.float16), casting="same_kind")
+        scales[name] = float(2.0 ** k)
+    return out, scales
 
 
 def image_output(arrays: dict[str, np.ndarray], fmt: str) -> str:

@@ -97,7 +97,8 @@ class Deleted(BaseModel):
 
 
 class BatchRequest(BaseModel):
-    """``POST /batch``: the samples, each with the ``GET /sample`` parameters (npz only)."""
+    """``POST /batch``: the samples, each with the ``GET /sample`` parameters (``format`` npz or arrays,
+    the same for every item)."""
 
     model_config = ConfigDict(extra="forbid")
     samples: list[SampleSpec] = Field(description="1..max_batch sample specs (the GET /sample parameters)")

@@ -23,10 +23,12 @@ from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 from service.encoding import IMAGE_OUTPUTS
 
-FORMATS = ("npz", "png", "tiff")
+FORMATS = ("npz", "arrays", "png", "tiff")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
 SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spectra over the bands
-DEFAULT_OUTPUTS = (*OUTPUTS, "meta")
+# ccm is 36 bytes a pixel (25 MB of a 56 MB 720x960 answer) and is exactly Σ_g mixture_g CCM_g from
+# the mixture output and meta["illuminants"][g]["ccm"]: sent only when asked for.
+DEFAULT_OUTPUTS = (*(o for o in OUTPUTS if o != "ccm"), "meta")
 ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, "reflectance", "illumination", "meta")
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 
@@ -148,7 +150,12 @@ class SampleSpec(BaseModel):
         description=f"none (the cubes as rendered) or a denoise method ({', '.join(DENOISE_CHOICES.names[1:])}): "
                     "the cubes' stored denoised copies (guide-only, linear: relighting stays exact). Default: the "
                     "stored copies where every lit group has them, else none")
-    format: Literal["npz", "png", "tiff"] = Field("npz", description="npz (all outputs), or png/tiff (one image output)")
+    format: Literal["npz", "arrays", "png", "tiff"] = Field(
+        "npz", description="npz (all outputs), arrays (all outputs, the flat illumix container: faster; "
+                           "application/x-illumix-arrays), or png/tiff (one image output)")
+    dtype: Literal["float32", "float16"] = Field(
+        "float32", description="float outputs as float32, or as float16 with a power-of-two scale per output "
+                               "(value = stored × scale; meta.encoding.scales); npz and arrays only")
     exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
                                  pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
     noise: str | None = Field(None, max_length=512, description="low, phone, high or key:value;… "
@@ -166,7 +173,10 @@ class SampleSpec(BaseModel):
 
     @model_validator(mode="after")
     def _one_image(self) -> SampleSpec:
-        if self.format != "npz":
+        if self.dtype != "float32" and self.format in IMAGE_OUTPUTS:
+            raise ValueError(f"dtype={self.dtype} is for format=npz or arrays; format={self.format} has its own "
+                             "fixed scale: drop dtype= or ask format=arrays")
+        if self.format in IMAGE_OUTPUTS:
             images = [o for o in self.outputs if o != "meta"]
             if len(images) != 1 or images[0] not in IMAGE_OUTPUTS[self.format]:
                 raise ValueError(f"format={self.format} returns exactly one image output, one of "

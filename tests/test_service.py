@@ -47,7 +47,10 @@ def test_health_and_scenes(client):
 
 
 def test_sample_all_outputs_shapes_and_finiteness(client):
-    z = load(client.get("/sample", params={"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "A,D65"}))
+    base = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "A,D65"}
+    default = load(client.get("/sample", params=base))
+    assert "ccm" not in default and {"raw", "gain", "srgb", "weights", "mask", "illum", "mixture", "meta"} <= set(default)
+    z = load(client.get("/sample", params=base | {"outputs": "raw,gain,ccm,srgb,weights,mask,meta"}))
     h, w = synth.H, synth.W
     assert z["raw"].shape == (h, w, 3) and z["gain"].shape == (h, w, 3)
     assert z["ccm"].shape == (h, w, 3, 3) and z["srgb"].shape == (h, w, 3)

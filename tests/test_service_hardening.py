@@ -246,10 +246,11 @@ def test_openapi_documents_every_answer(client):
                 assert "$ref" in ok["content"]["application/json"]["schema"], (method, path)
     sample = paths["/sample"]["get"]
     assert {"404", "413", "422", "503"} <= set(sample["responses"])
-    assert {"application/octet-stream", "image/png", "image/tiff"} <= set(sample["responses"]["200"]["content"])
+    assert {"application/octet-stream", "application/x-illumix-arrays", "image/png",
+            "image/tiff"} <= set(sample["responses"]["200"]["content"])
     assert [p["name"] for p in sample["parameters"]] == ["scene", "view", "seed", "sensor", "pair", "illuminants",
                                                          "intensities", "crop", "size", "outputs", "gt", "denoise", "format",
-                                                         "exposure", "noise", "bayer"]
+                                                         "dtype", "exposure", "noise", "bayer"]
     batch = paths["/batch"]["post"]
     assert batch["requestBody"]["content"]["application/json"]["schema"]["$ref"].endswith("/BatchRequest")
     assert "application/octet-stream" in batch["responses"]["200"]["content"]

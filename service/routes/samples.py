@@ -2,46 +2,77 @@
 
 from __future__ import annotations
 
-import json
 from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
-from service import budget
+from service import arrays_format, budget
 from service.deps import CtxDep
-from service.encoding import MEDIA, encode_image, encode_npz, image_output, meta_json, png_scale
+from service.encoding import MEDIA, encode_image, encode_npz, half_precision, image_output, meta_json, png_scale
 from service.errors import error_responses, fail
 from service.models import BatchRequest
 from service.sampling import build, plan, price
 from service.spec import SampleSpec
 
 router = APIRouter(tags=["samples"])
+#: an arrays body is sent in slices of at most this many bytes (views, not copies): the server's
+#: HTTP layer copies what it is given into its write buffer, so small slices keep that copy small
+#: and let the send overlap it (bench/wire.py measures it)
+SEND_CHUNK = 1 << 18
 
 
 class _HeldResponse(Response):
     """A response that gives its working-memory reservation back once it is sent — or once sending
-    failed (a client that hangs up must not leak the reservation, as a background task would)."""
+    failed (a client that hangs up must not leak the reservation, as a background task would).
+
+    ``content`` is bytes, or an :class:`service.arrays_format.Encoded` whose chunks (views of the
+    outputs themselves) are sent one after another, so the arrays are never copied into one body."""
 
     def __init__(self, content, hold, **kw) -> None:
+        self._chunks = None
+        if isinstance(content, arrays_format.Encoded):
+            self._chunks, content = content, b""
         super().__init__(content, **kw)
+        if self._chunks is not None:
+            self.headers["content-length"] = str(self._chunks.nbytes)
         self._hold = hold
 
     async def __call__(self, scope, receive, send) -> None:
         try:
-            await super().__call__(scope, receive, send)
+            if self._chunks is None:
+                await super().__call__(scope, receive, send)
+                return
+            await send({"type": "http.response.start", "status": self.status_code, "headers": self.raw_headers})
+            step = SEND_CHUNK
+            parts = [c[i:i + step] for c in self._chunks.chunks for i in range(0, len(c), step)]
+            for i, part in enumerate(parts):
+                await send({"type": "http.response.body", "body": part, "more_body": i < len(parts) - 1})
         finally:
+            self._chunks = None
             self._hold.release()
 
-_NPZ = {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}
-_SAMPLE_CONTENT = {**_NPZ, "image/png": {"schema": {"type": "string", "format": "binary"}},
-                   "image/tiff": {"schema": {"type": "string", "format": "binary"}}}
+
+_BINARY = {"schema": {"type": "string", "format": "binary"}}
+_NPZ = {"application/octet-stream": _BINARY, arrays_format.MEDIA_TYPE: _BINARY}
+_SAMPLE_CONTENT = {**_NPZ, "image/png": _BINARY, "image/tiff": _BINARY}
+
+
+def _encoding(spec: SampleSpec, arrays: dict[str, np.ndarray], meta: dict) -> tuple[dict[str, np.ndarray], dict]:
+    """``(arrays to send, scales)``: float16 with their scales (also put in ``meta["encoding"]``) when
+    ``dtype=float16``, else as composed."""
+    if spec.dtype != "float16":
+        return arrays, {}
+    arrays, scales = half_precision(arrays)
+    meta["encoding"] = {"dtype": "float16", "scales": scales, "value": "stored * scale"}
+    return arrays, scales
 
 
 @router.get("/sample", response_class=Response,
             responses={200: {"content": _SAMPLE_CONTENT,
-                             "description": "npz with one array per output (+ meta JSON), or one PNG/TIFF image"},
+                             "description": "npz or arrays container with one array per output (+ meta JSON), "
+                                            "or one PNG/TIFF image"},
                        **error_responses(404, 413, 422, 500, 503)})
 def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One sample: the view lit by the given illuminants, projected through the sensor, with exact
@@ -50,9 +81,14 @@ def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     hold = ctx.memory.acquire(price(p, ctx), f"this sample ({_describe(params, p)})")
     try:
         arrays, meta = build(p, ctx)
-        if params.format == "npz":
-            body = encode_npz(arrays, meta if "meta" in params.outputs else None)
-            headers = {}
+        headers: dict[str, str] = {}
+        if params.format in ("npz", "arrays"):
+            arrays, scales = _encoding(params, arrays, meta)
+            meta = meta if "meta" in params.outputs else None
+            if params.format == "npz":
+                body = encode_npz(arrays, meta, scales)
+            else:
+                body = arrays_format.encode(arrays, scales, **({"meta": meta} if meta is not None else {}))
         else:
             name = image_output(arrays, params.format)
             noise = params.noise_model() if name == "raw" else None
@@ -68,17 +104,23 @@ def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
 
 
 @router.post("/batch", response_class=Response,
-             responses={200: {"content": _NPZ, "description": "npz with keys '{i}/{output}' and '{i}/meta'"},
+             responses={200: {"content": _NPZ, "description": "npz with keys '{i}/{output}' and '{i}/meta' (and "
+                                                              "'{i}/scales' with dtype=float16), or an arrays "
+                                                              "container with arrays '{i}/{output}' and the metas "
+                                                              "in the header's items"},
                         **error_responses(400, 404, 408, 413, 422, 500, 503)})
 def batch(body: BatchRequest, ctx: CtxDep) -> Response:
-    """Many samples in one npz (keys ``"{i}/{output}"`` and ``"{i}/meta"``); each item takes the
-    ``GET /sample`` parameters (``format`` must stay npz). Priced as a whole before any work."""
+    """Many samples in one answer; each item takes the ``GET /sample`` parameters. ``format`` is npz
+    (keys ``"{i}/{output}"``, ``"{i}/meta"``, ``"{i}/scales"``) or arrays (arrays ``"{i}/{output}"``,
+    header ``items[i].meta``, scales on the arrays), the same for every item; ``dtype`` may differ
+    per item. Priced as a whole before any work."""
     limits = ctx.limits
     if not 1 <= len(body.samples) <= limits.max_batch:
         raise fail(413 if body.samples else 422, f"a batch holds 1..{limits.max_batch} samples, got "
                    f"{len(body.samples)}; split it", code="too_large" if body.samples else "invalid_parameter")
-    if any(s.format != "npz" for s in body.samples):
-        raise fail(422, "batch items are always npz; drop format= from the items")
+    fmt = body.samples[0].format
+    if fmt not in ("npz", "arrays") or any(s.format != fmt for s in body.samples):
+        raise fail(422, "batch items are all npz or all arrays; give every item the same format= (or none: npz)")
     plans = [plan(s, ctx) for s in body.samples]
     # Items are built one after another and their outputs kept for the archive: price the outputs
     # of all (twice: arrays and archive) plus the largest item's working memory.
@@ -88,14 +130,23 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
     hold = ctx.memory.acquire(2 * outs + work, f"this batch of {len(plans)} samples")
     try:
         arrays: dict[str, np.ndarray] = {}
+        scales: dict[str, float] = {}
+        items: list[dict] = []
         for i, p in enumerate(plans):
             a, meta = build(p, ctx)
+            a, s = _encoding(p.spec, a, meta)
             arrays.update({f"{i}/{k}": v for k, v in a.items()})
-            if "meta" in p.spec.outputs:
-                arrays[f"{i}/meta"] = np.array(json.dumps(meta, allow_nan=False))
-        payload = encode_npz(arrays, None)
+            scales.update({f"{i}/{k}": v for k, v in s.items()})
+            wants_meta = "meta" in p.spec.outputs
+            items.append({"meta": meta} if wants_meta else {})
+            if fmt == "npz":
+                if wants_meta:
+                    arrays[f"{i}/meta"] = np.array(meta_json(meta))
+                if s:
+                    arrays[f"{i}/scales"] = np.array(meta_json(s))
+        payload = encode_npz(arrays, None) if fmt == "npz" else arrays_format.encode(arrays, scales, items=items)
         del arrays
-        return _HeldResponse(payload, hold, media_type=MEDIA["npz"])
+        return _HeldResponse(payload, hold, media_type=MEDIA[fmt])
     except BaseException:
         hold.release()
         raise

@@ -21,7 +21,7 @@ from __future__ import annotations
 import random
 import time
 from collections.abc import Awaitable, Callable, Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from email.utils import parsedate_to_datetime
 from pathlib import Path
 from typing import Any
@@ -103,6 +103,14 @@ class Call:
     data: dict[str, str] | None = None
     files: dict[str, tuple[str, bytes, str]] | None = None
     idempotent: bool = True
+    #: stream a 2xx body into a bytearray (:attr:`body`, see :func:`read_body`) instead of httpx's bytes,
+    #: so arrays decoded as views of it are writable without a copy
+    buffered: bool = False
+    body: bytearray | None = field(default=None, repr=False)
+
+    def content(self, resp: httpx.Response) -> bytes | bytearray:
+        """The answer's body: the buffered bytearray of a :attr:`buffered` call, else ``resp.content``."""
+        return self.body if self.body is not None else resp.content
 
     def request_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {}
@@ -208,6 +216,39 @@ async def run_async(call: Call, policy: RetryPolicy, base_url: str,
             return done.value
 
 
+def read_body(call: Call, resp: httpx.Response) -> httpx.Response:
+    """Read a streamed answer for ``call``: a 2xx body into ``call.body`` (a bytearray grown chunk by
+    chunk: one copy, as httpx's own join would make), anything else as usual; then close it."""
+    try:
+        call.body = None
+        if 200 <= resp.status_code < 300:
+            buf = bytearray()
+            for chunk in resp.iter_bytes():
+                buf += chunk
+            call.body = buf
+        else:
+            resp.read()
+    finally:
+        resp.close()
+    return resp
+
+
+async def aread_body(call: Call, resp: httpx.Response) -> httpx.Response:
+    """:func:`read_body` for an ``httpx.AsyncClient`` answer."""
+    try:
+        call.body = None
+        if 200 <= resp.status_code < 300:
+            buf = bytearray()
+            async for chunk in resp.aiter_bytes():
+                buf += chunk
+            call.body = buf
+        else:
+            await resp.aread()
+    finally:
+        await resp.aclose()
+    return resp
+
+
 def _json(resp: httpx.Response) -> Any:
     return resp.json()
 
@@ -260,13 +301,35 @@ def delete(kind: str, name: str) -> Call:
     return Call("DELETE", f"/{kind}/{quote(name, safe='')}", _json, idempotent=False)
 
 
-def sample(spec: dict[str, Any]) -> Call:
-    return Call("GET", "/sample", lambda r: parse_sample(r.content), params=encode_spec(spec))
+WIRE_FORMATS = ("arrays", "npz")
 
 
-def batch(specs) -> Call:
+def check_wire_format(wire_format: str) -> str:
+    if wire_format not in WIRE_FORMATS:
+        raise ValueError(f"wire_format must be 'arrays' (fast, the default) or 'npz', got {wire_format!r}")
+    return wire_format
+
+
+def sample(spec: dict[str, Any], wire_format: str = "arrays", keep_float16: bool = False) -> Call:
+    params = encode_spec(spec)
+    if wire_format != "npz":  # npz is the service's default: not sent, so older services answer too
+        params["format"] = wire_format
+    call = Call("GET", "/sample", _unset, params=params, buffered=True)
+    call.parse = lambda r: parse_sample(call.content(r), keep_float16)
+    return call
+
+
+def batch(specs, wire_format: str = "arrays", keep_float16: bool = False) -> Call:
     items = as_specs(specs)
-    return Call("POST", "/batch", lambda r: parse_batch(r.content, len(items)), json={"samples": items})
+    if wire_format != "npz":
+        items = [{**it, "format": wire_format} for it in items]
+    call = Call("POST", "/batch", _unset, json={"samples": items}, buffered=True)
+    call.parse = lambda r: parse_batch(call.content(r), len(items), keep_float16)
+    return call
+
+
+def _unset(resp: httpx.Response) -> Any:  # pragma: no cover  (replaced right after construction)
+    raise AssertionError("parse not set")
 
 
 def image(output: str, fmt: str, spec: dict[str, Any]) -> Call:

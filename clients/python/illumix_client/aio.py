@@ -26,8 +26,10 @@ class AsyncClient:
     def __init__(self, base_url: str = "http://127.0.0.1:8000", token: str | None = None,
                  timeout: float | httpx.Timeout | None = DEFAULT_TIMEOUT,
                  retry: P.RetryPolicy | None = None,
-                 transport: httpx.AsyncBaseTransport | None = None) -> None:
+                 transport: httpx.AsyncBaseTransport | None = None,
+                 wire_format: str = "arrays", keep_float16: bool = False) -> None:
         self.base_url = P.check_base_url(base_url)
+        self.wire_format, self.keep_float16 = P.check_wire_format(wire_format), bool(keep_float16)
         self.retry = retry or P.RetryPolicy()
         self._http = httpx.AsyncClient(base_url=self.base_url, headers=P.headers(token), timeout=timeout,
                                        transport=transport)
@@ -45,7 +47,10 @@ class AsyncClient:
         return await P.run_async(call, self.retry, self.base_url, self._send, _sleep)
 
     async def _send(self, call: P.Call) -> httpx.Response:
-        return await self._http.request(call.method, call.path, **call.request_kwargs())
+        if not call.buffered:
+            return await self._http.request(call.method, call.path, **call.request_kwargs())
+        request = self._http.build_request(call.method, call.path, **call.request_kwargs())
+        return await P.aread_body(call, await self._http.send(request, stream=True))
 
     async def health(self) -> dict:
         return await self._run(P.health())
@@ -70,11 +75,12 @@ class AsyncClient:
                      outputs: str | Sequence[str] | None = None, gt: str | None = None,
                      denoise: str | None = None,
                      exposure: str | float | None = None,
-                     noise: str | Mapping[str, float] | None = None, bayer: str | None = None) -> Sample:
-        return await self._run(P.sample(_spec(locals())))
+                     noise: str | Mapping[str, float] | None = None, bayer: str | None = None,
+                     dtype: str | None = None) -> Sample:
+        return await self._run(P.sample(_spec(locals()), self.wire_format, self.keep_float16))
 
     async def batch(self, specs: Iterable[Mapping[str, Any]]) -> list[Sample]:
-        return await self._run(P.batch(specs))
+        return await self._run(P.batch(specs, self.wire_format, self.keep_float16))
 
     async def image(self, output: str = "srgb", format: str = "png", **spec: Any) -> bytes:
         return await self._run(P.image(output, format, spec))

@@ -1,4 +1,5 @@
-"""The :class:`Sample` a request returns, request-parameter encoding and npz decoding.
+"""The :class:`Sample` a request returns, request-parameter encoding and response decoding (npz or
+the arrays container, told apart by their first bytes; float16 outputs scaled back).
 
 Shared by :class:`illumix_client.Client` and :class:`illumix_client.AsyncClient`; no I/O here.
 """
@@ -14,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from illumix_client import arrays_format
 from illumix_client.errors import IllumixError
 
 OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture", "albedo", "normal", "depth",
@@ -21,7 +23,7 @@ OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture", 
 """Array outputs the service can return (plus ``meta``)."""
 
 SPEC_KEYS = ("scene", "view", "seed", "sensor", "pair", "illuminants", "intensities", "crop", "size",
-             "outputs", "gt", "denoise", "exposure", "noise", "bayer")
+             "outputs", "gt", "denoise", "exposure", "noise", "bayer", "dtype")
 """Parameters of one sample request (GET /sample query parameters, POST /batch items)."""
 
 
@@ -34,7 +36,7 @@ class Sample:
       level) or ``noise`` was set (then digital numbers, black level included).
     - ``gain``: ``(H, W, 3)`` float32 white-balance gain map, ``max_j W_j / W_k`` (≥ 1, G ≈ 1).
     - ``ccm``: ``(H, W, 3, 3)`` float32 per-pixel colour-correction matrix, white-balanced camera RGB
-      → linear sRGB (``out = ccm @ rgb``).
+      → linear sRGB (``out = ccm @ rgb``); sent only when requested — :meth:`ccm_map` rebuilds it.
     - ``srgb``: ``(H, W, 3)`` float32 rendered sRGB in [0, 1].
     - ``weights``: ``(H, W, G)`` float32 illuminant weights per light group, in ``meta["groups"]``
       order; they sum to 1 where ``mask`` is True.
@@ -50,6 +52,12 @@ class Sample:
     - ``meta``: the service's metadata (scene, view, groups, illuminants with sensor white points and
       CCMs, intensities, exposure gain, seed, ground truth, provenance, timings); ``{}`` when not
       requested.
+    - ``scales``: ``{output: scale}`` of float16 outputs kept as sent (``dtype="float16"`` with
+      ``Client(keep_float16=True)``): value = ``stored.astype(np.float32) * scale``; ``{}`` otherwise
+      (float16 outputs are then scaled back to float32 on arrival).
+
+    ``ccm`` is not sent by default; :meth:`ccm_map` rebuilds it from ``mixture`` (or ``weights``)
+    and the per-group CCMs in ``meta``.
     """
 
     raw: np.ndarray | None = None
@@ -66,6 +74,7 @@ class Sample:
     reflectance: np.ndarray | None = None
     illumination: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    scales: dict = field(default_factory=dict)
 
     @property
     def scene(self) -> str | None:
@@ -82,6 +91,35 @@ class Sample:
     def arrays(self) -> dict[str, np.ndarray]:
         """The outputs that are present, by name."""
         return {k: getattr(self, k) for k in OUTPUTS if getattr(self, k) is not None}
+
+    def value(self, name: str) -> np.ndarray | None:
+        """Output ``name``'s values: a float16 output kept as sent (``keep_float16=True``) as float32
+        ``stored × scale``; any other output as it is; ``None`` when absent."""
+        a = getattr(self, name)
+        if a is None or name not in self.scales:
+            return a
+        return np.multiply(a, np.float32(self.scales[name]), dtype=np.float32)
+
+    def ccm_map(self) -> np.ndarray:
+        """``(H, W, 3, 3)`` float32 per-pixel CCM, ``CCM(x) = Σ_g m_g(x) CCM_g``, computed as the
+        service computes its ``ccm`` output: ``m`` is ``mixture`` (either ground truth; for the
+        formula it equals ``weights``, which serves too) and ``CCM_g`` is
+        ``meta["illuminants"][g]["ccm"]``. Needs ``meta`` and ``mixture`` (or, with
+        ``meta["ground_truth"]["method"] == "formula"``, ``weights``) among the outputs."""
+        if self.ccm is not None:
+            return self.value("ccm")
+        if not self.meta.get("illuminants"):
+            raise ValueError("ccm_map() needs the sample's meta: request outputs including 'meta'")
+        method = self.meta.get("ground_truth", {}).get("method")
+        name = "mixture" if self.mixture is not None else ("weights" if method == "formula" else None)
+        if name is None or getattr(self, name) is None:
+            raise ValueError(f"ccm_map() needs the 'mixture' output{' (or weights)' if method == 'formula' else ''}"
+                             " with this sample's ground truth: request outputs including 'mixture' and 'meta'")
+        m = self.value(name).astype(np.float32, copy=False)
+        ccms = np.asarray([i["ccm"] for i in self.meta["illuminants"]], dtype=np.float32).reshape(-1, 9)
+        if ccms.shape[0] != m.shape[-1]:
+            raise ValueError(f"{name} has {m.shape[-1]} groups but meta lists {ccms.shape[0]} CCMs")
+        return (m @ ccms).reshape(*m.shape[:-1], 3, 3)
 
 
 def _join(value: Any, what: str) -> str:
@@ -115,7 +153,8 @@ def encode_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     """
     unknown = set(spec) - set(SPEC_KEYS)
     if "format" in unknown:
-        raise ValueError("sample()/batch() return npz arrays; use Client.image() for png/tiff")
+        raise ValueError("sample()/batch() return arrays (choose the wire format with Client(wire_format='npz'|"
+                         "'arrays')); use Client.image() for png/tiff")
     if unknown:
         raise TypeError(f"unknown sample parameter(s) {sorted(unknown)}; known: {', '.join(SPEC_KEYS)}")
     out: dict[str, Any] = {}
@@ -141,46 +180,87 @@ def encode_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _open_npz(content: bytes):
+def _open_npz(content: bytes | bytearray):
     try:
         return np.load(io.BytesIO(content), allow_pickle=False)
     except (ValueError, OSError, zipfile.BadZipFile) as exc:
         raise IllumixError(f"the response is not a valid npz archive ({exc})") from None
 
 
-def _meta(arr: np.ndarray) -> dict:
+def _json(arr: np.ndarray | str, what: str = "meta") -> dict:
     try:
-        return json.loads(str(arr[()]))
+        return json.loads(str(arr[()]) if isinstance(arr, np.ndarray) else arr)
     except ValueError as exc:
-        raise IllumixError(f"the response's meta is not valid JSON ({exc})") from None
+        raise IllumixError(f"the response's {what} is not valid JSON ({exc})") from None
 
 
-def _sample(arrays: Mapping[str, np.ndarray]) -> Sample:
-    s = Sample()
+def _sample(arrays: Mapping[str, np.ndarray], meta: dict | None, scales: Mapping[str, float],
+            keep_float16: bool) -> Sample:
+    """A :class:`Sample` of decoded outputs; float16 outputs with a scale become float32 values
+    (``stored × scale``) unless ``keep_float16``."""
+    s = Sample(meta=meta or {})
     for k, v in arrays.items():
-        if k == "meta":
-            s.meta = _meta(v)
-        elif k in OUTPUTS:
-            setattr(s, k, v)
+        if k not in OUTPUTS:
+            continue
+        if k in scales:
+            if keep_float16:
+                s.scales[k] = float(scales[k])
+            else:
+                v = np.multiply(v, np.float32(scales[k]), dtype=np.float32)
+        setattr(s, k, v)
     return s
 
 
-def parse_sample(content: bytes) -> Sample:
-    """Decode a GET /sample npz response."""
+def _npz_items(content) -> dict[str, np.ndarray]:
     with _open_npz(content) as z:
-        return _sample({k: z[k] for k in z.files})
+        return {k: z[k] for k in z.files}
 
 
-def parse_batch(content: bytes, n: int) -> list[Sample]:
-    """Decode a POST /batch npz response (keys ``"{i}/{output}"``) into ``n`` samples, in order."""
+def _split(key: str, n: int) -> tuple[int, str]:
+    i, sep, name = key.partition("/")
+    if not sep or not i.isdigit() or int(i) >= n:
+        raise IllumixError(f"unexpected key {key!r} in a batch of {n}")
+    return int(i), name
+
+
+def parse_sample(content: bytes | bytearray, keep_float16: bool = False) -> Sample:
+    """Decode a GET /sample answer (npz or arrays; see :mod:`illumix_client.arrays_format`)."""
+    if content[:len(arrays_format.MAGIC)] == arrays_format.MAGIC:
+        arrays, header = arrays_format.decode(content)
+        return _sample(arrays, header.get("meta"), arrays_format.scales(header), keep_float16)
+    z = _npz_items(content)
+    meta = _json(z.pop("meta")) if "meta" in z else None
+    scales = _json(z.pop("scales"), "scales") if "scales" in z else {}
+    return _sample(z, meta, scales, keep_float16)
+
+
+def parse_batch(content: bytes | bytearray, n: int, keep_float16: bool = False) -> list[Sample]:
+    """Decode a POST /batch answer (npz keys ``"{i}/{output}"``, ``"{i}/meta"``, ``"{i}/scales"``; or
+    arrays ``"{i}/{output}"`` with the metas in the header's ``items``) into ``n`` samples, in order."""
     per: list[dict[str, np.ndarray]] = [{} for _ in range(n)]
-    with _open_npz(content) as z:
-        for key in z.files:
-            i, sep, name = key.partition("/")
-            if not sep or not i.isdigit() or int(i) >= n:
-                raise IllumixError(f"unexpected key {key!r} in a batch of {n}")
-            per[int(i)][name] = z[key]
-    return [_sample(a) for a in per]
+    metas: list[dict | None] = [None] * n
+    scales: list[dict[str, float]] = [{} for _ in range(n)]
+    if content[:len(arrays_format.MAGIC)] == arrays_format.MAGIC:
+        arrays, header = arrays_format.decode(content)
+        items = header.get("items", [])
+        if not isinstance(items, list) or len(items) != n:
+            raise IllumixError(f"the batch answer lists {len(items) if isinstance(items, list) else '?'} items, "
+                               f"expected {n}")
+        metas = [it.get("meta") if isinstance(it, dict) else None for it in items]
+        for key, scale in arrays_format.scales(header).items():
+            i, name = _split(key, n)
+            scales[i][name] = scale
+    else:
+        arrays = _npz_items(content)
+    for key, a in arrays.items():
+        i, name = _split(key, n)
+        if name == "meta":
+            metas[i] = _json(a)
+        elif name == "scales":
+            scales[i] = _json(a, "scales")
+        else:
+            per[i][name] = a
+    return [_sample(a, m, sc, keep_float16) for a, m, sc in zip(per, metas, scales)]
 
 
 def as_specs(specs: Sequence[Mapping[str, Any]] | Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
