@@ -3,10 +3,18 @@
 The service allocates and frees tens of MB per request from many threads. glibc's defaults keep
 freed memory in per-thread arenas and raise the mmap threshold after each large free, so resident
 memory grows far past what is in use (measured with ``bench/load.py``: peak RSS 954 MiB with the
-defaults against 505 MiB with these settings, same load, 128 MiB cache). A fixed mmap threshold
-hands every large array straight back to the kernel when it is freed; fewer arenas bound the rest.
-Environment variables (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_ARENA_MAX``) win, as glibc reads them
-at start-up; ``ILLUMIX_MALLOC_TUNING=off`` leaves glibc's defaults (for comparisons).
+defaults against 505 MiB with fixed thresholds, same load, 128 MiB cache). A fixed mmap threshold
+hands every array above it straight back to the kernel when it is freed; fewer arenas bound the
+rest.
+
+The thresholds are where a training feed stops paying page faults: at 256 KiB every temporary of
+a 256² crop (0.75–3 MiB) was a fresh mmap whose pages the kernel zeroes on first touch, and a
+``POST /batch`` of 16 crops took 157 ms, against 63 ms with a 32 MiB mmap threshold (smaller
+arrays, a full frame's 8–17 MiB temporaries included, reuse heap memory) and a 64 MiB trim
+threshold (the free memory an arena keeps before returning it). Retention is bounded by the
+arenas' free memory (2 × 64 MiB); ``bench/load.py`` checks the RSS bound.
+Environment variables (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, ``MALLOC_ARENA_MAX``)
+win, as glibc reads them at start-up; ``ILLUMIX_MALLOC_TUNING=off`` leaves glibc's defaults.
 """
 
 from __future__ import annotations
@@ -15,9 +23,11 @@ import ctypes
 import ctypes.util
 import os
 
+M_TRIM_THRESHOLD = -1
 M_MMAP_THRESHOLD = -3
 M_ARENA_MAX = -8
-MMAP_THRESHOLD = 256 * 1024
+MMAP_THRESHOLD = 32 * 2**20
+TRIM_THRESHOLD = 64 * 2**20
 ARENA_MAX = 2
 
 
@@ -34,6 +44,8 @@ def tune_for_service() -> bool:
     ok = True
     if "MALLOC_MMAP_THRESHOLD_" not in os.environ:
         ok &= mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+        ok &= mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD) == 1
     if "MALLOC_ARENA_MAX" not in os.environ:
         ok &= mallopt(M_ARENA_MAX, ARENA_MAX) == 1
     return bool(ok)

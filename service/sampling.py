@@ -339,7 +339,7 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     sensor, skey = lib.sensor(spec.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
     # a CCM fit costs ~0.1 s the first time per (sensor, illuminant): only when something uses it
-    if {"ccm", "srgb", "meta"} & set(spec.outputs) or spec.format != "npz":
+    if {"ccm", "srgb", "meta"} & set(spec.outputs) or spec.format in ("png", "tiff"):
         ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
     else:
         ccms, fit_de = None, [None] * len(spds)

@@ -87,8 +87,8 @@ class LocalClient:
     def _one(self, wire: dict[str, Any]) -> Sample:
         def run() -> Sample:
             spec = SampleSpec(**wire)
-            if spec.format != "npz":
-                raise InvalidRequestError("the local mode returns arrays; leave out format=", 422)
+            if spec.format not in ("npz", "arrays"):
+                raise InvalidRequestError("the local mode returns arrays, not images; leave out format=", 422)
             if self.torch is not None:
                 return self.torch.sample(spec)
             p = plan(spec, self.ctx)
