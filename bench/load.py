@@ -169,7 +169,7 @@ def phase(store: str, views, h: int, w: int, args) -> dict:
     errlog = tempfile.TemporaryFile()  # uvicorn logs every request: a pipe nobody reads would block it
     cmd = [sys.executable, "-m", "illumix.cli", "serve", "--store", store, "--host", "127.0.0.1",
            "--port", str(port), "--cache-mb", str(args.cache_mb)]
-    for flag in ("max_request_mb", "inflight_mb"):
+    for flag in ("max_request_mb", "inflight_mb", "projection_cache_mb"):
         if getattr(args, flag) is not None:
             cmd += [f"--{flag.replace('_', '-')}", str(getattr(args, flag))]
     env = server_env(args.blas_threads) | ({"ILLUMIX_MALLOC_TUNING": "off"} if args.glibc_malloc else {})
@@ -306,6 +306,7 @@ def main() -> None:
     ap.add_argument("--rss-margin-mb", type=int, default=300, help="the goal: RSS <= cache + this")
     ap.add_argument("--max-request-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
     ap.add_argument("--inflight-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
+    ap.add_argument("--projection-cache-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
     ap.add_argument("--large-share", type=float, default=0.1, help="share of all-output requests up to 4096²")
     ap.add_argument("--batch-share", type=float, default=0.2, help="share of POST /batch requests")
     ap.add_argument("--height", type=int, default=240)

@@ -7,12 +7,11 @@ defaults against 505 MiB with fixed thresholds, same load, 128 MiB cache). A fix
 hands every array above it straight back to the kernel when it is freed; fewer arenas bound the
 rest.
 
-The thresholds are where a training feed stops paying page faults: at 256 KiB every temporary of
-a 256² crop (0.75–3 MiB) was a fresh mmap whose pages the kernel zeroes on first touch, and a
-``POST /batch`` of 16 crops took 157 ms, against 63 ms with a 32 MiB mmap threshold (smaller
-arrays, a full frame's 8–17 MiB temporaries included, reuse heap memory) and a 64 MiB trim
-threshold (the free memory an arena keeps before returning it). Retention is bounded by the
-arenas' free memory (2 × 64 MiB); ``bench/load.py`` checks the RSS bound.
+The thresholds trade page faults against retention. At a 256 KiB mmap threshold every temporary
+of a 256² crop (0.75–3 MiB) was a fresh mmap whose pages the kernel zeroes on first touch: a
+``POST /batch`` of 16 crops took 157 ms, against 78–92 ms with 4 MiB (crop-sized arrays reuse heap
+memory; full-frame ones are still returned at once) and a 16 MiB trim threshold (the free memory
+an arena keeps; 32 MiB / 64 MiB: 63 ms, but 100 MiB more peak RSS under ``bench/load.py``).
 Environment variables (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, ``MALLOC_ARENA_MAX``)
 win, as glibc reads them at start-up; ``ILLUMIX_MALLOC_TUNING=off`` leaves glibc's defaults.
 """
@@ -26,8 +25,8 @@ import os
 M_TRIM_THRESHOLD = -1
 M_MMAP_THRESHOLD = -3
 M_ARENA_MAX = -8
-MMAP_THRESHOLD = 32 * 2**20
-TRIM_THRESHOLD = 64 * 2**20
+MMAP_THRESHOLD = 4 * 2**20
+TRIM_THRESHOLD = 16 * 2**20
 ARENA_MAX = 2
 
 

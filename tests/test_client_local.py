@@ -88,3 +88,12 @@ def test_local_dataset_equals_the_http_dataset(store_path, http, tmp_path):
         z = np.load(io.BytesIO(http.post("/batch", json={"samples": [spec]}).content))
         want = z["0/raw"].transpose(2, 0, 1)
         torch.testing.assert_close(raw, torch.from_numpy(want / want.max()))
+
+
+def test_the_dataset_passes_dtype_to_every_item_spec(store_path):
+    pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
+    ds = ic.IllumixDataset(store=store_path, warm=False, cache_mb=64, scenes=["synth/v0"], illuminants=["A"],
+                           sensors=["XYZ"], crop=(8, 8), epoch_length=2, dtype="float16")
+    assert all(ds.spec(i)["dtype"] == "float16" for i in range(2))
+    item = next(iter(ds))  # composed locally: float32 arrays whatever the wire dtype
+    assert item["raw"].dtype.is_floating_point and item["raw"].shape == (3, 8, 8)

@@ -171,7 +171,8 @@ class SpecSampler:
                  *, intensity_range: tuple[float, float] = (0.25, 1.0), crop=None, size=None,
                  outputs: Sequence[str] = ("raw", "gain", "mask"), exposure: str | float | None = None,
                  noise: str | Mapping[str, float] | None = None, bayer: str | None = None,
-                 distinct: bool = True, gt: str | None = None, denoise: str | None = None) -> None:
+                 distinct: bool = True, gt: str | None = None, denoise: str | None = None,
+                 dtype: str | None = None) -> None:
         if not views:
             raise ValueError("no views to draw from (check the scene filter, min_groups and crop size)")
         if not sensors or isinstance(sensors, str):
@@ -184,7 +185,7 @@ class SpecSampler:
         self.crop, self.size = _pair(crop, "crop"), _pair(size, "size")
         self.outputs = [o for o in outputs if o != "meta"] + ["meta"]
         self.exposure, self.noise, self.bayer, self.distinct, self.gt = exposure, noise, bayer, distinct, gt
-        self.denoise = denoise
+        self.denoise, self.dtype = denoise, dtype
 
     def spec(self, rng: np.random.Generator) -> dict[str, Any]:
         """One /batch item (a dict of :data:`illumix_client.sample.SPEC_KEYS`)."""
@@ -206,7 +207,7 @@ class SpecSampler:
             spec["crop"] = [int(rng.integers(v.width - w + 1)), int(rng.integers(v.height - h + 1)), w, h]
         if self.size is not None:
             spec["size"] = list(self.size)
-        for k in ("exposure", "noise", "bayer", "denoise"):
+        for k in ("exposure", "noise", "bayer", "denoise", "dtype"):
             if getattr(self, k) is not None:
                 spec[k] = getattr(self, k)
         return spec

@@ -105,6 +105,9 @@ class IllumixDataset(IterableDataset):
     denoise
         ``"none"`` or a denoise method (``"dt-irradiance"``): the store's denoised cube copies (default:
         those where the store has them).
+    dtype
+        ``"float16"`` halves the bytes on the wire (per-output power-of-two scales; items are still
+        float32, scaled back); pays on links slower than loopback (README "Transfer less").
     exposure, noise, bayer
         Passed to the service (``noise`` a preset like ``"phone"`` or a parameter mapping).
     raw_norm
@@ -135,7 +138,7 @@ class IllumixDataset(IterableDataset):
                  raw_norm: str = "max", epoch_length: int = 1024, batch_size: int = 16, prefetch: int = 2,
                  seed: int | None = None, min_groups: int = 1, distinct_illuminants: bool = True,
                  cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None,
-                 gt: str | None = None, denoise: str | None = None) -> None:
+                 gt: str | None = None, denoise: str | None = None, dtype: str | None = None) -> None:
         super().__init__()
         if raw_norm not in RAW_NORMS:
             raise ValueError(f"raw_norm must be one of {', '.join(RAW_NORMS)}, got {raw_norm!r}")
@@ -170,7 +173,7 @@ class IllumixDataset(IterableDataset):
         self.sampler = SpecSampler(views, pool, sensors, intensity_range=intensity_range, crop=crop_wh,
                                    size=size, outputs=outputs, exposure=exposure, noise=noise,
                                    bayer=bayer, distinct=distinct_illuminants, gt=gt,
-                                   denoise=denoise)
+                                   denoise=denoise, dtype=dtype)
 
     # -- indices ---------------------------------------------------------------------------------
     def set_epoch(self, epoch: int) -> None:
