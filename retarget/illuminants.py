@@ -37,7 +37,17 @@ _FINE = colour.SpectralShape(300, 830, 1)
 
 def builtin_names() -> list[str]:
     """colour-science's tabulated illuminants (the parametric forms are not enumerable)."""
-    return list(colour.SDS_ILLUMINANTS.keys())
+    return list(_BUILTIN)
+
+
+_BUILTIN = tuple(colour.SDS_ILLUMINANTS.keys())  # a CanonicalMapping slugifies its keys on every call
+
+
+@lru_cache(maxsize=1024)
+def is_builtin(name: str) -> bool:
+    """``name in colour.SDS_ILLUMINANTS`` (its case-insensitive matching), remembered: the service
+    asks it several times per request and each answer slugifies every key."""
+    return name in colour.SDS_ILLUMINANTS
 
 
 @lru_cache(maxsize=64)
@@ -78,7 +88,7 @@ def illuminant_samples(name: str, extra: Mapping[str, tuple[np.ndarray, np.ndarr
     """Raw tabulated samples ``(wavelengths (n,), values (n,))`` of a named illuminant."""
     if extra and name in extra:
         return extra[name]
-    if name in colour.SDS_ILLUMINANTS:
+    if is_builtin(name):
         sd = colour.SDS_ILLUMINANTS[name]
         return sd.wavelengths, sd.values
     kind, sep, arg = name.partition(":")
@@ -98,7 +108,7 @@ def illuminant_spd(name: str, grid: SpectralGrid = DEFAULT_GRID,
     Negative samples are refused; an SPD must cover the grid (no silent extension: an emitter with
     no data at a band is not known to be dark there).
     """
-    builtin = name in colour.SDS_ILLUMINANTS or name.partition(":")[0].lower() in PARAMETRIC
+    builtin = is_builtin(name) or name.partition(":")[0].lower() in PARAMETRIC
     if builtin and not (extra and name in extra):
         return _cached_spd(name, grid).copy()
     wl, v = illuminant_samples(name, extra)

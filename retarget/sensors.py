@@ -84,6 +84,11 @@ def _list_dirs(stamp: tuple[tuple[str, int | None], ...]) -> dict[str, Path]:
 _CAMERAS = tuple(colour.MSDS_CAMERA_SENSITIVITIES.keys())  # a CanonicalMapping slugifies on every .keys()
 
 
+@lru_cache(maxsize=1024)
+def _is_camera(name: str) -> bool:
+    return name in colour.MSDS_CAMERA_SENSITIVITIES  # case-insensitive matching, remembered
+
+
 def builtin_names() -> list[str]:
     """All sensor names known without uploads: XYZ, colour-science cameras, ILLUMIX_SENSOR_PATH files."""
     return [XYZ, *_CAMERAS, *_dir_sensors()]
@@ -157,7 +162,7 @@ def get_sensor(name: str, grid: SpectralGrid = DEFAULT_GRID,
     if extra and name in extra:
         wl, rgb = extra[name]
         return sensor_from_samples(name, wl, rgb, grid, source="uploaded")
-    if name == XYZ or name in colour.MSDS_CAMERA_SENSITIVITIES:
+    if name == XYZ or _is_camera(name):
         return _cached_builtin(name, grid)
     files = _dir_sensors()
     if name in files:

@@ -70,10 +70,10 @@ class Library:
     def illuminant(self, name: str, grid: SpectralGrid) -> tuple[np.ndarray, str]:
         """``(normalised SPD (n_bands,), cache key)``."""
         up = None
-        if name not in ill.builtin_names() and ":" not in name:
+        if not ill.is_builtin(name) and ":" not in name:
             up = self._upload("illuminants", name)
         if up is None:
-            if name not in ill.builtin_names() and name.partition(":")[0].lower() not in ill.PARAMETRIC:
+            if not ill.is_builtin(name) and name.partition(":")[0].lower() not in ill.PARAMETRIC:
                 raise unknown_name("illuminant", name, ill.builtin_names()
                                    + [f"{k}:<K>" for k in ill.PARAMETRIC] + self.uploaded_illuminants())
             return ill.illuminant_spd(name, grid), f"builtin:{name}"

@@ -131,3 +131,65 @@ def _keep_if_room(cache, e: _Entry) -> bool:
 
 def _size(n: int) -> str:
     return f"{n / 2**20:.1f} MB" if n >= 2**20 // 10 else f"{n / 1024:.0f} KB"
+
+
+def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
+                     log: Callable[[str], None] | None = None) -> dict:
+    """Project every view's lit groups through each sensor × illuminant into ``ctx.projections``
+    (:mod:`service.projections`), until it is full, so a feed drawing from that pool slices crops
+    from its first sample on. Returns ``{"projections", "bytes", "seconds", "skipped"}``.
+
+    The keys are the ones :func:`service.sampling.group_inputs` asks for (the cubes a default
+    ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
+    sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
+    """
+    from retarget.relight import band_scales, raw_weights
+    from service.sampling import whole_cube
+
+    log = log or (lambda _msg: None)
+    pc, t0 = ctx.projections, time.perf_counter()
+    done = nbytes = skipped = 0
+    if pc is None:
+        return {"projections": 0, "bytes": 0, "seconds": 0.0, "skipped": 0}
+    for scene in ctx.store.scenes():
+        for view in ctx.store.views(scene):
+            try:
+                p = plan(SampleSpec(scene=scene, view=view, crop=[0, 0, 1, 1], seed=0), ctx)
+            except (SpectralError, ServiceError, StoreError):
+                skipped += 1
+                continue
+            grid, (w, h) = p.metas[0].spectral_grid, p.full
+            frame = w * h * 3 * 4
+            for s_name in sensors:
+                for i_name in illuminants:
+                    try:
+                        sensor, skey = ctx.library.sensor(s_name, grid)
+                        spd, ikey = ctx.library.illuminant(i_name, grid)
+                    except SpectralError:
+                        skipped += 1
+                        continue
+                    for g, meta, lit in zip(p.groups, p.metas, p.reads()):
+                        if not lit:
+                            continue
+                        try:
+                            unit = raw_weights(band_scales(spd[None], np.asarray(meta.emission)[None], np.ones(1),
+                                                           [g], grid.wavelengths), sensor.weights())[0]
+                        except SpectralError:
+                            skipped += 1
+                            continue
+                        for kind in ("transport", "illumination") if p.illumination else ("transport",):
+                            key = (cube_key(scene, view, g, kind, p.denoise, meta.created), skey, ikey)
+                            if key in pc.cache:
+                                continue
+                            if frame > pc.cache.max_cost - pc.cache.total_cost - pc.cache.evicted_cost:
+                                log(f"warm: projection cache full after {done} projections")
+                                return {"projections": done, "bytes": nbytes, "seconds": time.perf_counter() - t0,
+                                        "skipped": skipped + 1}
+                            misses = pc.cache.misses
+                            pc.window(key, lambda g=g, k=kind: whole_cube(ctx, p, g, k), unit, (0, 0, 1, 1), frame,
+                                      whole_frame=True)
+                            pc.cache.misses = misses  # warming is no request (module doc)
+                            done, nbytes = done + 1, nbytes + frame
+    seconds = time.perf_counter() - t0
+    log(f"warm: {done} projections, {_size(nbytes)} in {seconds:.1f} s")
+    return {"projections": done, "bytes": nbytes, "seconds": seconds, "skipped": skipped}

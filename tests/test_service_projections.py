@@ -85,3 +85,15 @@ def test_the_cache_bound_holds(store):
         for _ in range(2):
             sample(ctx, sensor="XYZ", pair=f"{ill},D65", outputs="raw")
     assert ctx.projections.cache.total_cost <= ctx.projections.cache.max_cost
+
+
+def test_warmed_projections_serve_the_first_crop(store):
+    from service.warm import warm_projections
+
+    ctx = ctx_of(store, 16)
+    got = warm_projections(ctx, ["XYZ"], ["A", "D65"])
+    # synth/v0: 2 groups × 2 illuminants × (transport + illumination); the other views have one
+    # flat group, or a cut emission that D65 cannot relight (skipped)
+    assert got["projections"] >= 8 and ctx.projections.misses == 0
+    sample(ctx, sensor="XYZ", pair="D65,A", crop="3,5,16,16", outputs="raw,gain")
+    assert ctx.projections.hits == 4 and ctx.projections.misses == 0

@@ -100,12 +100,19 @@ class LocalClient:
             return s
         return _call(run)
 
-    def warm(self, progress: bool = False) -> dict:
-        """Decode every cube /sample reads by default into the cache (until it is full).
-        Returns ``{"cubes", "bytes"}``."""
-        from service.warm import warm_cache
+    def warm(self, sensors: list[str] | None = None, illuminants: list[str] | None = None,
+             progress: bool = False) -> dict:
+        """Decode every cube /sample reads by default into the cache (until it is full); with
+        ``sensors`` and ``illuminants`` also project every view through each pair into the
+        projection cache, so crops drawn from that pool are slices from the first one on.
+        Returns :func:`service.warm.warm_cache`'s counts plus ``"projections"``."""
+        from service.warm import warm_cache, warm_projections
 
-        return warm_cache(self.ctx, log=print if progress else None)
+        log = print if progress else None
+        out = warm_cache(self.ctx, log=log)
+        if sensors and illuminants and self.torch is None:
+            out["projections"] = warm_projections(self.ctx, list(sensors), list(illuminants), log=log)["projections"]
+        return out
 
     def close(self) -> None:
         self.ctx.cache.clear()

@@ -169,7 +169,8 @@ class IllumixDataset(IterableDataset):
             views = select_views(views_from_scenes(c.scenes()), scenes, min_groups=min_groups, crop=crop_wh)
             _check_names(c, pool, sensors)
             if store is not None and warm:
-                c.warm()
+                # the pool's named illuminants are projected ahead (a CCT range rarely repeats a key)
+                c.warm(sensors=list(sensors), illuminants=sorted({e.name for e in pool.entries() if e.name}))
         self.sampler = SpecSampler(views, pool, sensors, intensity_range=intensity_range, crop=crop_wh,
                                    size=size, outputs=outputs, exposure=exposure, noise=noise,
                                    bayer=bayer, distinct=distinct_illuminants, gt=gt,
