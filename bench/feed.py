@@ -131,6 +131,8 @@ def main() -> None:
     ap.add_argument("--height", type=int, default=720)
     ap.add_argument("--width", type=int, default=960)
     ap.add_argument("--requests", type=int, default=60, help="requests per latency case")
+    ap.add_argument("--device", default=None,
+                    help="torch device for the local mode's device= composition (default: cuda if available, else cpu)")
     args = ap.parse_args()
     import torch
 
@@ -202,6 +204,13 @@ def main() -> None:
         for w in (0, 2):
             fl.log(f"local feed, {w} workers …")
             res["local"][f"feed_w{w}"] = round(fl.feed_rate(lds, w, args.batch, 2, lds.set_epoch), 1)
+
+        del lds
+        device = args.device or ("cuda" if torch.cuda.is_available() else "cpu")
+        fl.log(f"local mode with torch on {device} …")
+        tds = ic.IllumixDataset(store=store, cache_mb=CACHE_MB, device=device, **dargs)
+        res["local_torch"] = {"device": device, "feed_w0": round(fl.feed_rate(tds, 0, args.batch, 2, tds.set_epoch), 1)}
+        del tds
 
     disk_min = min(res["disk"]["feed_w0"], res["disk"]["feed_w2"])
     per_mode = {m: min(res[m]["feed_w0"] / res["disk"]["feed_w0"], res[m]["feed_w2"] / res["disk"]["feed_w2"])
