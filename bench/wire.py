@@ -63,6 +63,7 @@ def median_ms(fn, repeats: int) -> float:
 
 def offline(repeats: int) -> dict:
     from illumix_client.sample import parse_sample
+
     from service import arrays_format
     from service.encoding import encode_npz, half_precision
 
@@ -130,7 +131,6 @@ def free_port() -> int:
 
 def http(repeats: int, compose: bool) -> dict:
     import httpx
-
     import synthetic_store
     from illumix_client import Client
 

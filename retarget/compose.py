@@ -15,10 +15,10 @@ import numpy as np
 
 from retarget import exposure as aec
 from retarget import groundtruth as gt
+from retarget.basis import BasisCube, project_groups_any
 from retarget.ccm import fit_ccm
 from retarget.errors import SpectralError
 from retarget.isp import apply_ccm, encode_srgb
-from retarget.basis import BasisCube, project_groups_any
 from retarget.relight import band_scales, raw_weights
 from retarget.sensors import Sensor
 

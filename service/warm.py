@@ -186,7 +186,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                                 return {"projections": done, "bytes": nbytes, "seconds": time.perf_counter() - t0,
                                         "skipped": skipped + 1}
                             misses = pc.cache.misses
-                            pc.window(key, lambda g=g, k=kind: whole_cube(ctx, p, g, k), unit, (0, 0, 1, 1), frame,
+                            pc.window(key, lambda g=g, k=kind, p=p: whole_cube(ctx, p, g, k), unit, (0, 0, 1, 1), frame,
                                       whole_frame=True)
                             pc.cache.misses = misses  # warming is no request (module doc)
                             done, nbytes = done + 1, nbytes + frame

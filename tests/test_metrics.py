@@ -10,10 +10,10 @@ evict, never raise — when the cache is too small.
 from __future__ import annotations
 
 import pytest
+import synthetic_store as synth
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
-import synthetic_store as synth
 from service.app import create_app
 from service.warm import warm_cache
 from store import CubeStore

@@ -23,6 +23,7 @@ import synthetic_store as synth
 from illumix_client import arrays_format as dec
 from illumix_client.sample import parse_batch, parse_sample
 from server_testutil import ThreadServer
+
 from service import arrays_format as enc
 from service.app import create_app
 from service.encoding import half_precision

@@ -10,7 +10,15 @@ from fastapi.responses import Response
 
 from service import arrays_format, budget
 from service.deps import CtxDep
-from service.encoding import MEDIA, encode_image, encode_npz, half_precision, image_output, meta_json, png_scale
+from service.encoding import (
+    MEDIA,
+    encode_image,
+    encode_npz,
+    half_precision,
+    image_output,
+    meta_json,
+    png_scale,
+)
 from service.errors import error_responses, fail
 from service.models import BatchRequest
 from service.sampling import build, plan, price

@@ -6,7 +6,15 @@ from fastapi import APIRouter, Request
 
 from service.deps import CtxDep
 from service.errors import error_responses
-from service.models import CacheStats, GroupInfo, Health, MemoryStats, SceneInfo, Scenes, ViewInfo
+from service.models import (
+    CacheStats,
+    GroupInfo,
+    Health,
+    MemoryStats,
+    SceneInfo,
+    Scenes,
+    ViewInfo,
+)
 
 router = APIRouter(tags=["status"])
 

@@ -61,7 +61,13 @@ from torch.utils.data import IterableDataset, get_worker_info
 
 from illumix_client._protocol import RetryPolicy
 from illumix_client.client import Client
-from illumix_client.draw import IlluminantPool, SpecSampler, ViewInfo, select_views, views_from_scenes
+from illumix_client.draw import (
+    IlluminantPool,
+    SpecSampler,
+    ViewInfo,
+    select_views,
+    views_from_scenes,
+)
 from illumix_client.sample import Sample
 
 RAW_NORMS = ("max", "exposure", "none")
