@@ -3,7 +3,8 @@
 Builds a 720×960 store (3 views × 2 light groups, synthetic render-like cubes) in a temporary
 folder and measures, in one run, on the same machine:
 
-- ``IllumixDataset`` → DataLoader, 256² raw+gain crops, samples/s at ``num_workers`` 0 and 2, over
+- ``IllumixDataset`` → DataLoader, 256² raw+gain crops, samples/s at ``num_workers`` 0 and 2
+  (epochs of ``--feed-epoch`` samples, fresh workers each epoch, best of 2 after one unmeasured), over
   HTTP (``illumix serve``) and in the local mode (composed in-process), against a disk baseline:
   the same samples precomputed as 16-bit PNG raw + float32 ``.npy`` gain, read with cv2/numpy;
 - ``/sample`` latency p50: a 256² crop raw+gain (against reading one sample's two files), the full
@@ -13,7 +14,7 @@ folder and measures, in one run, on the same machine:
 - accuracy: a served full frame against a float64 composition of the stored cubes (gain angular
   error, raw p99 relative error), with ``bench/pareto.py``'s tolerances (0.05°, 1e-3).
 
-Usage: ``python bench/feed.py [--epoch 256] [--height 720 --width 960]``; progress on stderr,
+Usage: ``python bench/feed.py [--epoch 256] [--feed-epoch 1024] [--height 720 --width 960]``; progress on stderr,
 JSON last on stdout. Record the results in ``bench/PERFORMANCE.md``.
 """
 
@@ -125,7 +126,9 @@ def accuracy(url: str, store: str, sensor: str) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--epoch", type=int, default=256, help="samples per epoch")
+    ap.add_argument("--epoch", type=int, default=256, help="samples in the cold/warm epochs (hit ratio)")
+    ap.add_argument("--feed-epoch", type=int, default=1024,
+                    help="samples per epoch for the feed rates (fresh DataLoader workers each epoch)")
     ap.add_argument("--crop", type=int, default=256)
     ap.add_argument("--batch", type=int, default=16)
     ap.add_argument("--height", type=int, default=720)
@@ -145,6 +148,7 @@ def main() -> None:
 
     sensor = fl.sensor_name()
     res: dict = {"bench": "feed", "size": [args.width, args.height], "crop": args.crop, "epoch": args.epoch,
+                 "feed_epoch": args.feed_epoch,
                  "sensor": sensor, "cache_mb": CACHE_MB, "projection_mb": PROJECTION_MB,
                  "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                              "load_avg": list(os.getloadavg())}}
@@ -153,16 +157,18 @@ def main() -> None:
         fl.log(f"building a {args.width}x{args.height} store, 3 views x 2 groups …")
         res["store_decoded_mb"] = round(fl.build_store(store, args.height, args.width) / 2**20, 1)
         dargs = dataset_args(sensor, args.epoch, args.crop, args.batch)
+        fargs = dataset_args(sensor, args.feed_epoch, args.crop, args.batch)
 
         fl.log("disk baseline: precomputing the epoch's samples …")
         folder = Path(tmp) / "disk"
         with LocalClient(store, cache_mb=CACHE_MB) as local:
-            probe = ic.IllumixDataset(store=store, warm=False, **dargs)
-            specs = [probe.spec(i, 1) for i in range(args.epoch)]
-            fl.write_disk(local.batch(specs), folder)
-        disk = fl.disk_dataset(folder, args.epoch)
+            probe = ic.IllumixDataset(store=store, warm=False, **fargs)
+            specs = [probe.spec(i, 1) for i in range(args.feed_epoch)]
+            for i in range(0, len(specs), 64):  # bounded memory: 64 samples at a time
+                fl.write_disk(local.batch(specs[i:i + 64]), folder, start=i)
+        disk = fl.disk_dataset(folder, args.feed_epoch)
         res["disk"] = {f"feed_w{w}": round(fl.feed_rate(disk, w, args.batch, 2), 1) for w in (0, 2)}
-        res["disk"]["read_p50_ms"] = round(fl.p50_ms(lambda i: fl.read_one(folder, i % args.epoch), args.requests), 3)
+        res["disk"]["read_p50_ms"] = round(fl.p50_ms(lambda i: fl.read_one(folder, i % args.feed_epoch), args.requests), 3)
 
         fl.log("HTTP: a fresh server, cold epoch then warm …")
         with fl.Server(store, CACHE_MB, PROJECTION_MB) as srv:
@@ -174,9 +180,10 @@ def main() -> None:
             ratio, counts = fl.hit_ratio(h0, h1)
             http = {"cold_epoch_s": round(cold, 2), "warm_epoch_s": round(warm, 2), "cold_epoch_counts": counts}
             http["cache_hit_ratio_cold_epoch"] = round(ratio, 4)
+            fds = ic.IllumixDataset(srv.url, **fargs)
             for w in (0, 2):
                 fl.log(f"HTTP feed, {w} workers …")
-                http[f"feed_w{w}"] = round(fl.feed_rate(ds, w, args.batch, 2, ds.set_epoch), 1)
+                http[f"feed_w{w}"] = round(fl.feed_rate(fds, w, args.batch, 2, fds.set_epoch), 1)
             crop_specs = [wire(s) for s in specs[:32]]
             http["crop_p50_ms"] = round(http_p50(srv.url, crop_specs, args.requests), 2)
             full = dict(scene="room", view="v0", sensor=sensor, pair="A,D65")
@@ -199,7 +206,7 @@ def main() -> None:
 
         fl.log("local mode …")
         t = time.perf_counter()
-        lds = ic.IllumixDataset(store=store, cache_mb=CACHE_MB, **dargs)
+        lds = ic.IllumixDataset(store=store, cache_mb=CACHE_MB, **fargs)
         res["local"] = {"warm_s": round(time.perf_counter() - t, 2)}
         for w in (0, 2):
             fl.log(f"local feed, {w} workers …")
@@ -208,7 +215,7 @@ def main() -> None:
         del lds
         device = args.device or ("cuda" if torch.cuda.is_available() else "cpu")
         fl.log(f"local mode with torch on {device} …")
-        tds = ic.IllumixDataset(store=store, cache_mb=CACHE_MB, device=device, **dargs)
+        tds = ic.IllumixDataset(store=store, cache_mb=CACHE_MB, device=device, **fargs)
         res["local_torch"] = {"device": device, "feed_w0": round(fl.feed_rate(tds, 0, args.batch, 2, tds.set_epoch), 1)}
         del tds
 

@@ -54,12 +54,12 @@ def build_store(path: str, height: int, width: int, views: int = 3) -> int:
 
 
 # -- the disk baseline ---------------------------------------------------------------------------
-def write_disk(samples, folder: Path) -> None:
-    """``i.png`` (16-bit raw / max) and ``i.npy`` (float32 gain) per sample."""
+def write_disk(samples, folder: Path, start: int = 0) -> None:
+    """``i.png`` (16-bit raw / max) and ``i.npy`` (float32 gain) per sample, numbered from ``start``."""
     import cv2
 
     folder.mkdir(parents=True, exist_ok=True)
-    for i, s in enumerate(samples):
+    for i, s in enumerate(samples, start):
         raw = np.asarray(s.raw, np.float32)
         peak = float(raw.max()) or 1.0
         png = np.round(np.clip(raw / peak, 0, 1) * 65535).astype(np.uint16)[..., ::-1]

@@ -74,6 +74,9 @@ def serve(
     inflight_mb: int = typer.Option(160, "--inflight-mb", min=1,
                                     help="Working memory of all requests in flight, MiB (beyond it "
                                          "requests wait, then 503). RSS ≈ 200 MB + --cache-mb + this."),
+    device: str | None = typer.Option(None, "--device",
+                                      help="Compose raw/gain/mask/weights/illum/mixture requests with torch on this "
+                                           "device (e.g. cuda; needs torch); everything else on the CPU."),
     warm: bool = typer.Option(False, "--warm",
                               help="Before serving, decode the cubes a default /sample of each view reads "
                                    "into the cache (one line per cube on stderr), until the cache is full, "
@@ -94,7 +97,13 @@ def serve(
 
     tune_for_service()
     limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
-    app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb)
+    try:
+        app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb,
+                         device=device)
+    except ImportError:
+        raise UserError(f"--device {device}: torch is not installed; pip install torch") from None
+    except RuntimeError as exc:
+        raise UserError(f"--device {device}: {exc}; leave out --device to compose on the CPU") from None
     if warm:  # before uvicorn binds: once the port answers, the cache is warm
         from service.warm import warm_cache
 

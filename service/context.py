@@ -22,20 +22,29 @@ class Context:
     limits: Limits
     memory: budget.MemoryBudget
     projections: ProjectionCache | None = None
+    torch: object | None = None  # a service.torch_sampling.TorchComposer when composing on a device
 
 
 def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = None,
-                 limits: Limits | None = None) -> Context:
+                 limits: Limits | None = None, device: str | None = None, device_cache_mb: int = 8192) -> Context:
     """The composition context over an open store: ``cache_mb`` bounds all cached pixels, decoded
     cubes plus ``projection_mb`` of whole-frame projections (default: a quarter, at most 512 MiB;
-    0 turns them off). Used by the service and by the client's local mode."""
+    0 turns them off). ``device``: compose eligible requests with torch there
+    (:mod:`service.torch_sampling`), with up to ``device_cache_mb`` of cubes on it. Used by the
+    service and by the client's local mode."""
     limits = limits or Limits()
     projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
     cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
     memory = budget.MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s,
                                  per_request=limits.max_request_mb * 2**20)
+    composer = None
+    if device is not None:
+        from service.torch_sampling import TorchComposer
+
+        composer = TorchComposer(device, device_cache_mb)
     return Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,
-                   projections=ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None)
+                   projections=ProjectionCache(projection_mb * 2**20) if projection_mb > 0 else None,
+                   torch=composer)
 
 
 def _read_only(arr) -> None:

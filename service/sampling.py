@@ -22,6 +22,7 @@ from retarget.compose import GT_OUTPUTS, compose
 from retarget.compose import OUTPUTS as COMPOSED
 from retarget.errors import SpectralError, unknown_name
 from retarget.finite import all_finite
+from retarget.groundtruth import white_points as gt_white_points
 from retarget.relight import band_scales, raw_weights
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
@@ -30,6 +31,7 @@ from service.context import Context, make_context  # noqa: F401 - re-exported
 from service.errors import NotFound, fail
 from service.limits import Limits
 from service.spec import SPECTRAL_OUTPUTS, SampleSpec
+from service.torch_sampling import refusal as torch_refusal
 
 
 @dataclass
@@ -331,8 +333,9 @@ def exposure_for(spec: SampleSpec) -> float | str | None:
     return value
 
 
-def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
-    """Read and compose the planned sample."""
+def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, np.ndarray], dict]:
+    """Read and compose the planned sample: on ``ctx.torch``'s device where it can
+    (:mod:`service.torch_sampling`; ``keep_device``: return its tensors there), else with numpy."""
     t0 = time.perf_counter()
     spec, lib = p.spec, ctx.library
     grid = p.metas[0].spectral_grid
@@ -346,16 +349,19 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
     want = set(spec.array_outputs())
     p.sensor_key, p.illuminant_keys = skey, ikeys
+    on_device = ctx.torch is not None and torch_refusal(spec) is None
     unit = [None] * len(p.groups)
-    if ctx.projections is not None and not (want & SPECTRAL_OUTPUTS):
+    if on_device or (ctx.projections is not None and not (want & SPECTRAL_OUTPUTS)):
         unit = [raw_weights(band_scales(s[None], e[None], np.ones(1), [g], grid.wavelengths), sensor.weights())[0]
                 if r else None for s, e, g, r in zip(spds, emissions, p.groups, p.reads())]
     t_setup = time.perf_counter()
     w, h = p.window[2:]
-    cubes = group_inputs(ctx, p, "transport", unit)
-    illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     aov = _aov_reader(ctx, p)
     valid, reasons = extra.view_validity(aov, *p.out_size)
+    if on_device:
+        return _build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
+    cubes = group_inputs(ctx, p, "transport", unit)
+    illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     t_read = time.perf_counter()
     exposure = exposure_for(spec)
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
@@ -378,6 +384,38 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
     if spec.bayer and "raw" in want:
         arrays["raw"] = mosaic(arrays["raw"], spec.bayer)
     t_compose = time.perf_counter()
+    meta = _meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain, noise,
+                 {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
+                  "compose": 1e3 * (t_compose - t_read)})
+    return arrays, meta
+
+
+def _build_on_device(p: Plan, ctx: Context, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device: bool,
+                     t0: float, t_setup: float) -> tuple[dict, dict]:
+    """:func:`build` on ``ctx.torch``'s device (an eligible request: :func:`torch_refusal`)."""
+    lit = p.reads()
+    wps = np.ones((len(p.groups), 3))
+    if any(lit):
+        wps[lit] = gt_white_points(sensor.weights(), np.stack(spds)[lit])
+    out = ctx.torch.compose(ctx, p, unit, wps, valid)
+    mask = out.get("mask")
+    host_mask = None if mask is None else mask.cpu().numpy()
+    arrays = out if keep_device else {k: v.cpu().numpy() for k, v in out.items()}
+    if not keep_device:
+        for k, a in arrays.items():
+            if not all_finite(a):
+                raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
+                                    "large); lower intensities=")
+    t_compose = time.perf_counter()
+    meta = _meta(p, sensor, wps, ccms, fit_de, host_mask, valid, reasons, 1.0, None,
+                 {"setup": 1e3 * (t_setup - t0), "compose": 1e3 * (t_compose - t_setup)})
+    meta["device"] = str(ctx.torch.device)
+    return arrays, meta
+
+
+def _meta(p: Plan, sensor, white_points, ccms, fit_de, mask, valid, reasons, exposure_gain, noise, timings) -> dict:
+    """The sample's metadata (module docstring)."""
+    spec, grid = p.spec, p.metas[0].spectral_grid
     meta = {
         "scene": p.scene, "view": p.view, "groups": p.groups, "seed": p.seed,
         "sensor": {"name": sensor.name, "source": sensor.source},
@@ -386,14 +424,14 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
              "white_point_rgb": [float(v) for v in wp],
              "ccm": None if c is None else np.asarray(c).round(8).tolist(),
              "ccm_fit_delta_e00_mean": None if de is None else float(de)}
-            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, comp.white_points, ccms or fit_de, fit_de)
+            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, white_points, ccms or fit_de, fit_de)
         ],
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "denoise": _denoise_meta(p),
         "mask_reasons": {"meaning": extra.MASK_REASONS,
-                         "pixels": reasons | ({"no_light": int(np.count_nonzero(~comp.mask)) - sum(reasons.values())}
-                                              if comp.mask is not None and valid is not None else {})},
-        "crop": list(p.window), "size": list(p.out_size), "exposure_gain": comp.exposure_gain,
+                         "pixels": reasons | ({"no_light": int(np.count_nonzero(~mask)) - sum(reasons.values())}
+                                              if mask is not None and valid is not None else {})},
+        "crop": list(p.window), "size": list(p.out_size), "exposure_gain": exposure_gain,
         "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": spec.bayer,
         "grid": grid.to_dict(),
         "provenance": [{"group": g, "emission": m.emission_name, "renderer": m.renderer.model_dump(),
@@ -401,10 +439,9 @@ def build(p: Plan, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:
                         "empty": m.empty,
                         "denoised": None if m.denoised is None else m.denoised.model_dump(
                             include={"method", "params", "cost_ms"})} for g, m in zip(p.groups, p.metas)],
-        "timings_ms": {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
-                       "compose": 1e3 * (t_compose - t_read)},
+        "timings_ms": timings,
     }
-    return arrays, meta
+    return meta
 
 
 def _denoise_meta(p: Plan) -> dict:

@@ -38,7 +38,7 @@ SPD_CSV = "wavelength,value\n" + "\n".join(f"{wl},{1.0 + (wl - 380) / 400:.4f}" 
 def test_client_imports_no_server_code_and_no_torch():
     banned = ("retarget", "store", "service", "illumix", "renderer_jobs")
     for path in CLIENT_DIR.glob("*.py"):
-        if path.name in ("local.py", "local_torch.py"):
+        if path.name == "local.py":
             continue  # the local mode is the optional extra that brings the physics core
         for node in ast.walk(ast.parse(path.read_text())):
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else (

@@ -63,3 +63,30 @@ def test_torch_dataset_items(clients, tmp_path):
         assert a["raw"].shape == (3, 16, 16) and a["mask"].shape == (1, 16, 16)
         torch.testing.assert_close(a["raw"], b["raw"], rtol=1e-5, atol=1e-7)
         torch.testing.assert_close(a["gain"], b["gain"], rtol=1e-4, atol=1e-6)
+
+
+def test_the_service_composes_eligible_requests_on_its_device(tmp_path):
+    """``illumix serve --device``: eligible requests go to torch (meta["device"]), with the same
+    arrays and the same metadata as the CPU path; the rest are composed on the CPU."""
+    import io
+    import json
+
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from store import CubeStore
+
+    synthetic_store.build(tmp_path / "s", illumination=True)
+    st = CubeStore.open(str(tmp_path / "s"), mode="r")
+    with TestClient(create_app(st, cache_mb=64, device="cpu")) as dev, TestClient(create_app(st, cache_mb=64)) as cpu:
+        params = SPEC | {"outputs": "raw,gain,mask,mixture,meta"}
+        a, b = (np.load(io.BytesIO(c.get("/sample", params=params).content)) for c in (cpu, dev))
+        ma, mb = json.loads(str(a["meta"])), json.loads(str(b["meta"]))
+        assert mb.pop("device") == "cpu" and "device" not in ma
+        ma.pop("timings_ms"), mb.pop("timings_ms")
+        assert ma == mb
+        for k in ("raw", "gain", "mixture"):
+            np.testing.assert_allclose(b[k], a[k], rtol=1e-4, atol=1e-7, err_msg=k)
+        np.testing.assert_array_equal(b["mask"], a["mask"])
+        srgb = np.load(io.BytesIO(dev.get("/sample", params=SPEC | {"outputs": "srgb,meta"}).content))
+        assert "device" not in json.loads(str(srgb["meta"]))  # composed on the CPU

@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-import numpy as np
 
 from illumix_client.errors import IllumixError, InvalidRequestError, NotFoundError
 from illumix_client.sample import Sample, as_specs, encode_spec
@@ -33,6 +32,7 @@ try:
     from service.routes.status import scenes as _scenes
     from service.sampling import build, plan, price
     from service.spec import SampleSpec
+    from service.torch_sampling import refusal as torch_refusal
     from store import CubeStore, StoreError, StoreKeyError
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError(f"the local mode needs the illumix physics core ({exc}); install it with "
@@ -45,8 +45,9 @@ class LocalClient:
 
     cache_mb, projection_mb : the cache bounds (see ``illumix serve``).
     device, device_cache_mb : compose with torch on ``device`` (``"cuda"``, ``"cpu"``;
-    :mod:`illumix_client.local_torch`: outputs raw, gain, mask, weights, illum, mixture) with up to
-    ``device_cache_mb`` of cubes kept there; ``None`` (default): the service's numpy path.
+    :mod:`service.torch_sampling`: outputs raw, gain, mask, weights, illum, mixture; arrays are
+    tensors on the device) with up to ``device_cache_mb`` of cubes kept there; ``None`` (default):
+    the service's numpy path.
     """
 
     def __init__(self, store: str, *, cache_mb: int = 2048, projection_mb: int | None = None,
@@ -58,12 +59,12 @@ class LocalClient:
         except StoreError as exc:
             raise IllumixError(str(exc)) from None
         self.url = store
-        self.ctx = make_context(self.store, cache_mb=cache_mb, projection_mb=projection_mb)
-        self.torch = None
-        if device is not None:
-            from illumix_client.local_torch import TorchComposer
-
-            self.torch = TorchComposer(self.ctx, device, device_cache_mb)
+        try:
+            self.ctx = make_context(self.store, cache_mb=cache_mb, projection_mb=projection_mb, device=device,
+                                    device_cache_mb=device_cache_mb)
+        except (ImportError, RuntimeError) as exc:
+            raise IllumixError(f"device={device!r}: {exc}") from None
+        self.torch = self.ctx.torch
 
     # -- what the store holds ------------------------------------------------------------------
     def scenes(self) -> dict:
@@ -89,14 +90,14 @@ class LocalClient:
             spec = SampleSpec(**wire)
             if spec.format not in ("npz", "arrays"):
                 raise InvalidRequestError("the local mode returns arrays, not images; leave out format=", 422)
-            if self.torch is not None:
-                return self.torch.sample(spec)
+            if self.torch is not None and (why := torch_refusal(spec)) is not None:
+                raise InvalidRequestError(f"device={self.torch.device.type}: {why} (device=None)", 422)
             p = plan(spec, self.ctx)
             price(p, self.ctx)  # holds the cubes it finds cached, as the service does
-            arrays, meta = build(p, self.ctx)
+            arrays, meta = build(p, self.ctx, keep_device=True)
             s = Sample(meta=meta if "meta" in spec.outputs else {})
             for k, v in arrays.items():
-                setattr(s, k, np.asarray(v))
+                setattr(s, k, v)  # numpy arrays, or tensors on the device
             return s
         return _call(run)
 

@@ -1,0 +1,76 @@
+"""Composition on a torch device (``illumix serve --device cuda``, the client's local ``device=``).
+
+Decoded cubes are copied once to the device and kept there (an LRU bounded by ``device_cache_mb``);
+each eligible request composes its window there with :func:`retarget.compose_torch.compose_torch`
+— the same equations as :func:`retarget.compose.compose`, in float32 — and the arrays come back to
+the host for encoding (the service) or stay on the device (the local mode's training feed).
+
+Eligible: outputs among ``raw``, ``gain``, ``mask``, ``weights``, ``illum``, ``mixture`` (and
+``meta``), at the cropped size, without ``noise=``, ``bayer=`` or ``exposure=``. The service composes
+anything else on the CPU as before; the local mode refuses it with the reason.
+torch is imported only here, and only when a device is asked for.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from store.lru import LRUCache
+
+
+def refusal(spec) -> str | None:
+    """Why ``spec`` cannot be composed on a device (``None``: it can)."""
+    from retarget.compose_torch import TORCH_OUTPUTS
+
+    outputs = set(spec.array_outputs())
+    bad = sorted(outputs - TORCH_OUTPUTS) + [f"{k}=" for k in ("size", "noise", "bayer", "exposure")
+                                             if getattr(spec, k) is not None]
+    if not outputs or bad:
+        return (f"the device composes {', '.join(sorted(TORCH_OUTPUTS))} at the cropped size; "
+                f"{', '.join(bad) or 'no array output'} need the CPU path")
+    return None
+
+
+class TorchComposer:
+    """Cubes on ``device`` and the composition of a planned sample there."""
+
+    def __init__(self, device: str, device_cache_mb: int = 8192) -> None:
+        import torch
+
+        self.torch = torch
+        self.device = torch.device(device)
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            raise RuntimeError("device cuda: torch sees no CUDA device (torch.cuda.is_available() is False)")
+        self.cubes = LRUCache(device_cache_mb * 2**20, cost=lambda t: t.numel() * t.element_size())
+
+    def _window(self, ctx, p, group: str, kind: str):
+        from service import sampling  # sampling imports this module
+
+        x, y, w, h = p.window
+
+        def load():
+            with warnings.catch_warnings():
+                # the cached cube is read-only and nothing here writes to it (on "cpu" it is shared)
+                warnings.simplefilter("ignore", UserWarning)
+                return self.torch.from_numpy(sampling.whole_cube(ctx, p, group, kind)).to(self.device)
+
+        full = self.cubes.get(sampling.cube_key(p.scene, p.view, group, kind, p.denoise,
+                                                p.metas[p.groups.index(group)].created),
+                              load, expected_cost=p.full[0] * p.full[1] * p.metas[0].n_bands * 4)
+        return full[y:y + h, x:x + w]
+
+    def compose(self, ctx, p, unit: list, white_points: np.ndarray, valid: np.ndarray | None) -> dict:
+        """``{output: tensor on the device}`` of plan ``p``; ``unit``: per group the band weights at
+        intensity 1 (``None`` for a group not read); ``white_points`` ``(G, 3)``."""
+        from retarget.compose_torch import compose_torch
+
+        lit = p.reads()
+        cubes = [self._window(ctx, p, g, "transport") if r else None for g, r in zip(p.groups, lit)]
+        outputs = set(p.spec.array_outputs())
+        physical = p.gt == "physical" and bool(outputs - {"raw", "weights"})
+        illum = [self._window(ctx, p, g, "illumination") if r else None
+                 for g, r in zip(p.groups, lit)] if physical else None
+        v = None if valid is None else self.torch.from_numpy(np.ascontiguousarray(valid)).to(self.device)
+        return compose_torch(cubes, unit, p.intensities, white_points, outputs=outputs, illumination=illum, valid=v)
