@@ -22,7 +22,6 @@ from retarget.compose import GT_OUTPUTS, compose
 from retarget.compose import OUTPUTS as COMPOSED
 from retarget.errors import SpectralError, unknown_name
 from retarget.finite import all_finite
-from retarget.groundtruth import white_points as gt_white_points
 from retarget.relight import band_scales, raw_weights
 from retarget.sensor_model import mosaic, simulate_raw
 from service import budget
@@ -30,7 +29,9 @@ from service import extra_outputs as extra
 from service.context import Context, make_context  # noqa: F401 - re-exported
 from service.errors import NotFound, fail
 from service.limits import Limits
+from service.sample_meta import sample_meta
 from service.spec import SPECTRAL_OUTPUTS, SampleSpec
+from service.torch_sampling import build_on_device
 from service.torch_sampling import refusal as torch_refusal
 
 
@@ -359,7 +360,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     aov = _aov_reader(ctx, p)
     valid, reasons = extra.view_validity(aov, *p.out_size)
     if on_device:
-        return _build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
+        return build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
     cubes = group_inputs(ctx, p, "transport", unit)
     illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     t_read = time.perf_counter()
@@ -384,81 +385,10 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     if spec.bayer and "raw" in want:
         arrays["raw"] = mosaic(arrays["raw"], spec.bayer)
     t_compose = time.perf_counter()
-    meta = _meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain, noise,
+    meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain, noise,
                  {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
                   "compose": 1e3 * (t_compose - t_read)})
     return arrays, meta
-
-
-def _build_on_device(p: Plan, ctx: Context, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device: bool,
-                     t0: float, t_setup: float) -> tuple[dict, dict]:
-    """:func:`build` on ``ctx.torch``'s device (an eligible request: :func:`torch_refusal`)."""
-    lit = p.reads()
-    wps = np.ones((len(p.groups), 3))
-    if any(lit):
-        wps[lit] = gt_white_points(sensor.weights(), np.stack(spds)[lit])
-    out = ctx.torch.compose(ctx, p, unit, wps, valid)
-    mask = out.get("mask")
-    host_mask = None if mask is None else mask.cpu().numpy()
-    arrays = out if keep_device else {k: v.cpu().numpy() for k, v in out.items()}
-    if not keep_device:
-        for k, a in arrays.items():
-            if not all_finite(a):
-                raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
-                                    "large); lower intensities=")
-    t_compose = time.perf_counter()
-    meta = _meta(p, sensor, wps, ccms, fit_de, host_mask, valid, reasons, 1.0, None,
-                 {"setup": 1e3 * (t_setup - t0), "compose": 1e3 * (t_compose - t_setup)})
-    meta["device"] = str(ctx.torch.device)
-    return arrays, meta
-
-
-def _meta(p: Plan, sensor, white_points, ccms, fit_de, mask, valid, reasons, exposure_gain, noise, timings) -> dict:
-    """The sample's metadata (module docstring)."""
-    spec, grid = p.spec, p.metas[0].spectral_grid
-    meta = {
-        "scene": p.scene, "view": p.view, "groups": p.groups, "seed": p.seed,
-        "sensor": {"name": sensor.name, "source": sensor.source},
-        "illuminants": [
-            {"group": g, "illuminant": n, "intensity": a,
-             "white_point_rgb": [float(v) for v in wp],
-             "ccm": None if c is None else np.asarray(c).round(8).tolist(),
-             "ccm_fit_delta_e00_mean": None if de is None else float(de)}
-            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, white_points, ccms or fit_de, fit_de)
-        ],
-        "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
-        "denoise": _denoise_meta(p),
-        "mask_reasons": {"meaning": extra.MASK_REASONS,
-                         "pixels": reasons | ({"no_light": int(np.count_nonzero(~mask)) - sum(reasons.values())}
-                                              if mask is not None and valid is not None else {})},
-        "crop": list(p.window), "size": list(p.out_size), "exposure_gain": exposure_gain,
-        "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": spec.bayer,
-        "grid": grid.to_dict(),
-        "provenance": [{"group": g, "emission": m.emission_name, "renderer": m.renderer.model_dump(),
-                        "spp": m.spp, "seed": m.seed, "scene_hash": m.scene_hash, "created": m.created,
-                        "empty": m.empty,
-                        "denoised": None if m.denoised is None else m.denoised.model_dump(
-                            include={"method", "params", "cost_ms"})} for g, m in zip(p.groups, p.metas)],
-        "timings_ms": timings,
-    }
-    return meta
-
-
-def _denoise_meta(p: Plan) -> dict:
-    """``{method, why, params, guides, linear, reference}`` of what was read (params of the first lit group)."""
-    out = {"method": p.denoise, "why": p.denoise_why}
-    if p.denoise != "none":
-        dn = next(m.denoised for m, r in zip(p.metas, p.reads()) if r)
-        out |= dn.model_dump(include={"params", "guides", "linear", "reference"})
-    return out
-
-
-GT_EQUATIONS = {
-    "physical": "U_k = sum_g sum_i C_k (a Phi/E)_g U_g dlambda (relit illumination cubes); illum = U/U_G; "
-                "mixture_g = U_{g,G}/U_G; gain_k = max_j U_j/U_k; ccm = sum_g mixture_g CCM_g",
-    "formula": "w_g = R_{g,G}/sum_h R_{h,G} (thesis eq. 3.3); illum = sum_g w_g wp_g; gain_k = max_j illum_j/illum_k; "
-               "ccm = sum_g w_g CCM_g",
-}
 
 
 def build_sample(spec: SampleSpec, ctx: Context) -> tuple[dict[str, np.ndarray], dict]:

@@ -13,10 +13,15 @@ torch is imported only here, and only when a device is asked for.
 
 from __future__ import annotations
 
+import time
 import warnings
 
 import numpy as np
 
+from retarget.errors import SpectralError
+from retarget.finite import all_finite
+from retarget.groundtruth import white_points as gt_white_points
+from service.sample_meta import sample_meta
 from store.lru import LRUCache
 
 
@@ -74,3 +79,26 @@ class TorchComposer:
                  for g, r in zip(p.groups, lit)] if physical else None
         v = None if valid is None else self.torch.from_numpy(np.ascontiguousarray(valid)).to(self.device)
         return compose_torch(cubes, unit, p.intensities, white_points, outputs=outputs, illumination=illum, valid=v)
+
+
+def build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device: bool,
+                     t0: float, t_setup: float) -> tuple[dict, dict]:
+    """:func:`build` on ``ctx.torch``'s device (an eligible request: :func:`torch_refusal`)."""
+    lit = p.reads()
+    wps = np.ones((len(p.groups), 3))
+    if any(lit):
+        wps[lit] = gt_white_points(sensor.weights(), np.stack(spds)[lit])
+    out = ctx.torch.compose(ctx, p, unit, wps, valid)
+    mask = out.get("mask")
+    host_mask = None if mask is None else mask.cpu().numpy()
+    arrays = out if keep_device else {k: v.cpu().numpy() for k, v in out.items()}
+    if not keep_device:
+        for k, a in arrays.items():
+            if not all_finite(a):
+                raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
+                                    "large); lower intensities=")
+    t_compose = time.perf_counter()
+    meta = sample_meta(p, sensor, wps, ccms, fit_de, host_mask, valid, reasons, 1.0, None,
+                 {"setup": 1e3 * (t_setup - t0), "compose": 1e3 * (t_compose - t_setup)})
+    meta["device"] = str(ctx.torch.device)
+    return arrays, meta
