@@ -94,18 +94,23 @@ def read_one(folder: Path, i: int) -> None:
 
 
 # -- timing --------------------------------------------------------------------------------------
-def feed_rate(dataset, workers: int, batch: int, epochs: int, set_epoch=None) -> float:
-    """Samples per second through a DataLoader (best of ``epochs`` epochs after one unmeasured)."""
+def feed_rate(dataset, workers: int, batch: int, epochs: int, set_epoch=None, persistent: bool = False) -> float:
+    """Samples per second through a DataLoader (best of ``epochs`` epochs after one unmeasured);
+    ``persistent``: one DataLoader whose workers live across epochs (``persistent_workers=True``),
+    else fresh workers each epoch."""
     from torch.utils.data import DataLoader
 
-    rates = []
+    def loader():
+        return DataLoader(dataset, batch_size=batch, num_workers=workers, shuffle=False,
+                          persistent_workers=persistent and workers > 0)
+
+    rates, kept = [], loader()
     for e in range(epochs + 1):
         if set_epoch is not None:
             set_epoch(e)
-        loader = DataLoader(dataset, batch_size=batch, num_workers=workers,
-                            persistent_workers=False, shuffle=False)
+        it = kept if persistent else loader()
         t, n = time.perf_counter(), 0
-        for b in loader:
+        for b in it:
             n += len(b["index"])
         if e:
             rates.append(n / (time.perf_counter() - t))

@@ -97,3 +97,24 @@ def test_the_dataset_passes_dtype_to_every_item_spec(store_path):
     assert all(ds.spec(i)["dtype"] == "float16" for i in range(2))
     item = next(iter(ds))  # composed locally: float32 arrays whatever the wire dtype
     assert item["raw"].dtype.is_floating_point and item["raw"].shape == (3, 8, 8)
+
+
+def test_persistent_workers_follow_consecutive_epochs(store_path):
+    """set_epoch() in the main process never reaches a persistent worker's copy of the dataset;
+    each iteration of that copy is the next epoch, so consecutive set_epoch calls are followed."""
+    pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
+    from torch.utils.data import DataLoader
+
+    ds = ic.IllumixDataset(store=store_path, cache_mb=64, scenes=["synth/v0"], illuminants=["A", "D65", "FL11"],
+                           sensors=["XYZ"], crop=(8, 8), epoch_length=8, batch_size=2, seed=4, outputs=("raw",))
+    loader = DataLoader(ds, batch_size=4, num_workers=2, persistent_workers=True)
+    for epoch in range(3):
+        ds.set_epoch(epoch)
+        seeds = {int(i): json.loads(m)["seed"] for b in loader for i, m in zip(b["index"], b["meta"])}
+        assert seeds == {i: ds.spec(i, epoch)["seed"] for i in range(8)}, epoch
+    # without set_epoch, iterating again is the next epoch; set_epoch goes back
+    ds.set_epoch(0)
+    first = [json.loads(it["meta"])["seed"] for it in ds]
+    assert [json.loads(it["meta"])["seed"] for it in ds] == [ds.spec(i, 1)["seed"] for i in range(8)]
+    ds.set_epoch(0)
+    assert [json.loads(it["meta"])["seed"] for it in ds] == first
