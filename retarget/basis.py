@@ -164,12 +164,17 @@ def project_groups_any(cubes: Sequence[np.ndarray | BasisCube], weights: np.ndar
                                 f"{weights.shape[1]}) matching cube 0 {shape}")
         if not np.any(weights[g] != 0):
             continue
-        if isinstance(cube, (BasisCube, Projected)):
+        if isinstance(cube, Projected):
+            with np.errstate(invalid="ignore", over="ignore"):
+                cube.project(weights[g], out=out[g])
+        elif isinstance(cube, BasisCube):
             with np.errstate(invalid="ignore", over="ignore"):
                 out[g] = cube.project(weights[g])
         else:
             out[g] = project_groups([cube], weights[g:g + 1], skip_bands=skip_bands)[0]
-    if not all_finite(out):
+    # a cached projection was checked when it was computed, and its scale is finite (band_scales):
+    # only a product with a cube (or a basis) can bring a NaN or inf here
+    if not all(isinstance(c, Projected) for c in cubes) and not all_finite(out):
         raise SpectralError("project: a cube contains NaN or inf (or overflowed float32); "
                             "check the store with `illumix store verify`")
     return out

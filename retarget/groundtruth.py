@@ -66,39 +66,34 @@ def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS
     float64 by ``bench/pareto.py``: gain error ≤ 1e-5°), at half the memory traffic. The frame
     average used where there is no light is accumulated in float64.
     """
-    g = np.asarray(group_green)
-    if g.dtype != np.float32:
-        g = g.astype(np.float32)
+    g = np.array(group_green, dtype=np.float32)  # a contiguous copy (the input is a strided view): ours to clip
+    np.maximum(g, np.float32(0), out=g)
     n = g.shape[0]
-    total = np.zeros(g.shape[1:], np.float32)
-    for gi in g:  # sum of the clipped groups without a clipped copy of all of them
-        total += np.maximum(gi, np.float32(0))
+    total = g.sum(axis=0)
     peak = float(total.max()) if total.size else 0.0
     mask = total > max(rel_eps * peak, float(np.finfo(np.float32).tiny))
     everywhere = bool(mask.all())
     if everywhere:
-        fallback = np.zeros(n)  # never used
+        fallback = None
     elif mask.any():
         lit = float(total[mask].sum(dtype=np.float64))
-        fallback = np.array([np.maximum(gi[mask], 0).sum(dtype=np.float64) / lit for gi in g])
+        fallback = np.array([gi[mask].sum(dtype=np.float64) / lit for gi in g])
     elif prior is not None and np.sum(prior) > 0:
         fallback = np.asarray(prior, dtype=np.float64) / np.sum(prior)
     else:
         fallback = np.full(n, 1.0 / n)
-    safe = np.where(mask, total, np.float32(1))
-    w = np.empty((*g.shape[1:], n), np.float32)
-    for k, gi in enumerate(g):
-        wk = np.maximum(gi, np.float32(0))
-        wk /= safe  # a division, not a reciprocal product: one lit group gets exactly 1
-        if not everywhere:
-            wk[~mask] = np.float32(fallback[k])
-        w[..., k] = wk
+    # a division, not a reciprocal product: one lit group gets exactly 1
+    np.divide(g, total if everywhere else np.where(mask, total, np.float32(1)), out=g)
+    if not everywhere:
+        g[:, ~mask] = fallback.astype(np.float32)[:, None]
+    w = np.ascontiguousarray(np.moveaxis(g, 0, -1))
     return w, mask
 
 
 def mixed_white_point(weights: np.ndarray, wps: np.ndarray) -> np.ndarray:
     """``W(x) = Σ_g ω_g(x) w_g`` — ``(H, W, 3)`` float32 from weights ``(H, W, G)`` and ``(G, 3)``."""
-    return (weights.astype(np.float32) @ np.asarray(wps, dtype=np.float32)).astype(np.float32)
+    # asarray, not astype: the weights are float32 already, and a copy of them cost more than the product
+    return np.asarray(weights, dtype=np.float32) @ np.asarray(wps, dtype=np.float32)
 
 
 def physical_white_point(illum_rgb: np.ndarray, valid: np.ndarray, fallback: np.ndarray
@@ -144,4 +139,4 @@ def gain_map(mixed_wp: np.ndarray) -> np.ndarray:
 def ccm_map(weights: np.ndarray, ccms: np.ndarray) -> np.ndarray:
     """``CCM(x) = Σ_g ω_g(x) CCM_g`` — ``(H, W, 3, 3)`` float32 from ``(H, W, G)`` and ``(G, 3, 3)``."""
     c = np.asarray(ccms, dtype=np.float32).reshape(len(ccms), 9)
-    return (weights.astype(np.float32) @ c).reshape(*weights.shape[:2], 3, 3)
+    return (np.asarray(weights, dtype=np.float32) @ c).reshape(*weights.shape[:2], 3, 3)

@@ -33,18 +33,19 @@ class Projected:
     def shape(self) -> tuple[int, int, int]:
         return (*self.raw.shape[:2], self.n_bands)
 
-    def project(self, weights: np.ndarray) -> np.ndarray:
-        """``cube @ weights`` ``(H, W, 3)`` for ``weights`` parallel to :attr:`weights`."""
+    def project(self, weights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``cube @ weights`` ``(H, W, 3)`` for ``weights`` parallel to :attr:`weights` (into ``out``
+        when given)."""
         ref = np.asarray(self.weights, np.float64)
         w = np.asarray(weights, np.float64)
         norm = float(np.abs(ref).sum())
         s = float(np.abs(w).sum()) / norm if norm > 0 else 0.0
-        if not np.allclose(w, s * ref, rtol=_PARALLEL_RTOL, atol=_PARALLEL_RTOL * float(np.abs(w).max(initial=0))):
+        if float(np.abs(w - s * ref).max(initial=0)) > _PARALLEL_RTOL * float(np.abs(w).max(initial=0)):
             raise SpectralError("project: a cached projection was asked for different band weights "
                                 "(another sensor or illuminant); this is a bug in its cache key")
-        if s == 1.0:
-            return self.raw
-        return self.raw * np.float32(s)
+        if out is None:
+            return self.raw if s == 1.0 else self.raw * np.float32(s)
+        return np.multiply(self.raw, np.float32(s), out=out)
 
     def window(self, x: int, y: int, w: int, h: int) -> Projected:
         return Projected(self.raw[y:y + h, x:x + w], self.weights, self.n_bands)
