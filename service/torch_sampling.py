@@ -47,7 +47,7 @@ class TorchComposer:
         self.torch = torch
         self.device = torch.device(device)
         if self.device.type == "cuda" and not torch.cuda.is_available():
-            raise RuntimeError("device cuda: torch sees no CUDA device (torch.cuda.is_available() is False)")
+            raise RuntimeError("torch sees no CUDA device (torch.cuda.is_available() is False)")
         self.cubes = LRUCache(device_cache_mb * 2**20, cost=lambda t: t.numel() * t.element_size())
 
     def _window(self, ctx, p, group: str, kind: str):
