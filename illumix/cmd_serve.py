@@ -63,20 +63,23 @@ def serve(
                                      help="Bearer token required for uploads/deletes (or ILLUMIX_TOKEN); "
                                           "without one, writes are open."),
     cache_mb: int = typer.Option(1024, "--cache-mb", min=0,
-                                 help="Cached pixels, MiB: decoded cubes plus whole-frame projections."),
+                                 help="Decoded-cube LRU cache size, MiB."),
     projection_mb: int | None = typer.Option(None, "--projection-cache-mb", min=0,
-                                             help="Part of --cache-mb kept for whole-frame projections per "
-                                                  "(cube, sensor, illuminant), so crops are slices (default a "
-                                                  "quarter, at most 512; 0: off)."),
+                                             help="Whole-frame projections per (cube, sensor, illuminant) kept, "
+                                                  "MiB, in addition to --cache-mb, so crops are slices (default "
+                                                  "a quarter of --cache-mb, at most 512; 0: off)."),
     max_request_mb: int = typer.Option(160, "--max-request-mb", min=1,
                                        help="Most working memory one request or batch may need, MiB "
                                             "(priced before any work; above it: 413 with a hint)."),
     inflight_mb: int = typer.Option(160, "--inflight-mb", min=1,
                                     help="Working memory of all requests in flight, MiB (beyond it "
-                                         "requests wait, then 503). RSS ≈ 200 MB + --cache-mb + this."),
+                                         "requests wait, then 503). RSS ≈ 200 MB + --cache-mb + --projection-cache-mb + this."),
     device: str | None = typer.Option(None, "--device",
                                       help="Compose raw/gain/mask/weights/illum/mixture requests with torch on this "
                                            "device (e.g. cuda; needs torch); everything else on the CPU."),
+    device_cache_mb: int = typer.Option(8192, "--device-cache-mb", min=1,
+                                        help="Cubes kept on --device, MiB (its memory; when it runs out, "
+                                             "the request is composed on the CPU)."),
     warm: bool = typer.Option(False, "--warm",
                               help="Before serving, decode the cubes a default /sample of each view reads "
                                    "into the cache (one line per cube on stderr), until the cache is full, "
@@ -99,7 +102,7 @@ def serve(
     limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
     try:
         app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb,
-                         device=device)
+                         device=device, device_cache_mb=device_cache_mb)
     except ImportError:
         raise UserError(f"--device {device}: torch is not installed; pip install torch") from None
     except RuntimeError as exc:

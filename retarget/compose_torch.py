@@ -55,7 +55,8 @@ def _gain(white: torch.Tensor) -> torch.Tensor:
 def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[np.ndarray | None],
                   intensities: Sequence[float], white_points: np.ndarray, *, outputs: Iterable[str],
                   illumination: Sequence[torch.Tensor | None] | None = None, valid: torch.Tensor | None = None,
-                  rel_eps: float = DEFAULT_REL_EPS) -> dict[str, torch.Tensor]:
+                  rel_eps: float = DEFAULT_REL_EPS, shape: tuple[int, int] | None = None,
+                  device: str | torch.device | None = None) -> dict[str, torch.Tensor]:
     """Outputs ``(H, W, C)`` float32 tensors (``mask`` ``(H, W)`` bool) on the cubes' device.
 
     cubes : per group a window ``(H, W, B)`` on the device, or ``None`` for a group not lit;
@@ -68,18 +69,25 @@ def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[n
     if want - TORCH_OUTPUTS:
         raise SpectralError(f"the torch composition serves {', '.join(sorted(TORCH_OUTPUTS))}; "
                             f"not {', '.join(sorted(want - TORCH_OUTPUTS))}")
-    ref = next(c for c in cubes if c is not None) if any(c is not None for c in cubes) else None
-    if ref is None:
-        raise SpectralError("no light group is lit; give some group a positive intensity")
-    dev, (h, w) = ref.device, ref.shape[:2]
+    ref = next((c for c in cubes if c is not None), None)
+    if ref is None and (shape is None or device is None):
+        raise SpectralError("compose_torch: no cube is read; give shape= and device= for an all-dark frame")
+    dev, (h, w) = (ref.device, ref.shape[:2]) if ref is not None else (torch.device(device), shape)
     a = torch.tensor([float(x) for x in intensities], dtype=torch.float32, device=dev)
 
     def project(windows) -> torch.Tensor:
         out = torch.zeros((len(windows), h, w, 3), dtype=torch.float32, device=dev)
-        for g, (c, m) in enumerate(zip(windows, unit_weights)):
-            if c is not None and m is not None and float(a[g]) > 0:
-                mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
-                out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
+        # full float32 products whatever the caller's torch.set_float32_matmul_precision (TF32 would
+        # cost ~1e-3 relative); restored after, as the setting is process-wide
+        precision = torch.get_float32_matmul_precision()
+        torch.set_float32_matmul_precision("highest")
+        try:
+            for g, (c, m) in enumerate(zip(windows, unit_weights)):
+                if c is not None and m is not None and float(a[g]) > 0:
+                    mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
+                    out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
+        finally:
+            torch.set_float32_matmul_precision(precision)
         if not bool(torch.isfinite(out).all()):
             raise SpectralError("project: a cube contains NaN or inf (or overflowed float32)")
         return out

@@ -32,14 +32,15 @@ _NO_BODY = 64 * 1024  # GET/DELETE: nothing is read, but do not let a huge claim
 
 
 def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits: Limits | None = None,
-               projection_mb: int | None = None, device: str | None = None) -> FastAPI:
+               projection_mb: int | None = None, device: str | None = None, device_cache_mb: int = 8192) -> FastAPI:
     """The service over an open :class:`store.CubeStore`.
 
     ``token``: bearer token required for writes (``None`` or empty: writes are open, with a warning
-    in the log). ``cache_mb``: bound of all cached pixels: decoded cubes plus ``projection_mb`` of
-    whole-frame projections (:mod:`service.projections`; default a quarter, at most 512; 0 turns
-    them off). ``limits``: :class:`Limits`. ``device``: compose eligible requests with torch there
-    (:mod:`service.torch_sampling`, e.g. ``"cuda"``; the rest on the CPU).
+    in the log). ``cache_mb``: bound of the decoded-cube cache; ``projection_mb``: of the whole-frame
+    projections, in addition (:mod:`service.projections`; default a quarter of ``cache_mb``, at most
+    512; 0 turns them off). ``limits``: :class:`Limits`. ``device``: compose eligible requests with torch there
+    (:mod:`service.torch_sampling`, e.g. ``"cuda"``; the rest on the CPU), keeping up to
+    ``device_cache_mb`` of cubes there.
     """
     limits = limits or Limits()
     token = token or None  # an empty token would accept an empty Bearer header: treat as none
@@ -49,7 +50,8 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
                   description="Mixed-illuminant colour-constancy samples with exact ground truth. Every error "
                               "answer is an ErrorBody: {detail, status, code, loc}.",
                   responses=errors.error_responses(405))
-    app.state.ctx = make_context(store, cache_mb=cache_mb, projection_mb=projection_mb, limits=limits, device=device)
+    app.state.ctx = make_context(store, cache_mb=cache_mb, projection_mb=projection_mb, limits=limits, device=device,
+                                 device_cache_mb=device_cache_mb)
     app.state.token = token
     errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
     app.state.metrics = Metrics(app.state.ctx)

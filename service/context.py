@@ -27,14 +27,14 @@ class Context:
 
 def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = None,
                  limits: Limits | None = None, device: str | None = None, device_cache_mb: int = 8192) -> Context:
-    """The composition context over an open store: ``cache_mb`` bounds all cached pixels, decoded
-    cubes plus ``projection_mb`` of whole-frame projections (default: a quarter, at most 512 MiB;
-    0 turns them off). ``device``: compose eligible requests with torch there
+    """The composition context over an open store: ``cache_mb`` bounds the decoded cubes,
+    ``projection_mb`` (in addition) the whole-frame projections (default: a quarter of ``cache_mb``,
+    at most 512 MiB; 0 turns them off). ``device``: compose eligible requests with torch there
     (:mod:`service.torch_sampling`), with up to ``device_cache_mb`` of cubes on it. Used by the
     service and by the client's local mode."""
     limits = limits or Limits()
-    projection_mb = projection_share(cache_mb) if projection_mb is None else min(projection_mb, cache_mb)
-    cache = LRUCache((cache_mb - projection_mb) * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
+    projection_mb = projection_share(cache_mb) if projection_mb is None else projection_mb
+    cache = LRUCache(cache_mb * 2**20, cost=nbytes_cost, on_load=_read_only, track_evicted=True)
     memory = budget.MemoryBudget(limits.inflight_mb * 2**20, limits.queue_timeout_s,
                                  per_request=limits.max_request_mb * 2**20)
     composer = None

@@ -57,7 +57,7 @@ class ServiceCollector(Collector):
         yield CounterMetricFamily("illumix_cache_misses", "Decoded-cube cache misses (a cube was decoded)",
                                   value=c.misses)
         yield GaugeMetricFamily("illumix_cache_bytes", "Decoded cube bytes the cache holds", value=c.total_cost)
-        yield GaugeMetricFamily("illumix_cache_max_bytes", "The cube cache's bound (--cache-mb less --projection-cache-mb)", value=c.max_cost)
+        yield GaugeMetricFamily("illumix_cache_max_bytes", "The cube cache's bound (--cache-mb)", value=c.max_cost)
         yield GaugeMetricFamily("illumix_cache_evicted_in_use_bytes",
                                 "Evicted cubes that requests still use (counted against the bound)",
                                 value=c.evicted_cost)
@@ -68,7 +68,7 @@ class ServiceCollector(Collector):
                                       "(per group; no cube read)", value=pc.hits)
             yield CounterMetricFamily("illumix_projection_misses", "Whole-frame projections computed and kept",
                                       value=pc.misses)
-            yield GaugeMetricFamily("illumix_projection_bytes", "Projection bytes kept (part of --cache-mb)",
+            yield GaugeMetricFamily("illumix_projection_bytes", "Projection bytes kept (bounded by --projection-cache-mb)",
                                     value=pc.cache.total_cost)
         yield GaugeMetricFamily("illumix_inflight_bytes",
                                 "Working memory reserved by requests being computed or sent", value=m.used)

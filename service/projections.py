@@ -3,12 +3,16 @@
 A random-crop training feed asks the same few views under a pool of sensors and illuminants again
 and again. Projecting a 256² crop reads 63 bands per pixel (~2 ms per group, memory bound); slicing
 the frame's projection, computed once at intensity 1 (:class:`retarget.projected.Projected`), reads
-3. The projection is exact (linear in the intensity), so the sample is the same either way.
+3. The result equals the cube path to float32 rounding (the intensity multiplies after the band sum
+instead of inside it).
 
-A frame is projected when a key is asked for the ``min_uses``-th time (a continuous CCT range
-rarely repeats a key: projecting the whole frame for one crop would cost ~10× the crop), or at
-once when the request is the whole frame (it is projected anyway). The entries live in their own
-LRU cache, carved out of ``--cache-mb``, so they never evict the decoded cubes they are made from.
+Admission, so a pool that rarely repeats a key (a continuous CCT range) does not churn the cache
+with frames used once: a key is projected from its ``min_uses``-th request on (its first, for a
+whole frame, which is projected anyway), and only while the cache has room or the key has been
+asked for more often than the least recently used entry it would evict (TinyLFU's rule: Einziger,
+Friedman & Manes 2017), with request counts halved every ``_AGE_EVERY`` requests so that old
+popularity fades. The entries live in their own LRU cache (``--projection-cache-mb``, in addition
+to ``--cache-mb``), so they never evict the decoded cubes they are made from.
 """
 
 from __future__ import annotations
@@ -24,11 +28,12 @@ from retarget.relight import project_groups
 from store.lru import LRUCache, nbytes_cost
 
 MIN_USES = 2  # a key's projection is cached on its second request
-_SEEN = 65536  # keys whose request count is remembered (a bounded LRU of counters)
+_SEEN = 65536  # keys whose request count is remembered (a bounded LRU of counters, a few MiB)
+_AGE_EVERY = 8192  # requests between halvings of the counts
 
 
 def projection_share(cache_mb: int) -> int:
-    """MiB of ``--cache-mb`` given to projections by default: a quarter, at most 512."""
+    """Default ``--projection-cache-mb``: a quarter of ``--cache-mb``, at most 512 MiB."""
     return min(cache_mb // 4, 512)
 
 
@@ -41,6 +46,7 @@ class ProjectionCache:
         self.min_uses = max(1, int(min_uses))
         self._seen: OrderedDict[Hashable, int] = OrderedDict()
         self._lock = threading.Lock()
+        self._ops = 0
 
     @property
     def hits(self) -> int:
@@ -56,7 +62,19 @@ class ProjectionCache:
             self._seen[key] = n
             while len(self._seen) > _SEEN:
                 self._seen.popitem(last=False)
+            self._ops += 1
+            if self._ops >= _AGE_EVERY:  # popularity fades: halve every count, forget the zeros
+                self._ops = 0
+                self._seen = OrderedDict((k, v // 2) for k, v in self._seen.items() if v // 2)
             return n
+
+    def _admit(self, key: Hashable, count: int, frame_bytes: int) -> bool:
+        c = self.cache
+        if c.total_cost + c.evicted_cost + frame_bytes <= c.max_cost:
+            return True  # room without evicting anything
+        victim = c.oldest_key()
+        with self._lock:
+            return victim is None or count > self._seen.get(victim, 0)
 
     def window(self, key: Hashable, whole_cube: Callable[[], np.ndarray], weights: np.ndarray,
                window: tuple[int, int, int, int], frame_bytes: int, whole_frame: bool) -> Projected | None:
@@ -69,10 +87,13 @@ class ProjectionCache:
         if frame_bytes > self.cache.max_cost:
             return None
         raw = self.cache.lookup(key)
+        n = self._count(key)
         if raw is None:
-            if not whole_frame and self._count(key) < self.min_uses:
+            if (not whole_frame and n < self.min_uses) or not self._admit(key, n, frame_bytes):
                 return None
-            raw = self.cache.get(key, lambda: project_groups([whole_cube()], weights[None])[0],
+            # a copy that owns its memory: the cache's eviction accounting follows the array it
+            # keeps, and crops of a view would keep its base alive unseen
+            raw = self.cache.get(key, lambda: project_groups([whole_cube()], weights[None])[0].copy(),
                                  expected_cost=frame_bytes)
         n_bands = weights.shape[0]
         return Projected(raw, weights, n_bands).window(*window)

@@ -360,7 +360,12 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     aov = _aov_reader(ctx, p)
     valid, reasons = extra.view_validity(aov, *p.out_size)
     if on_device:
-        return build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
+        try:
+            return build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
+        except Exception as exc:
+            if keep_device or not ctx.torch.out_of_memory(exc):
+                raise
+            ctx.torch.cubes.clear()  # the device is full: free its cubes, compose this one on the CPU
     cubes = group_inputs(ctx, p, "transport", unit)
     illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
     t_read = time.perf_counter()

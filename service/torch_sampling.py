@@ -32,6 +32,8 @@ def refusal(spec) -> str | None:
     outputs = set(spec.array_outputs())
     bad = sorted(outputs - TORCH_OUTPUTS) + [f"{k}=" for k in ("size", "noise", "bayer", "exposure")
                                              if getattr(spec, k) is not None]
+    if spec.format in ("png", "tiff"):
+        bad.append(f"format={spec.format}")  # a PNG of raw is auto-exposed (sampling.exposure_for)
     if not outputs or bad:
         return (f"the device composes {', '.join(sorted(TORCH_OUTPUTS))} at the cropped size; "
                 f"{', '.join(bad) or 'no array output'} need the CPU path")
@@ -50,20 +52,33 @@ class TorchComposer:
             raise RuntimeError("torch sees no CUDA device (torch.cuda.is_available() is False)")
         self.cubes = LRUCache(device_cache_mb * 2**20, cost=lambda t: t.numel() * t.element_size())
 
+    def out_of_memory(self, exc: BaseException) -> bool:
+        """Whether ``exc`` is the device running out of memory (the service then uses the CPU)."""
+        oom = getattr(self.torch, "OutOfMemoryError", None) or getattr(self.torch.cuda, "OutOfMemoryError", None)
+        return oom is not None and isinstance(exc, oom)
+
+    def _to_device(self, a: np.ndarray, copy: bool = False):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # read-only cached arrays: nothing writes to them
+            t = self.torch.from_numpy(np.asarray(a)).to(self.device)
+        return t.clone() if copy else t
+
     def _window(self, ctx, p, group: str, kind: str):
         from service import sampling  # sampling imports this module
 
         x, y, w, h = p.window
 
+        nbytes = p.full[0] * p.full[1] * p.metas[0].n_bands * 4
+        if nbytes > ctx.cache.max_cost or nbytes > self.cubes.max_cost:
+            return self._to_device(sampling.read_cube(ctx, p, group, kind))  # the window, uncached
+
         def load():
-            with warnings.catch_warnings():
-                # the cached cube is read-only and nothing here writes to it (on "cpu" it is shared)
-                warnings.simplefilter("ignore", UserWarning)
-                return self.torch.from_numpy(sampling.whole_cube(ctx, p, group, kind)).to(self.device)
+            # a copy on "cpu" too: the device cache then owns its memory, within device_cache_mb
+            return self._to_device(sampling.whole_cube(ctx, p, group, kind), copy=self.device.type == "cpu")
 
         full = self.cubes.get(sampling.cube_key(p.scene, p.view, group, kind, p.denoise,
                                                 p.metas[p.groups.index(group)].created),
-                              load, expected_cost=p.full[0] * p.full[1] * p.metas[0].n_bands * 4)
+                              load, expected_cost=nbytes)
         return full[y:y + h, x:x + w]
 
     def compose(self, ctx, p, unit: list, white_points: np.ndarray, valid: np.ndarray | None) -> dict:
@@ -78,15 +93,16 @@ class TorchComposer:
         illum = [self._window(ctx, p, g, "illumination") if r else None
                  for g, r in zip(p.groups, lit)] if physical else None
         v = None if valid is None else self.torch.from_numpy(np.ascontiguousarray(valid)).to(self.device)
-        return compose_torch(cubes, unit, p.intensities, white_points, outputs=outputs, illumination=illum, valid=v)
+        return compose_torch(cubes, unit, p.intensities, white_points, outputs=outputs, illumination=illum, valid=v,
+                             shape=(p.window[3], p.window[2]), device=self.device)
 
 
 def build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device: bool,
                      t0: float, t_setup: float) -> tuple[dict, dict]:
     """:func:`build` on ``ctx.torch``'s device (an eligible request: :func:`torch_refusal`)."""
-    lit = p.reads()
+    lit = np.asarray(p.intensities) > 0  # as retarget.compose: every lit group, read or recorded empty
     wps = np.ones((len(p.groups), 3))
-    if any(lit):
+    if lit.any():
         wps[lit] = gt_white_points(sensor.weights(), np.stack(spds)[lit])
     out = ctx.torch.compose(ctx, p, unit, wps, valid)
     mask = out.get("mask")

@@ -185,11 +185,21 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                                 log(f"warm: projection cache full after {done} projections")
                                 return {"projections": done, "bytes": nbytes, "seconds": time.perf_counter() - t0,
                                         "skipped": skipped + 1}
-                            misses = pc.cache.misses
-                            pc.window(key, lambda g=g, k=kind, p=p: whole_cube(ctx, p, g, k), unit, (0, 0, 1, 1), frame,
-                                      whole_frame=True)
-                            pc.cache.misses = misses  # warming is no request (module doc)
-                            done, nbytes = done + 1, nbytes + frame
+                            if key[0] not in ctx.cache:  # project only what warm_cache decoded: never evict it
+                                skipped += 1
+                                continue
+                            misses, hits = pc.cache.misses, ctx.cache.hits
+                            try:
+                                kept = pc.window(key, lambda g=g, k=kind, p=p: whole_cube(ctx, p, g, k), unit,
+                                                 (0, 0, 1, 1), frame, whole_frame=True)
+                            except (SpectralError, StoreError) as exc:
+                                log(f"warm: skipping {scene}/{view} {g} {kind}: {str(exc).splitlines()[0]}")
+                                skipped += 1
+                                continue
+                            finally:
+                                pc.cache.misses, ctx.cache.hits = misses, hits  # warming is no request
+                            if kept is not None:
+                                done, nbytes = done + 1, nbytes + frame
     seconds = time.perf_counter() - t0
     log(f"warm: {done} projections, {_size(nbytes)} in {seconds:.1f} s")
     return {"projections": done, "bytes": nbytes, "seconds": seconds, "skipped": skipped}

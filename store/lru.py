@@ -67,6 +67,11 @@ class LRUCache(Generic[V]):
     def __len__(self) -> int:
         return len(self._items)
 
+    def oldest_key(self) -> Hashable | None:
+        """The least recently used key (the next to be evicted), or ``None`` when empty."""
+        with self._lock:
+            return next(iter(self._items), None)
+
     def __contains__(self, key: Hashable) -> bool:
         with self._lock:
             return key in self._items
@@ -103,10 +108,12 @@ class LRUCache(Generic[V]):
                 return item[0]
             flight = self._loading.get(key)
             if flight is None:
-                flight = self._loading[key] = _Flight(expected_cost or 0)
+                # a value larger than the whole budget is returned, not kept: evict nothing for it
+                fits = (expected_cost or 0) <= self.max_cost
+                flight = self._loading[key] = _Flight(expected_cost or 0 if fits else 0)
                 owner = True
                 self._reserved += flight.reserved
-                dropped = self._evict_locked(keep=0)
+                dropped = self._evict_locked(keep=0) if fits else []
             else:
                 owner = False
                 self.hits += 1  # served by another caller's load

@@ -106,7 +106,8 @@ def test_persistent_workers_follow_consecutive_epochs(store_path):
     from torch.utils.data import DataLoader
 
     ds = ic.IllumixDataset(store=store_path, cache_mb=64, scenes=["synth/v0"], illuminants=["A", "D65", "FL11"],
-                           sensors=["XYZ"], crop=(8, 8), epoch_length=8, batch_size=2, seed=4, outputs=("raw",))
+                           sensors=["XYZ"], crop=(8, 8), epoch_length=8, batch_size=2, seed=4, outputs=("raw",),
+                           auto_epoch=True)
     loader = DataLoader(ds, batch_size=4, num_workers=2, persistent_workers=True)
     for epoch in range(3):
         ds.set_epoch(epoch)
@@ -118,3 +119,13 @@ def test_persistent_workers_follow_consecutive_epochs(store_path):
     assert [json.loads(it["meta"])["seed"] for it in ds] == [ds.spec(i, 1)["seed"] for i in range(8)]
     ds.set_epoch(0)
     assert [json.loads(it["meta"])["seed"] for it in ds] == first
+    ds.auto_epoch = False  # the default: iterating again repeats the epoch
+    assert [json.loads(it["meta"])["seed"] for it in ds] == [json.loads(it["meta"])["seed"] for it in ds]
+
+
+def test_device_items_without_raw_or_gain(store_path):
+    pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
+    ds = ic.IllumixDataset(store=store_path, device="cpu", cache_mb=64, scenes=["synth/v0"], illuminants=["A", "D65"],
+                           sensors=["XYZ"], crop=(8, 8), epoch_length=2, outputs=("weights", "mask"))
+    item = next(iter(ds))
+    assert item["weights"].shape == (2, 8, 8) and item["mask"].shape == (1, 8, 8)

@@ -90,3 +90,6 @@ def test_the_service_composes_eligible_requests_on_its_device(tmp_path):
         np.testing.assert_array_equal(b["mask"], a["mask"])
         srgb = np.load(io.BytesIO(dev.get("/sample", params=SPEC | {"outputs": "srgb,meta"}).content))
         assert "device" not in json.loads(str(srgb["meta"]))  # composed on the CPU
+        # a PNG of raw is auto-exposed: composed on the CPU, the same image either way
+        png = {"outputs": "raw", "format": "png"}
+        assert dev.get("/sample", params=SPEC | png).content == cpu.get("/sample", params=SPEC | png).content

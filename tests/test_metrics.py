@@ -62,8 +62,7 @@ def test_metrics_is_prometheus_text_with_the_cache_counters(stores):
     assert "illumix_cache_hits_total" in r.text and "illumix_cache_misses_total" in r.text
     m = scrape(c)
     assert m[("illumix_process_resident_memory_bytes",)] > 10 * 2**20
-    # --cache-mb 64: 48 MiB of decoded cubes and a quarter for whole-frame projections
-    assert m[("illumix_cache_max_bytes",)] == 48 * 2**20 and m[("illumix_inflight_bytes",)] == 0
+    assert m[("illumix_cache_max_bytes",)] == 64 * 2**20 and m[("illumix_inflight_bytes",)] == 0
     assert m[("illumix_projection_hits_total",)] == 0 and m[("illumix_projection_bytes",)] == 0
     assert m[("illumix_refused_busy_total",)] == 0 and m[("illumix_cache_evicted_in_use_bytes",)] == 0
     assert "/metrics" in c.get("/openapi.json").json()["paths"]

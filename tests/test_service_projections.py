@@ -88,12 +88,35 @@ def test_the_cache_bound_holds(store):
 
 
 def test_warmed_projections_serve_the_first_crop(store):
-    from service.warm import warm_projections
+    from service.warm import warm_cache, warm_projections
 
     ctx = ctx_of(store, 16)
+    assert warm_projections(ctx, ["XYZ"], ["A"])["projections"] == 0  # only cubes already decoded
+    warm_cache(ctx)
     got = warm_projections(ctx, ["XYZ"], ["A", "D65"])
     # synth/v0: 2 groups × 2 illuminants × (transport + illumination); the other views have one
     # flat group, or a cut emission that D65 cannot relight (skipped)
     assert got["projections"] >= 8 and ctx.projections.misses == 0
     sample(ctx, sensor="XYZ", pair="D65,A", crop="3,5,16,16", outputs="raw,gain")
     assert ctx.projections.hits == 4 and ctx.projections.misses == 0
+
+
+def test_admission_keeps_popular_frames_from_keys_used_once():
+    """TinyLFU's rule: a key used once does not evict a frame asked for more often."""
+    from service.projections import ProjectionCache
+
+    cube = np.ones((8, 8, 4), np.float32)
+    w = np.ones((4, 3))
+    frame = 8 * 8 * 3 * 4
+    pc = ProjectionCache(2 * frame)  # room for two frames
+    for _ in range(3):
+        for hot in ("a", "b"):
+            assert pc.window(hot, lambda: cube, w, (0, 0, 8, 8), frame, whole_frame=True) is not None
+    for i in range(50):  # a stream of keys seen once or twice (a continuous CCT range)
+        for _ in range(2):
+            pc.window(f"cold{i}", lambda: cube, w, (0, 0, 8, 8), frame, whole_frame=False)
+    assert "a" in pc.cache and "b" in pc.cache
+    hits = pc.hits
+    pc.window("a", lambda: cube, w, (0, 0, 4, 4), frame, whole_frame=False)
+    assert pc.hits == hits + 1
+

@@ -18,7 +18,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-
 from illumix_client.errors import IllumixError, InvalidRequestError, NotFoundError
 from illumix_client.sample import Sample, as_specs, encode_spec
 

@@ -36,10 +36,12 @@ Item ``i`` of epoch ``e`` is drawn from ``numpy.random.default_rng([seed, e, i])
 one illuminant per light group (:class:`illumix_client.draw.IlluminantPool`), intensity ratios, a
 sensor, a crop position and the service-side seed (noise) — so an epoch is the same whatever the
 number of workers, and ``set_epoch(e)`` (call it each epoch, as with ``DistributedSampler``) gives a
-fresh one. Iterating again without ``set_epoch`` gives the next epoch, so DataLoader workers made
-with ``persistent_workers=True`` (which ``set_epoch`` in the main process does not reach) follow
-consecutive ``set_epoch`` calls; use them with the local mode, whose workers are forked from a
-process holding the decoded cubes (0.2–0.3 s each time a fresh worker starts). The ``epoch_length`` indices are split between distributed ranks (``i % world_size``),
+fresh one. DataLoader workers made with ``persistent_workers=True`` keep their copy of the dataset,
+which ``set_epoch`` in the main process never reaches: with ``auto_epoch=True`` each iteration
+without a ``set_epoch`` in between is the next epoch, so they follow consecutive ``set_epoch``
+calls (items then depend on how often each copy was iterated, not on ``set_epoch`` alone; leave it
+off for a validation loader that must repeat). Use persistent workers with the local mode, whose
+workers are forked from a process holding the decoded cubes (0.2–0.3 s each time one starts). The ``epoch_length`` indices are split between distributed ranks (``i % world_size``),
 then in chunks of ``batch_size`` between DataLoader workers (``torch.utils.data.get_worker_info``):
 no two workers ever produce the same item. Each chunk is one ``POST /batch``; ``prefetch`` chunks
 per worker are requested ahead on background threads while the current one is consumed.
@@ -114,6 +116,9 @@ class IllumixDataset(IterableDataset):
     denoise
         ``"none"`` or a denoise method (``"dt-irradiance"``): the store's denoised cube copies (default:
         those where the store has them).
+    auto_epoch
+        Each iteration without a ``set_epoch`` in between is the next epoch (for
+        ``persistent_workers=True``; see "Sampling, seeding, workers"). Default off.
     dtype
         ``"float16"`` halves the bytes on the wire (per-output power-of-two scales; items are still
         float32, scaled back); pays on links slower than loopback (README "Transfer less").
@@ -147,7 +152,8 @@ class IllumixDataset(IterableDataset):
                  raw_norm: str = "max", epoch_length: int = 1024, batch_size: int = 16, prefetch: int = 2,
                  seed: int | None = None, min_groups: int = 1, distinct_illuminants: bool = True,
                  cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None,
-                 gt: str | None = None, denoise: str | None = None, dtype: str | None = None) -> None:
+                 gt: str | None = None, denoise: str | None = None, dtype: str | None = None,
+                 auto_epoch: bool = False) -> None:
         super().__init__()
         if raw_norm not in RAW_NORMS:
             raise ValueError(f"raw_norm must be one of {', '.join(RAW_NORMS)}, got {raw_norm!r}")
@@ -164,6 +170,7 @@ class IllumixDataset(IterableDataset):
         self.batch_size, self.prefetch = int(batch_size), int(prefetch)
         self.seed = int(seed) if seed is not None else int.from_bytes(os.urandom(4), "little")
         self.epoch, self._begun = 0, 0  # _begun: iterations since set_epoch (see __iter__)
+        self.auto_epoch = bool(auto_epoch)
         if world_size is None or rank is None:
             dist = torch.distributed
             on = dist.is_available() and dist.is_initialized()
@@ -228,10 +235,10 @@ class IllumixDataset(IterableDataset):
         info = get_worker_info()
         wid, nw = (info.id, info.num_workers) if info is not None else (0, 1)
         chunks = self.worker_chunks(wid, nw)
-        # Each iteration of this object without a set_epoch() in between is the next epoch: a
-        # persistent DataLoader worker keeps its copy of the dataset, which set_epoch() in the main
-        # process never reaches, and still advances in step with it.
-        epoch = self.epoch + self._begun
+        # auto_epoch: each iteration of this object without a set_epoch() in between is the next
+        # epoch, so a persistent DataLoader worker (whose copy set_epoch() in the main process never
+        # reaches) advances in step with consecutive set_epoch calls
+        epoch = self.epoch + (self._begun if self.auto_epoch else 0)
         self._begun += 1
         client = self._client()
         pool = ThreadPoolExecutor(max_workers=max(1, self.prefetch), thread_name_prefix="illumix")
@@ -268,7 +275,7 @@ class IllumixDataset(IterableDataset):
     def to_item(self, index: int, s: Sample) -> dict[str, Any]:
         """A :class:`Sample` → the item dict (layout in the module docstring)."""
         item: dict[str, Any] = {}
-        if isinstance(s.raw if s.raw is not None else s.gain, torch.Tensor):
+        if any(isinstance(v, torch.Tensor) for v in s.arrays().values()):
             return self._tensor_item(index, s)
         if s.raw is not None:
             item["raw"] = torch.from_numpy(self._norm_raw(s))
