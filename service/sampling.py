@@ -342,7 +342,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     grid = p.metas[0].spectral_grid
     sensor, skey = lib.sensor(spec.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
-    # a CCM fit costs ~0.1 s the first time per (sensor, illuminant): only when something uses it
+    # a CCM fit (~1 ms, then cached per sensor and illuminant) only when an output or the metadata uses it
     if {"ccm", "srgb", "meta"} & set(spec.outputs) or spec.format in ("png", "tiff"):
         ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
     else:
