@@ -9,7 +9,6 @@ with cv2/numpy into the same tensors.
 from __future__ import annotations
 
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -17,6 +16,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from server_lib import free_port, wait_healthy
 
 ROOT = Path(__file__).resolve().parents[1]
 SENSOR_DIR = ROOT.parent / "shared" / "data" / "rawtoaces-data" / "data" / "camera"
@@ -137,10 +137,6 @@ def p50_ms(fn, n: int) -> float:
 
 
 # -- a service in a subprocess -------------------------------------------------------------------
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Server:
@@ -156,18 +152,9 @@ class Server:
         self.started = time.perf_counter()
 
     def __enter__(self) -> Server:
-        import httpx
-
-        for _ in range(1200):
-            if self.proc.poll() is not None:
-                raise SystemExit(f"bench/feed.py: the server exited {self.proc.returncode}")
-            try:
-                if httpx.get(f"{self.url}/health", timeout=2).status_code == 200:
-                    self.ready_s = time.perf_counter() - self.started
-                    return self
-            except httpx.HTTPError:
-                time.sleep(0.1)
-        raise SystemExit("bench/feed.py: the server did not start")
+        wait_healthy(self.url, self.proc, timeout=120, what="bench/feed.py: the server")
+        self.ready_s = time.perf_counter() - self.started
+        return self
 
     def __exit__(self, *exc) -> None:
         self.proc.terminate()

@@ -33,7 +33,6 @@ import argparse
 import json
 import os
 import random
-import socket
 import statistics
 import subprocess
 import sys
@@ -43,6 +42,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from server_lib import free_port, wait_healthy  # bench/ is the script's folder
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
@@ -56,15 +56,12 @@ def log(msg: str) -> None:
     print(f"[bench/load] {msg}", file=sys.stderr, flush=True)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def build_store(path: str, h: int, w: int) -> list[tuple[str, str, int]]:
     """The synthetic store; returns ``(scene, view, n_groups)`` of every view."""
     import synthetic_store as synth
+
     from retarget.grid import DEFAULT_GRID
     from store import CubeMeta, CubeStore, ViewMeta
 
@@ -175,17 +172,7 @@ def phase(store: str, views, h: int, w: int, args) -> dict:
     env = server_env(args.blas_threads) | ({"ILLUMIX_MALLOC_TUNING": "off"} if args.glibc_malloc else {})
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=errlog, cwd=ROOT, env=env)
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(f"{url}/health", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if proc.poll() is not None or time.monotonic() > deadline:
-                errlog.seek(0)
-                raise SystemExit(f"bench/load.py: the server did not start: {errlog.read().decode()[-2000:]}")
-            time.sleep(0.1)
+        wait_healthy(url, proc, what="bench/load.py: the server", log=errlog)
         with httpx.Client(timeout=120) as c:  # warm-up: imports, CCM fits, BLAS buffers
             for pair in PAIRS:
                 for sensor in SENSORS:

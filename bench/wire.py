@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -28,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from server_lib import free_port, wait_healthy  # bench/ is the script's folder
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "clients" / "python")]
@@ -123,10 +123,6 @@ uvicorn.run(app, host="127.0.0.1", port=port, log_level="warning")
 """
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def http(repeats: int, compose: bool) -> dict:
@@ -150,14 +146,7 @@ def http(repeats: int, compose: bool) -> dict:
                                     stdout=subprocess.DEVNULL)
             url = f"http://127.0.0.1:{port}"
             try:
-                for _ in range(600):
-                    try:
-                        if httpx.get(f"{url}/health", timeout=1).status_code == 200:
-                            break
-                    except httpx.HTTPError:
-                        time.sleep(0.1)
-                else:
-                    raise SystemExit("bench/wire.py: the server did not start")
+                wait_healthy(url, proc, what="bench/wire.py: the server")
                 formats = ("arrays",) if mode == "join" else ("npz", "arrays")
                 for case, outputs in cases.items():
                     params = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "A,D65", "outputs": outputs}

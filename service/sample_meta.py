@@ -18,7 +18,8 @@ def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exp
              "white_point_rgb": [float(v) for v in wp],
              "ccm": None if c is None else np.asarray(c).round(8).tolist(),
              "ccm_fit_delta_e00_mean": None if de is None else float(de)}
-            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, white_points, ccms or fit_de, fit_de)
+            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, white_points,
+                                          ccms if ccms is not None else [None] * len(p.groups), fit_de)
         ],
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "denoise": _denoise_meta(p),

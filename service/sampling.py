@@ -57,8 +57,6 @@ class Plan:
     aovs: list[str] = field(default_factory=list)  # the view's stored AOVs
     denoise: str = "none"  # the denoise method whose stored copies are read ("none": the raw cubes)
     denoise_why: str = ""
-    sensor_key: str = ""  # set by build: identify the sensor and illuminants in projection keys
-    illuminant_keys: tuple = ()
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -282,12 +280,20 @@ def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.
     return whole_cube(ctx, p, group, kind)[y:y + h, x:x + w]
 
 
-def group_inputs(ctx: Context, p: Plan, kind: str, unit_weights: list[np.ndarray | None]) -> list:
+def unit_weights(spd: np.ndarray, emission: np.ndarray, group: str, sensor, grid) -> np.ndarray:
+    """A group's ``(B, 3)`` relight + projection weights at intensity 1 (the weights a cached
+    projection is computed with; :func:`retarget.relight.raw_weights`)."""
+    scales = band_scales(np.asarray(spd)[None], np.asarray(emission, np.float64)[None], np.ones(1), [group],
+                         grid.wavelengths)
+    return raw_weights(scales, sensor.weights())[0]
+
+
+def group_inputs(ctx: Context, p: Plan, kind: str, unit: list[np.ndarray | None], keys: list[tuple]) -> list:
     """Per group what :func:`retarget.compose.compose` projects: zeros for a group not read, else the
     window of the frame's cached projection (:mod:`service.projections`) or of the cube itself.
 
-    unit_weights : per group the ``(B, 3)`` band weights at intensity 1 (``None``: do not use
-    projections, e.g. when spectral outputs need the cube's bands)."""
+    unit : per group the :func:`unit_weights` (``None``: do not use projections, e.g. when spectral
+    outputs need the cube's bands); keys : per group ``(sensor key, illuminant key)``."""
     w, h = p.window[2:]
     zero = np.broadcast_to(np.float32(0), (h, w, p.metas[0].n_bands))
     whole = (w, h) == p.full
@@ -299,10 +305,9 @@ def group_inputs(ctx: Context, p: Plan, kind: str, unit_weights: list[np.ndarray
             out.append(zero)
             continue
         win = None
-        if proj is not None and unit_weights[i] is not None:
-            key = (_key(p, g, kind), p.sensor_key, p.illuminant_keys[i])
-            win = proj.window(key, lambda g=g: whole_cube(ctx, p, g, kind), unit_weights[i], p.window,
-                              frame_bytes, whole)
+        if proj is not None and unit[i] is not None:
+            win = proj.window((_key(p, g, kind), *keys[i]), lambda g=g: whole_cube(ctx, p, g, kind), unit[i],
+                              p.window, frame_bytes, whole)
         out.append(win if win is not None else read_cube(ctx, p, g, kind))
     return out
 
@@ -349,12 +354,11 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
         ccms, fit_de = None, [None] * len(spds)
     emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
     want = set(spec.array_outputs())
-    p.sensor_key, p.illuminant_keys = skey, ikeys
     on_device = ctx.torch is not None and torch_refusal(spec) is None
     unit = [None] * len(p.groups)
     if on_device or (ctx.projections is not None and not (want & SPECTRAL_OUTPUTS)):
-        unit = [raw_weights(band_scales(s[None], e[None], np.ones(1), [g], grid.wavelengths), sensor.weights())[0]
-                if r else None for s, e, g, r in zip(spds, emissions, p.groups, p.reads())]
+        unit = [unit_weights(s, e, g, sensor, grid) if r else None
+                for s, e, g, r in zip(spds, emissions, p.groups, p.reads())]
     t_setup = time.perf_counter()
     w, h = p.window[2:]
     aov = _aov_reader(ctx, p)
@@ -366,8 +370,9 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
             if keep_device or not ctx.torch.out_of_memory(exc):
                 raise
             ctx.torch.cubes.clear()  # the device is full: free its cubes, compose this one on the CPU
-    cubes = group_inputs(ctx, p, "transport", unit)
-    illum = group_inputs(ctx, p, "illumination", unit) if p.illumination else None
+    keys = [(skey, k) for k in ikeys]
+    cubes = group_inputs(ctx, p, "transport", unit, keys)
+    illum = group_inputs(ctx, p, "illumination", unit, keys) if p.illumination else None
     t_read = time.perf_counter()
     exposure = exposure_for(spec)
     comp = compose(cubes, emissions=emissions, illuminants=np.stack(spds), intensities=np.array(p.intensities),
@@ -390,9 +395,9 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     if spec.bayer and "raw" in want:
         arrays["raw"] = mosaic(arrays["raw"], spec.bayer)
     t_compose = time.perf_counter()
-    meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain, noise,
-                 {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
-                  "compose": 1e3 * (t_compose - t_read)})
+    meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain,
+                       noise, {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
+                               "compose": 1e3 * (t_compose - t_read)})
     return arrays, meta
 
 

@@ -143,8 +143,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
     ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
     sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
     """
-    from retarget.relight import band_scales, raw_weights
-    from service.sampling import whole_cube
+    from service.sampling import unit_weights, whole_cube
 
     log = log or (lambda _msg: None)
     pc, t0 = ctx.projections, time.perf_counter()
@@ -172,8 +171,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                         if not lit:
                             continue
                         try:
-                            unit = raw_weights(band_scales(spd[None], np.asarray(meta.emission)[None], np.ones(1),
-                                                           [g], grid.wavelengths), sensor.weights())[0]
+                            unit = unit_weights(spd, meta.emission, g, sensor, grid)
                         except SpectralError:
                             skipped += 1
                             continue

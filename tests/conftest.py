@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+try:
+    import illumix_client  # noqa: F401
+except ImportError:  # the client is not installed yet: its tests use the source tree
+    # (tests/test_client.py's test_distribution_installed says to install it)
+    sys.path.insert(0, str(REPO_ROOT / "clients" / "python"))
 # Measured data (rawtoaces cameras, ISETCam reflectances) lives beside the repository, never in it.
 SHARED = REPO_ROOT.parent / "shared"
 SHARED_DATA = SHARED / "data"

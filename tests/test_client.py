@@ -12,14 +12,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import illumix_client as ic
 import numpy as np
 import pytest
-
-try:
-    import illumix_client as ic
-except ImportError:  # not installed yet: use the source tree (test_distribution_installed says so)
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "clients" / "python"))
-    import illumix_client as ic
 from client_server import FlakyProxy, ServerProcess
 from illumix_client.draw import IlluminantPool, SpecSampler, ViewInfo, select_views
 from illumix_client.errors import error_for

@@ -5,19 +5,13 @@ from __future__ import annotations
 
 import io
 import json
-import sys
 from pathlib import Path
 
+import illumix_client as ic
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
-
-try:
-    import illumix_client as ic
-except ImportError:  # not installed yet: use the source tree
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "clients" / "python"))
-    import illumix_client as ic
 import synthetic_store
+from fastapi.testclient import TestClient
 from illumix_client.local import LocalClient
 
 from service.app import create_app

@@ -8,19 +8,12 @@ from __future__ import annotations
 import asyncio
 import email.utils
 import json
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import httpx
+import illumix_client as ic
 import pytest
-
-try:
-    import illumix_client as ic
-except ImportError:  # not installed: use the source tree, as tests/test_client.py does
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "clients" / "python"))
-    import illumix_client as ic
 from illumix_client import _protocol as P
 from illumix_client import aio as ic_aio
 from illumix_client import client as ic_sync

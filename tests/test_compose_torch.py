@@ -4,17 +4,10 @@ rounding of differently ordered sums (rtol 1e-5; gains within 1e-4 relative)."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
-try:
-    import illumix_client  # noqa: F401
-except ImportError:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "clients" / "python"))
 import synthetic_store
 from illumix_client.errors import InvalidRequestError
 from illumix_client.local import LocalClient

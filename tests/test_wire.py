@@ -7,19 +7,12 @@ from __future__ import annotations
 import asyncio
 import io
 import json
-import sys
-from pathlib import Path
 
+import illumix_client as ic
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
-
-try:
-    import illumix_client as ic
-except ImportError:  # not installed: use the source tree, as tests/test_client.py does
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "clients" / "python"))
-    import illumix_client as ic
 import synthetic_store as synth
+from fastapi.testclient import TestClient
 from illumix_client import arrays_format as dec
 from illumix_client.sample import parse_batch, parse_sample
 from server_testutil import ThreadServer

@@ -78,7 +78,8 @@ class LocalClient:
 
     # -- samples -------------------------------------------------------------------------------
     def sample(self, **spec: Any) -> Sample:
-        """One sample; ``spec`` as for :meth:`illumix_client.Client.sample`."""
+        """One sample; ``spec`` as for :meth:`illumix_client.Client.sample` (``dtype`` and ``format``
+        shape the wire, which the local mode has not: its arrays are always float32)."""
         return self._one(encode_spec(spec))
 
     def batch(self, specs: Iterable[Mapping[str, Any]]) -> list[Sample]:
