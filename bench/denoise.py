@@ -98,6 +98,9 @@ What is reported (JSON keys)
    albedo R − B, the normal channel and ``log(shading)/0.4``, shading = the sum over all the view's
    groups and bands of their own ``--spp`` illumination cubes, pre-filtered by ``dt-guides``. Linear
    and relight-exact, but its weights carry the render's noise (not "noise-free guides").
+8b. ``tail_diagnosis``: the default method applied to the reference's own cubes (``bias_only``: the
+   error smoothing alone makes), and at the test's tail pixels (error ≥ its p99.3) the median of
+   that bias-only error beside the undenoised and denoised errors there, with the tail's classes.
 9. ``oidn``: Intel Open Image Denoise (``pyoidn``, RT filter, HDR) on the composed raw with albedo
    and normal (not linear, so not on cubes), aux images prefiltered (``clean_aux=False``: the albedo
    AOV is noisy) and not (``clean_aux_true``); ``{"available": false, "why": …}`` without it.
@@ -401,6 +404,23 @@ def ablation(R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     return out
 
 
+def tail_diagnosis(R: dict, guides, M: np.ndarray, ref: dict, maps: dict, classes: dict, method: str) -> dict:
+    """Part 9: is the default method's tail bias or left-over noise? The filter applied to the
+    reference's own cubes (``bias_only``: what smoothing alone does to a nearly noise-free image)
+    against the reference, and at the test's tail pixels (error ≥ its p99.3) the median of that
+    bias-only error beside the undenoised error there, with the tail's pixel classes."""
+    groups = [g for g, _ in PAIR]
+    cubes = [dl.run_denoise(ref["cubes"][g]["cube"], guides, method, R["direct"][g]["direct"]) for g in groups]
+    bias_err = dl.rel_chroma_err(dl.compose(cubes, M), ref["raw"])
+    err, valid = maps[method]["err"], classes["all"]
+    tail = valid & (err >= np.percentile(err[valid], 99.3))
+    return {"bias_only": dl.err_summary(bias_err, valid), "tail_pixels": int(tail.sum()),
+            "tail_median_bias_only_rel_pct": round(float(np.median(bias_err[tail])), 4),
+            "tail_median_undenoised_rel_pct": round(float(np.median(maps["none"]["err"][tail])), 4),
+            "tail_median_denoised_rel_pct": round(float(np.median(err[tail])), 4),
+            "tail_by_class": {c: int((tail & classes[c]).sum()) for c in ("edges", "flat", "texture", "chart")}}
+
+
 def oidn_part(args, R: dict, guides, aovs: dict, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 9: Open Image Denoise on the composed raw (albedo + normal aux)."""
     try:
@@ -602,6 +622,10 @@ def main(argv: list[str] | None = None) -> dict:
     doc["worse_than_undenoised"] = worse(rows, maps, classes)
     log("ablation, OIDN, clean guides")
     doc["ablation_shading_guide"] = ablation(R, guides, M, ref, classes)
+    doc["tail_diagnosis"] = tail_diagnosis(R, guides, M, ref, maps, classes, DEFAULT_METHOD)
+    log(f"  tail: bias only p99.3 {doc['tail_diagnosis']['bias_only']['p99_3_rel_pct']:.3f} %, at the tail "
+        f"{doc['tail_diagnosis']['tail_median_bias_only_rel_pct']:.3f} % (denoised "
+        f"{doc['tail_diagnosis']['tail_median_denoised_rel_pct']:.3f} %)")
     doc["oidn"] = oidn_part(args, R, guides, R["aovs"], M, ref, classes)
     doc["guide_noise"] = guide_noise(R, R["aovs"], R["clean_aovs"], M, ref, classes, args)
     log("cost")
