@@ -73,8 +73,9 @@ def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matri
 
 def template_bytes(*, black: int, white: int, pattern: str, matrix: np.ndarray, model: str) -> bytes:
     """LSMI's per-camera template DNG (``<camera>.dng``: its scripts read ``black_level_per_channel``,
-    ``white_level`` and ``raw_pattern`` from it): a 16 × 16 frame at the black level."""
-    return dng_bytes(np.full((16, 16), black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
+    ``white_level`` and ``raw_pattern`` from it): a 32 × 32 frame at the black level (libraw refuses
+    frames under 22 pixels)."""
+    return dng_bytes(np.full((32, 32), black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
                      neutral=[1.0, 1.0, 1.0], model=model, description="illumix export: camera template (levels)")
 
 

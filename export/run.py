@@ -60,6 +60,18 @@ def _open_store(url: str):
         raise ExportError(f"store {url}: {exc}") from None
 
 
+def _check_names(st, sensors, illuminants, place) -> None:
+    """Unknown or unusable sensor / illuminant names: one line with the close matches, before any work."""
+    from service.library import Library
+
+    lib = Library(st)
+    grid = st.cube_meta(place.scene, place.view, place.groups[0]).spectral_grid
+    for s in sensors:
+        lib.sensor(s, grid)
+    for n in sorted(illuminants):
+        lib.illuminant(n, grid)
+
+
 def _views(st) -> list[tuple[str, str, tuple[str, ...]]]:
     return [(s, v, tuple(st.groups(s, v))) for s in st.scenes() for v in st.views(s) if st.groups(s, v)]
 
@@ -77,6 +89,8 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
     places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
     splits = split_scenes({p.scene for p in places}, o.split, o.seed)
+    if fmt.raw_ext:
+        _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
     _check_out(out)
     params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(o).items() if k != "out"}
     params["format"] = fmt.name
