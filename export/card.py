@@ -11,6 +11,9 @@ LICENCES = {
     "rawtoaces": "rawtoaces-data camera sensitivities (Apache-2.0; AMPAS, Weta Digital physLight, NPL)",
     "isetcam": "ISETCam reflectances (MIT; Vrhel et al. 1994, DuPont, Munsell, charts) where scenes use them",
     "upload": "curves uploaded to the store by its users: the uploader's terms",
+    "illuminants": "CIE standard illuminants and the CIE 1931 observer via colour-science (BSD-3-Clause)",
+    "scenes": ("scene materials: CIE 2017 colour-fidelity samples and ColorChecker N Ohta via colour-science "
+               "(BSD-3-Clause); ISETCam reflectances (MIT) where a scene names them"),
 }
 
 
@@ -33,23 +36,25 @@ def _table(rows: list[list[str]], head: list[str]) -> str:
 def dataset_card(s: dict) -> str:
     """Markdown of the card from the export summary ``s`` (:func:`export.run.export_dataset`)."""
     fmt = s["format"]
+    what = "spectral cubes" if fmt == "exr" else "mixed-illuminant raw images with pixel-wise ground truth"
+    splits = ", ".join(f"{k} {len(v)} place(s)" for k, v in s["splits"].items())
     out = [f"# illumix export — {fmt} dataset", "",
-           f"Synthetic {'mixed-illuminant raw images with pixel-wise ground truth' if fmt != 'exr' else 'spectral cubes'}, "
-           f"exported by `illumix export` from the cube store `{s['store']}` on {s['created']}.",
-           "Every raw frame is composed by illumix's sample service code in-process: it holds exactly what "
-           "`GET /sample` answers for the parameters `manifest.json` records for it (`samples`).", "",
-           "## Contents", "",
-           _table([[k, v] for k, v in s["counts"].items()], ["what", "how many"]), "",
+           (f"Synthetic {what}, exported by `illumix export` from the cube store `{s['store']}` on {s['created']}. "
+            "Every raw frame is composed by illumix's sample service code in-process: it holds exactly what "
+            "`GET /sample` answers for the parameters `manifest.json` records for it (`samples`)."), "",
+           "## Contents", "", _table([[k, v] for k, v in s["counts"].items()], ["what", "how many"]), "",
            f"- seed: `{s['seed']}` (places, lightings, splits and noise are functions of it and the store)",
-           f"- splits by scene (no scene in two splits), fractions train/val/test `{s['split']}`: "
-           + ", ".join(f"{k} {len(v)} place(s)" for k, v in s["splits"].items()),
+           f"- splits by scene (no scene in two splits), fractions train/val/test `{s['split']}`: {splits}",
            f"- frame size: {s['size'] or 'as rendered'}"]
     if fmt != "exr":
-        out += [f"- ground truth: `{s['gt']}` ({'illumination cubes: bounce light included' if s['gt'] == 'physical' else 'thesis eq. 3.3 mixture of the lights’ white points'}"
-                f"; LSMI's model Σ mixture·Light differs from illumix's `illum` by {s['lsmi_error_deg']['mean']:.3f}° mean, "
-                f"{s['lsmi_error_deg']['max']:.3f}° max)",
-                f"- sensor model: black level {s['levels']['black']}, white level {s['levels']['white']}, noise "
-                f"{s['noise'] or 'none'}" + (f", Bayer {s['bayer']}" if s.get("bayer") else ""), "",
+        kind = ("illumination cubes: bounce light included" if s["gt"] == "physical"
+                else "thesis eq. 3.3 mixture of the lights' white points")
+        err = s["lsmi_error_deg"]
+        bayer = f", Bayer {s['bayer']}" if s.get("bayer") else ""
+        out += [(f"- ground truth: `{s['gt']}` ({kind}; LSMI's model Σ mixture·Light differs from illumix's `illum` "
+                 f"by {err['mean']:.3f}° mean, {err['max']:.3f}° max)"),
+                (f"- sensor model: black level {s['levels']['black']}, white level {s['levels']['white']}, "
+                 f"noise {s['noise'] or 'none'}{bayer}"), "",
                 "## Cameras", "", _table([[c["sensor"], f"`{c['folder']}/`", c["licence"]] for c in s["cameras"]],
                                          ["sensor", "folder", "spectral data"]), "",
                 "## Illuminants", "",
@@ -62,6 +67,6 @@ def dataset_card(s: dict) -> str:
                 *(["- …"] if len(s["skipped"]) > 20 else []), ""]
     out += ["## Licences", "", "The images are generated; what they were generated from:", "",
             *(f"- {line}" for line in s["licences"]), "",
-            "`manifest.json` lists every file with its SHA-256; check them with `sha256sum` or "
-            "`python -c \"from export.journal import verify_manifest; print(verify_manifest('.'))\"`.", ""]
+            ("`manifest.json` lists every file with its SHA-256; check them with `sha256sum` or "
+             "`python -c \"from export.journal import verify_manifest; print(verify_manifest('.'))\"`."), ""]
     return "\n".join(out)

@@ -41,14 +41,19 @@ def color_matrix(sensor_weights: np.ndarray, spd_d65: np.ndarray, ccm_d65: np.nd
 
 
 def _rationals(values) -> list[list[int]]:
-    return [[int(round(float(v) * DENOMINATOR)), DENOMINATOR] for v in np.ravel(values)]
+    return [[round(float(v) * DENOMINATOR), DENOMINATOR] for v in np.ravel(values)]
 
 
 def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matrix: np.ndarray,
               neutral, model: str, description: str = "") -> bytes:
     """A DNG of ``mosaic`` ``(H, W)`` uint16 (module docstring); ``pattern`` e.g. ``"RGGB"``."""
     from pidng.core import RAW2DNG
-    from pidng.defs import CalibrationIlluminant, CFAPattern, DNGVersion, PhotometricInterpretation
+    from pidng.defs import (
+        CalibrationIlluminant,
+        CFAPattern,
+        DNGVersion,
+        PhotometricInterpretation,
+    )
     from pidng.dng import DNGTags, Tag
 
     h, w = mosaic.shape

@@ -11,6 +11,7 @@ the other formats do; ``cubes.json`` lists each file's scene, view, group, kind 
 
 from __future__ import annotations
 
+from export.card import LICENCES
 from export.exr import spectrum_attribute, write_spectral_exr
 
 
@@ -38,7 +39,7 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
                  "illumixEmission": spectrum_attribute(wl, meta.emission or [1.0] * len(wl)),
                  "illumixUnits": "relative radiance per unit emission, band integrals over the grid's bands"}
         if not journal.complete(rel):
-            def write(path, p=p, g=g, kind=kind, attrs=attrs):
+            def write(path, p=p, g=g, kind=kind, attrs=attrs, wl=wl):
                 nonlocal clipped
                 cube = st.read_cube(p.scene, p.view, g, kind=kind)
                 if o.size:
@@ -54,12 +55,11 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     journal.write_json("split.json", splits)
     summary |= {"splits": splits, "counts": {"views": len(todo), "spectral EXR files": len(jobs),
                                              "bands": len(wl), "values clipped to float16": clipped},
-                "layout": f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
-                          f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`.",
-                "reading": "`from export.exr import read_spectral_exr; wavelengths, cube, header = read_spectral_exr(path)`"
-                           " or any reader of Fichet et al.'s layout (colour-science's `read_spectral_image_Fichet2021`).",
-                "licences": ["scene materials: CIE 2017 colour-fidelity samples and ColorChecker N Ohta via "
-                             "colour-science (BSD-3-Clause); ISETCam reflectances (MIT) where a scene names them"],
+                "layout": (f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
+                           f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`."),
+                "reading": ("`from export.exr import read_spectral_exr; wavelengths, cube, header = read_spectral_exr(path)`"
+                            " or any reader of Fichet et al.'s layout (colour-science's `read_spectral_image_Fichet2021`)."),
+                "licences": [LICENCES["scenes"]],
                 "cameras": [], "illuminants": {}}
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from export import lsmi
+from export.card import LICENCES, sensor_licence
 from export.chart import find_chart, scale_corners
 from export.errors import ExportError
 from export.frames import Capture, Composer
@@ -110,7 +111,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
             n: {**ccts[n], "wavelengths_nm": grid.wavelengths.tolist(), "spd": np.round(spds[n][0], 8).tolist()}
             for n in names})
         journal.write_bytes(f"{cam}.dng", template_bytes(**{k: v for k, v in dng_kw.items()}))
-        summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": _licence(sensor)})
+        summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": sensor_licence(sensor.source)})
     if not counts["places"]:
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
     summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in skipped_places for c in folders)})
@@ -120,7 +121,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
                 "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in errors])),
                                    "max": float(np.max([e["max"] for e in errors]))},
                 "layout": LAYOUT[fmt.name], "reading": READING[fmt.name],
-                "licences": sorted({c["licence"] for c in summary["cameras"]} | {_ILLUMINANT_LICENCE, _SCENE_LICENCE})}
+                "licences": sorted({c["licence"] for c in summary["cameras"]} | {LICENCES["illuminants"], LICENCES["scenes"]})}
 
 
 def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
@@ -142,16 +143,6 @@ def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
                         "neutral": [round(v, 8) for v in fr.neutral]})
     return {"files": files, "samples": samples}
 
-
-def _licence(sensor) -> str:
-    from export.card import sensor_licence
-
-    return sensor_licence(sensor.source)
-
-
-_ILLUMINANT_LICENCE = "CIE standard illuminants and the CIE 1931 observer via colour-science (BSD-3-Clause)"
-_SCENE_LICENCE = ("scene materials: CIE 2017 colour-fidelity samples and ColorChecker N Ohta via colour-science "
-                  "(BSD-3-Clause); ISETCam reflectances (MIT) where a scene names them")
 
 LAYOUT = {
     "lsmi": "As the LSMI release (Kim et al., ICCV 2021) lays out one camera: `<camera>.dng` (template: black and "

@@ -12,8 +12,6 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from export.errors import ExportError
 from export.formats import EXPORT_FORMATS
 from export.journal import MANIFEST, Journal
@@ -99,7 +97,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     journal = Journal(out, params)
     summary = {"format": fmt.name, "store": o.store, "seed": o.seed, "split": ",".join(map(str, o.split)),
                "size": f"{o.size[0]}x{o.size[1]}" if o.size else None,
-               "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+               "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": []}
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split

@@ -6,7 +6,6 @@ homography (for the chart finder)."""
 from __future__ import annotations
 
 import numpy as np
-
 import synthetic_store as syn
 
 CHART_SCENE = "room_chart"

@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-
 from export_testutil import build_export_store, chart_albedo, chart_corners
 
 rawpy = pytest.importorskip("rawpy")
@@ -70,9 +69,9 @@ def test_dng_single_illuminant(store, tmp_path):
 @pytest.mark.parametrize("dtype", ["float32", "float16"])
 def test_exr_round_trip(store, tmp_path, dtype):
     """Every cube and illumination cube read back equal to the store's (float16: to its float16)."""
-    from colour.io.fichet2021 import PATTERN_FICHET2021
-
     import re
+
+    from colour.io.fichet2021 import PATTERN_FICHET2021
 
     from export.exr import read_spectral_exr
     from export.run import ExportOptions, export_dataset

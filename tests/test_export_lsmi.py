@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from export_testutil import CHART_SCENE, build_export_store, chart_corners
 
 cv2 = pytest.importorskip("cv2")

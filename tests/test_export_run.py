@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from cli_testutil import run_cli
 from export_testutil import build_export_store
 from test_cli_spectra import assert_one_line_error
