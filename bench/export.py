@@ -52,7 +52,7 @@ def main() -> None:
     args = ap.parse_args()
     from export.frames import Composer
     from export.plan import parse_lightings, plan_places
-    from export.run import ExportOptions, export_dataset, _open_store, _views
+    from export.run import ExportOptions, _open_store, _views, export_dataset
     from retarget.sensor_model import NoiseModel
 
     tmp = Path(tempfile.mkdtemp(prefix="illumix-bench-export-"))
