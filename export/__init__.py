@@ -1,0 +1,18 @@
+"""Frozen datasets from a cube store, in the formats people train and test with (``illumix export``).
+
+A room of its own above :mod:`retarget`, :mod:`store` and :mod:`service`: every raw frame is composed
+in-process by the service's own pipeline (:mod:`export.frames`: ``make_context`` + ``SampleSpec`` +
+``build_sample``), so an exported frame holds exactly what ``GET /sample`` answers for the parameters
+the manifest records. One concept per module:
+
+- :mod:`export.formats` — the format registry (``lsmi``, ``dng``, ``exr``; case-insensitive, aliases);
+- :mod:`export.plan` — which places (scene, view, lighting) a run writes, for which cameras;
+- :mod:`export.frames` — composing one place's LSMI capture set (``_1``, ``_12``, …) at one exposure;
+- :mod:`export.chart` — the ColorChecker's corners in the image, found in the view's albedo AOV;
+- :mod:`export.lsmi` — the LSMI release's layout (tiff / npy / meta.json / split.json / template DNG);
+- :mod:`export.dng` — DNG raw files (pidng) with colour matrix and as-shot neutral, read by libraw;
+- :mod:`export.exr` — spectral OpenEXR (Fichet et al. 2021 channel names) writer and reader;
+- :mod:`export.splits` — train/val/test by scene; :mod:`export.journal` — atomic writes, resume,
+  checksums, ``manifest.json``; :mod:`export.card` — the dataset card ``README.md``;
+- :mod:`export.run` — the whole export (what ``illumix export`` calls).
+"""

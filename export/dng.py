@@ -1,0 +1,88 @@
+"""DNG raw files (Adobe DNG 1.4) written with pidng, read by libraw (``rawpy``).
+
+A frame is stored as the sensor recorded it: a Bayer colour-filter-array mosaic (``CFAPattern``
+RGGB/BGGR/GRBG/GBRG), 16 bits per sample, with ``BlackLevel`` / ``WhiteLevel`` of the export's
+sensor model, and the camera's colour as DNG expects it:
+
+- ``ColorMatrix1`` (``CalibrationIlluminant1`` = D65): XYZ → camera RGB under D65. From the sensor's
+  spectral sensitivities: illumix's D65 CCM ``M`` (white-balanced camera → linear sRGB, white
+  preserving, fitted on the ColorChecker by :func:`retarget.ccm.fit_ccm`) gives
+  ``XYZ = A_sRGB→XYZ · M · diag(1/ρ_w) · camera`` with ``ρ_w = Σ_λ C(λ) S_D65(λ) Δλ`` the camera's
+  D65 white, so ``ColorMatrix1 = diag(ρ_w) · M⁻¹ · A_sRGB→XYZ⁻¹``, scaled so that D65's white
+  (Y = 1) maps to a camera value whose largest channel is 1 (the DNG specification's normalisation);
+- ``AsShotNeutral``: the ground-truth white point of the frame in camera RGB (G = 1) — the
+  illuminant's white point for a single-light frame, the mean of the mixed illumination map for a
+  multi-light one (:func:`export.frames._neutral`). libraw's ``camera_whitebalance`` is its inverse.
+
+Rationals are written with denominator 10⁶ (6 significant decimals; the tests check to 1e-5).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+DENOMINATOR = 1_000_000
+
+
+def color_matrix(sensor_weights: np.ndarray, spd_d65: np.ndarray, ccm_d65: np.ndarray) -> np.ndarray:
+    """``(3, 3)`` ColorMatrix1 (XYZ → camera under D65), see the module docstring.
+
+    sensor_weights : ``(bands, 3)`` ``C_k Δλ``; spd_d65 : ``(bands,)``; ccm_d65 : ``(3, 3)`` white-balanced
+    camera → linear sRGB."""
+    import colour
+
+    rho = np.asarray(spd_d65, np.float64) @ np.asarray(sensor_weights, np.float64)
+    srgb_to_xyz = colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ
+    cm = np.diag(rho) @ np.linalg.inv(np.asarray(ccm_d65, np.float64)) @ np.linalg.inv(srgb_to_xyz)
+    white = srgb_to_xyz @ np.ones(3)  # D65, Y = 1
+    return cm / np.max(cm @ white)
+
+
+def _rationals(values) -> list[list[int]]:
+    return [[round(float(v) * DENOMINATOR), DENOMINATOR] for v in np.ravel(values)]
+
+
+def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matrix: np.ndarray,
+              neutral, model: str, description: str = "") -> bytes:
+    """A DNG of ``mosaic`` ``(H, W)`` uint16 (module docstring); ``pattern`` e.g. ``"RGGB"``."""
+    from pidng.core import RAW2DNG
+    from pidng.defs import (
+        CalibrationIlluminant,
+        CFAPattern,
+        DNGVersion,
+        PhotometricInterpretation,
+    )
+    from pidng.dng import DNGTags, Tag
+
+    h, w = mosaic.shape
+    t = DNGTags()
+    for tag, value in ((Tag.ImageWidth, w), (Tag.ImageLength, h), (Tag.TileWidth, w), (Tag.TileLength, h),
+                       (Tag.Orientation, 1), (Tag.SamplesPerPixel, 1), (Tag.BitsPerSample, 16),
+                       (Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array),
+                       (Tag.CFARepeatPatternDim, [2, 2]), (Tag.CFAPattern, getattr(CFAPattern, pattern.upper())),
+                       (Tag.BlackLevel, int(black)), (Tag.WhiteLevel, int(white)),
+                       (Tag.ColorMatrix1, _rationals(matrix)),
+                       (Tag.CalibrationIlluminant1, CalibrationIlluminant.D65),
+                       (Tag.AsShotNeutral, _rationals(neutral)), (Tag.BaselineExposure, [[0, 1]]),
+                       (Tag.Make, "illumix"), (Tag.Model, model), (Tag.UniqueCameraModel, f"illumix {model}"),
+                       (Tag.DNGVersion, DNGVersion.V1_4), (Tag.DNGBackwardVersion, DNGVersion.V1_2)):
+        t.set(tag, value)
+    if description:
+        t.set(Tag.ImageDescription, description)
+    writer = RAW2DNG()
+    writer.options(t, path="", compress=False)
+    return bytes(writer.convert(np.ascontiguousarray(mosaic, dtype=np.uint16)))
+
+
+def template_bytes(*, black: int, white: int, pattern: str, matrix: np.ndarray, model: str) -> bytes:
+    """LSMI's per-camera template DNG (``<camera>.dng``: its scripts read ``black_level_per_channel``,
+    ``white_level`` and ``raw_pattern`` from it): a 32 × 32 frame at the black level (libraw refuses
+    frames under 22 pixels)."""
+    return dng_bytes(np.full((32, 32), black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
+                     neutral=[1.0, 1.0, 1.0], model=model, description="illumix export: camera template (levels)")
+
+
+def write_dng(path: Path, mosaic: np.ndarray, **kw) -> None:
+    Path(path).write_bytes(dng_bytes(mosaic, **kw))

@@ -1,0 +1,33 @@
+"""The export formats by name (case-insensitive, with aliases), the colour-science way.
+
+- ``lsmi`` — the LSMI release's layout (Kim et al., ICCV 2021): 16-bit RGB TIFF raws, mixture
+  ``.npy``, ``meta.json``, ``split.json`` and a template DNG per camera (:mod:`export.lsmi`);
+- ``dng`` — the same layout with Bayer DNG raws in place of the TIFFs, as LSMI's cameras recorded
+  them before its ``0_cvt2tiff.py`` (:mod:`export.dng`);
+- ``exr`` — the store's spectral transport and illumination cubes as OpenEXR, one channel per band
+  (:mod:`export.exr`; no camera, no illuminant: the cubes are what every sample is composed from).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from retarget.registry import MethodRegistry
+
+
+@dataclass(frozen=True)
+class ExportFormat:
+    """What a format writes: ``raw_ext`` the raw frame's file extension (``None``: no frames, cubes);
+    ``bayer``: frames are composed as a colour-filter-array mosaic."""
+
+    name: str
+    raw_ext: str | None
+    bayer: bool = False
+    description: str = ""
+
+
+EXPORT_FORMATS: MethodRegistry[ExportFormat] = MethodRegistry("export format", {
+    "lsmi": ExportFormat("lsmi", ".tiff", description="LSMI layout, 16-bit RGB TIFF raws"),
+    "dng": ExportFormat("dng", ".dng", bayer=True, description="LSMI layout, Bayer DNG raws"),
+    "exr": ExportFormat("exr", None, description="spectral OpenEXR cubes (Fichet et al. 2021)"),
+}, aliases={"tiff": "lsmi", "openexr": "exr", "spectral exr": "exr", "raw": "dng"})

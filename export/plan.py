@@ -1,0 +1,96 @@
+"""Which places an export writes: (scene, view) pairs, each lit by one illuminant assignment.
+
+A *place* is LSMI's unit (one scene as one camera saw it, under 1–3 lights): here a view of a scene
+whose first ``k`` light groups are lit by ``k`` illuminants (a ``--pairs`` entry: ``k = 2``; an
+``--illuminants`` entry: 1–3; LSMI has at most three lights). Views with fewer light groups than
+the lighting needs are skipped, with the reason recorded. Without ``count`` every usable view is one
+place; with it, ``count`` places are drawn: the views in a seeded order, repeated with fresh
+lightings when ``count`` exceeds them (``<scene>-<view>-<n>``). Each place draws its lighting from the
+list with the export's seed, so the plan is a function of the store's views, the options and the seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import random
+import re
+from dataclasses import dataclass
+
+from export.errors import ExportError
+
+MAX_LIGHTS = 3  # LSMI's Light1..Light3
+
+
+@dataclass(frozen=True)
+class Place:
+    """One place: ``name`` (no ``_``: LSMI splits file names ``<place>_<lights>`` on it), its
+    ``scene``/``view``, the view's light ``groups`` (all, in order), ``lighting`` (illuminant per lit
+    group, the first ``len(lighting)`` groups) and a ``seed`` for its frames."""
+
+    name: str
+    scene: str
+    view: str
+    groups: tuple[str, ...]
+    lighting: tuple[str, ...]
+    seed: int
+
+
+def parse_lightings(pairs: str | None, illuminants: str | None) -> list[tuple[str, ...]]:
+    """``--pairs "A,D65;FL11,D50"`` or ``--illuminants "A,D65,FL11;D50"`` → lightings (tuples of names).
+    Neither: ``A,D65``."""
+    if pairs and illuminants:
+        raise ExportError("give either --pairs or --illuminants, not both")
+    text, what = (pairs, "--pairs") if pairs else (illuminants or "A,D65", "--illuminants")
+    out = []
+    for item in text.split(";"):
+        names = tuple(n.strip() for n in item.split(",") if n.strip())
+        if not names:
+            continue
+        if what == "--pairs" and len(names) != 2:
+            raise ExportError(f"--pairs: {item.strip()!r} is not two illuminants; write pairs as A,D65;FL11,D50")
+        if len(names) > MAX_LIGHTS:
+            raise ExportError(f"{what}: {item.strip()!r} has {len(names)} illuminants; LSMI places have at most "
+                              f"{MAX_LIGHTS} lights")
+        out.append(names)
+    if not out:
+        raise ExportError(f"{what}: no illuminants given; e.g. {what} A,D65")
+    return out
+
+
+def place_name(scene: str, view: str, rep: int) -> str:
+    """A file-safe place name without ``_`` (``demo-room-0-front``; ``-<rep>`` for repeats)."""
+    base = re.sub(r"[^A-Za-z0-9.-]+", "-", f"{scene}-{view}").strip("-.") or "place"
+    return base if rep == 0 else f"{base}-{rep}"
+
+
+def derive_seed(*parts: object) -> int:
+    """A 63-bit seed from the export seed and names (stable across runs and Python versions)."""
+    return int.from_bytes(hashlib.sha256(":".join(map(str, parts)).encode()).digest()[:8], "big") >> 1
+
+
+def plan_places(views: list[tuple[str, str, tuple[str, ...]]], lightings: list[tuple[str, ...]], *,
+                count: int | None, seed: int) -> tuple[list[Place], list[dict]]:
+    """``(places, skipped)`` from the store's ``(scene, view, groups)`` (module docstring)."""
+    need = min(len(lt) for lt in lightings)
+    usable = sorted(v for v in views if len(v[2]) >= need)
+    skipped = [{"scene": s, "view": v, "why": f"{len(g)} light group(s), the lighting needs {need}"}
+               for s, v, g in sorted(views) if len(g) < need]
+    if not usable:
+        raise ExportError(f"no view of the store has the {need} light groups the lighting needs "
+                          f"({len(views)} view(s) looked at); use --illuminants with fewer illuminants")
+    rng = random.Random(seed)
+    order = list(usable)
+    if count is not None:
+        rng.shuffle(order)
+    n = len(order) if count is None else count
+    places, names = [], set()
+    for k in range(n):
+        scene, view, groups = order[k % len(order)]
+        fitting = [lt for lt in lightings if len(lt) <= len(groups)]
+        lighting = fitting[rng.randrange(len(fitting))]
+        name = place_name(scene, view, k // len(order))
+        while name in names:  # two views whose names differ only in characters a file name cannot hold
+            name += "x"
+        names.add(name)
+        places.append(Place(name, scene, view, tuple(groups), lighting, derive_seed(seed, name)))
+    return places, skipped

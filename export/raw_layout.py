@@ -1,0 +1,167 @@
+"""Raw-frame exports (``lsmi``: TIFF raws, ``dng``: Bayer DNG raws) in LSMI's layout (:mod:`export.lsmi`).
+
+Per camera × place: compose the capture set (:mod:`export.frames`), find the chart once per view
+(:mod:`export.chart`), write ``<place>_<lights>.<tiff|dng>`` and the mixture ``.npy`` files
+atomically and journal the place's ``meta.json`` entry with them; then, per camera, ``meta.json``,
+``split.json``, ``illuminants.json`` and the template ``<camera>.dng``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from export import lsmi
+from export.card import LICENCES, sensor_licence
+from export.chart import find_chart, scale_corners
+from export.errors import ExportError
+from export.frames import Capture, Composer
+
+
+def _cct(spd: np.ndarray, grid) -> dict:
+    """CCT (K, Ohno 2013) and Duv of an SPD, from its CIE 1931 XYZ."""
+    import colour
+
+    from retarget.sensors import get_sensor
+
+    xyz = spd @ get_sensor("XYZ", grid).weights()
+    if xyz.sum() <= 0:
+        return {"cct_K": None, "duv": 0.0}
+    cct, duv = colour.uv_to_CCT(colour.xy_to_UCS_uv(xyz[:2] / xyz.sum()), method="Ohno 2013")
+    return {"cct_K": round(float(cct), 1), "duv": round(float(duv), 5)}
+
+
+def _levels(noise: str | None):
+    from retarget.sensor_model import NoiseModel
+    from service.spec import parse_noise
+
+    model = parse_noise(noise) if noise else None
+    return model or NoiseModel()
+
+
+def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray | None:
+    key = (place.scene, place.view)
+    if key not in cache:
+        vm = st.view_meta(place.scene, place.view)
+        name = next((n for n in ("albedo_bands", "albedo") if n in vm.aovs), None)
+        c = find_chart(st.read_aov(place.scene, place.view, name)) if name else None
+        full = (vm.width, vm.height)
+        cache[key] = None if c is None else scale_corners(c, full, size or full)
+    return cache[key]
+
+
+def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
+    """Write every camera's LSMI folder (module docstring); fills ``summary``."""
+    from retarget.errors import SpectralError
+
+    levels = _levels(o.noise)
+    composer = Composer(st, gt=o.gt, size=o.size, noise=o.noise, levels=levels, bayer=o.bayer if fmt.bayer else None)
+    lib = composer.ctx.library
+    first = places[0]
+    grid = st.cube_meta(first.scene, first.view, first.groups[0]).spectral_grid
+    sensors = {name: lib.sensor(name, grid) for name in o.sensors}  # unknown names: one line with close matches
+    names = sorted({n for p in places for n in p.lighting} | {"D65"})
+    spds = {n: lib.illuminant(n, grid) for n in names}
+    ccts = {n: _cct(spds[n][0], grid) for n in names}
+    folders = [lsmi.camera_dir(s) for s in o.sensors]
+    if len(set(folders)) != len(folders):
+        raise ExportError(f"sensors {o.sensors} map to the same folder name; export them separately")
+    if on_progress:
+        on_progress(len(sensors) * len(places), None)
+    corner_cache: dict = {}
+    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0}
+    summary |= {"cameras": [], "illuminants": {n: ccts[n] for n in names if n != "D65" or
+                                               any("D65" in p.lighting for p in places)}}
+    skipped_places: set[str] = set()
+    for (sensor_name, (sensor, skey)), cam in zip(sensors.items(), folders):
+        ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
+        from export.dng import color_matrix, template_bytes
+
+        matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
+        dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
+                  "matrix": matrix, "model": sensor_name}
+        entries = {}
+        for place in places:
+            key = f"{cam}/{place.name}"
+            rec = journal.done(key)
+            if rec is None:
+                try:
+                    cap = composer.capture(place, sensor_name)
+                except SpectralError as exc:
+                    summary["skipped"].append(f"{sensor_name} {place.scene}/{place.view}: {exc}")
+                    skipped_places.add(key)
+                    if on_progress:
+                        on_progress(1, f"{key} skipped")
+                    continue
+                corners = _corners(st, place, o.size, corner_cache)
+                rec = _write_place(journal, cam, cap, fmt, dng_kw)
+                rec["entry"] = lsmi.place_entry(cap, corners, cap.frames[-1].meta["ground_truth"]["method"], ccts)
+                journal.record(key, rec)
+            entries[place.name] = rec["entry"]
+            errors.append(rec["entry"]["LSMIModelErrorDeg"])
+            summary["samples"] += rec["samples"]
+            counts["places"] += 1
+            counts["raw frames"] += len(rec["samples"])
+            counts["mixture maps"] += sum(f.endswith(".npy") for f in rec["files"])
+            if on_progress:
+                on_progress(1, key)
+        splits = {name: [p for p in ps if p in entries] for name, ps in by_split.items()}
+        journal.write_json(f"{cam}/meta.json", entries)
+        journal.write_json(f"{cam}/split.json", splits)
+        journal.write_json(f"{cam}/illuminants.json", {
+            n: {**ccts[n], "wavelengths_nm": grid.wavelengths.tolist(), "spd": np.round(spds[n][0], 8).tolist()}
+            for n in names})
+        journal.write_bytes(f"{cam}.dng", template_bytes(**{k: v for k, v in dng_kw.items()}))
+        summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": sensor_licence(sensor.source)})
+    if not counts["places"]:
+        raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
+    summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in skipped_places for c in folders)})
+                         for name, ps in by_split.items()}
+    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": o.bayer if fmt.bayer else None,
+                "levels": {"black": int(levels.black_level), "white": int(levels.white)},
+                "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in errors])),
+                                   "max": float(np.max([e["max"] for e in errors]))},
+                "layout": LAYOUT[fmt.name], "reading": READING[fmt.name],
+                "licences": sorted({c["licence"] for c in summary["cameras"]} | {LICENCES["illuminants"], LICENCES["scenes"]})}
+
+
+def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
+    from export.dng import write_dng
+
+    files, samples = [], []
+    for fr in cap.frames:
+        stem = f"{cam}/{cap.place.name}/{cap.place.name}_{fr.lights}"
+        raw_rel = stem + fmt.raw_ext
+        if fmt.name == "dng":
+            journal.write(raw_rel, lambda p, fr=fr: write_dng(p, fr.dn, neutral=fr.neutral, **dng_kw))
+        else:
+            journal.write(raw_rel, lambda p, fr=fr: lsmi.write_tiff(p, fr.dn))
+        files.append(raw_rel)
+        if fr.mixture is not None:
+            journal.write(stem + ".npy", lambda p, fr=fr: lsmi.write_npy(p, fr.mixture))
+            files.append(stem + ".npy")
+        samples.append({"file": raw_rel, "params": fr.params, "gt": fr.meta["ground_truth"]["method"],
+                        "neutral": [round(v, 8) for v in fr.neutral]})
+    return {"files": files, "samples": samples}
+
+
+LAYOUT = {
+    "lsmi": "As the LSMI release (Kim et al., ICCV 2021) lays out one camera: `<camera>.dng` (template: black and "
+            "white level), `<camera>/meta.json` (per place `Light1..3` camera-RGB white points with G = 1, "
+            "`NumOfLights`, `MCCCoord` at 2x pixel coordinates; absent charts at (-2, -2)), `<camera>/split.json`, "
+            "`<camera>/<place>/<place>_<lights>.tiff` (16-bit RGB, BGR order on disk, black level added, clipped at "
+            "the white level) and `<place>_<lights>.npy` (mixture H×W×n, -1 where no light reaches the pixel). "
+            "Lights: `_1`, `_12` (two lights), `_1`, `_12`, `_13`, `_123` (three), as LSMI captured them, all at the "
+            "exposure of the all-lit frame. Extra: `<camera>/illuminants.json` (names, CCTs, SPDs) and per place "
+            "`Illuminants`, `Scene`, `View`, `ExposureGain`, `GroundTruth` in meta.json.",
+    "dng": "The LSMI layout with Bayer DNG raws (`<place>_<lights>.dng`, 16-bit CFA, BlackLevel/WhiteLevel, "
+           "ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = the ground-truth white point) where the "
+           "LSMI release has TIFFs; mixture `.npy` files are per pixel of the DNG.",
+}
+READING = {
+    "lsmi": "LSMI's own scripts run unchanged: copy `2_preprocess_data.py` beside the camera folder, set "
+            "`CAMERA = \"<camera>\"`, run it, then train its `SVWB_Unet` on the output. By hand: "
+            "`img = cv2.cvtColor(cv2.imread(tiff, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB) - black`; "
+            "`illum = mixture @ [Light1, Light2]`; white-balanced `img / illum`.",
+    "dng": "`rawpy.imread(path)`: `raw_image` (CFA), `black_level_per_channel`, `white_level`, "
+           "`camera_whitebalance` (1 / AsShotNeutral), `postprocess()` for an sRGB preview.",
+}

@@ -1,0 +1,120 @@
+"""The whole export (what ``illumix export`` runs): plan, compose, write, split, card, manifest.
+
+Resumable (:mod:`export.journal`): a rerun with the same options skips every place whose files are
+complete and unchanged, and an interrupted file never looks complete. ``on_progress(total, label)``
+is called once with ``label=None`` and the number of items, then once per item done.
+"""
+
+from __future__ import annotations
+
+import datetime
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from export.errors import ExportError
+from export.formats import EXPORT_FORMATS
+from export.journal import MANIFEST, Journal
+from export.plan import parse_lightings, plan_places
+from export.splits import split_scenes
+
+
+@dataclass
+class ExportOptions:
+    store: str
+    out: str
+    format: str = "lsmi"
+    sensors: list[str] = field(default_factory=lambda: ["Nikon 5100 (NPL)"])
+    pairs: str | None = None
+    illuminants: str | None = None
+    count: int | None = None
+    size: tuple[int, int] | None = None
+    seed: int = 0
+    gt: str | None = None
+    split: tuple[float, float, float] = (0.7, 0.15, 0.15)
+    noise: str | None = None
+    bayer: str = "RGGB"
+    exr_dtype: str = "float32"
+
+
+def _check_out(out: Path) -> None:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".illumix-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); choose a writable folder") from None
+
+
+def _open_store(url: str):
+    from store import CubeStore, StoreError
+
+    try:
+        if not CubeStore.exists(url):
+            raise ExportError(f"no illumix store at {url}; render one with `illumix demo` or `illumix render --store {url}`")
+        return CubeStore.open(url, mode="r")
+    except StoreError as exc:
+        raise ExportError(f"store {url}: {exc}") from None
+
+
+def _check_names(st, sensors, illuminants, place) -> None:
+    """Unknown or unusable sensor / illuminant names: one line with the close matches, before any work."""
+    from service.library import Library
+
+    lib = Library(st)
+    grid = st.cube_meta(place.scene, place.view, place.groups[0]).spectral_grid
+    for s in sensors:
+        lib.sensor(s, grid)
+    for n in sorted(illuminants):
+        lib.illuminant(n, grid)
+
+
+def _views(st) -> list[tuple[str, str, tuple[str, ...]]]:
+    return [(s, v, tuple(st.groups(s, v))) for s in st.scenes() for v in st.views(s) if st.groups(s, v)]
+
+
+def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], None] | None = None) -> dict:
+    """Write the dataset ``o`` describes into ``o.out``; returns the summary (also in the card)."""
+    fmt = EXPORT_FORMATS[o.format]
+    out = Path(o.out)
+    st = _open_store(o.store)
+    views = _views(st)
+    if not views:
+        raise ExportError(f"store {o.store} has no complete view; render some with `illumix render`")
+    if fmt.raw_ext is None and (o.pairs or o.illuminants):
+        raise ExportError("--format exr writes the store's cubes, which no illuminant changes; drop --pairs/--illuminants")
+    lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
+    places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
+    splits = split_scenes({p.scene for p in places}, o.split, o.seed)
+    if fmt.raw_ext:
+        _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
+    _check_out(out)
+    params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(o).items() if k != "out"}
+    params["format"] = fmt.name
+    if fmt.raw_ext is None:
+        params |= {"sensors": [], "noise": None, "bayer": None, "gt": None}
+    journal = Journal(out, params)
+    summary = {"format": fmt.name, "store": o.store, "seed": o.seed, "split": ",".join(map(str, o.split)),
+               "size": f"{o.size[0]}x{o.size[1]}" if o.size else None,
+               "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+               "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": []}
+    by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
+    summary["splits"] = by_split
+    if fmt.raw_ext is None:
+        from export.exr_layout import export_cubes
+
+        export_cubes(st, places, journal, o, summary, on_progress)
+    else:
+        from export.raw_layout import export_frames
+
+        export_frames(st, places, journal, o, fmt, summary, by_split, on_progress)
+    from export.card import dataset_card
+
+    journal.write_bytes("README.md", dataset_card(summary).encode())
+    journal.write_json(MANIFEST, journal.manifest({"created": summary["created"], "counts": summary["counts"],
+                                                   "splits": by_split, "skipped": summary["skipped"],
+                                                   "samples": summary.pop("samples")}))
+    summary["out"] = str(out)
+    summary["files"] = len(journal.files)
+    return summary

@@ -1,0 +1,102 @@
+"""``illumix export STORE OUT --format lsmi|dng|exr [--sensors …] [--pairs A,D65;… | --illuminants …]
+[--count N] [--size WxH] [--seed S] [--gt physical|formula] [--split 0.7,0.15,0.15] [--noise …]
+[--bayer RGGB] [--exr-dtype float32|float16] [--json]``.
+
+Writes a frozen dataset from a cube store (:mod:`export`): the LSMI release's layout with TIFF
+(``lsmi``) or Bayer DNG (``dng``) raws, or the store's spectral cubes as OpenEXR (``exr``); splits
+by scene, ``manifest.json`` with every file's SHA-256, a dataset card ``README.md``. Resumable: run
+it again after an interruption and it skips what is complete.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import typer
+from rich.console import Console
+
+from export.formats import EXPORT_FORMATS
+from illumix.errors import UserError
+
+console = Console(stderr=True)
+
+
+def _size(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d{1,5})\s*[xX]\s*(\d{1,5})\s*", text)
+    if not m or 0 in (int(m[1]), int(m[2])):
+        raise UserError(f"--size {text!r}: give WxH in pixels, e.g. 256x192")
+    return int(m[1]), int(m[2])
+
+
+def export(
+    store: str = typer.Argument(..., help="Cube store directory or fsspec URL."),
+    out: str = typer.Argument(..., help="Folder to write the dataset into (created; a rerun resumes)."),
+    fmt: str = typer.Option("lsmi", "--format", help=f"{', '.join(EXPORT_FORMATS.choices())} (any case): "
+                                                     "lsmi = LSMI layout with 16-bit TIFF raws, dng = the same with "
+                                                     "Bayer DNG raws, exr = the store's spectral cubes as OpenEXR."),
+    sensors: str = typer.Option("Nikon 5100 (NPL)", "--sensors",
+                                help="Comma-separated sensor names, one camera folder each (`illumix sensors list`)."),
+    pairs: str | None = typer.Option(None, "--pairs", help="Illuminant pairs lighting each view's first two light "
+                                                           "groups, ';'-separated, e.g. \"A,D65;FL11,D50\" (default A,D65); "
+                                                           "each place draws one with the seed."),
+    illuminants: str | None = typer.Option(None, "--illuminants", help="Like --pairs with 1-3 illuminants per "
+                                                                       "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
+    count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
+                                                                  "more repeat views with other lightings)."),
+    size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered)."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of places, lightings, splits and noise."),
+    gt: str | None = typer.Option(None, "--gt", help="Ground truth: physical (default where the store has "
+                                                     "illumination cubes) or formula."),
+    split: str = typer.Option("0.7,0.15,0.15", "--split", help="Train,val,test fractions of the scenes."),
+    noise: str | None = typer.Option(None, "--noise", help="Sensor model: none (default: noise-free, black level 64, "
+                                                           "white level 4095), low, phone, high or key:value;… as /sample's noise="),
+    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG."),
+    exr_dtype: str = typer.Option("float32", "--exr-dtype", help="float32 (exact) or float16 (clipped at 65504) "
+                                                                 "for --format exr."),
+    as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
+) -> None:
+    """Write a frozen dataset (LSMI layout, DNG or spectral EXR) with splits, manifest and card."""
+    from export.run import ExportOptions, export_dataset
+    from export.splits import parse_fractions
+    from illumix.progress import progress_bar
+    from retarget.sensor_model import BAYER_PATTERNS
+    from service.spec import parse_noise
+
+    name = EXPORT_FORMATS.canonical(fmt)
+    if gt is not None and gt.lower() not in ("physical", "formula"):
+        raise UserError(f"--gt {gt!r}: choose physical or formula")
+    if exr_dtype not in ("float32", "float16"):
+        raise UserError(f"--exr-dtype {exr_dtype!r}: choose float32 or float16")
+    noise = None if noise is None or noise.strip().lower() == "none" else noise
+    if noise is not None:
+        parse_noise(noise)
+    names = [s.strip() for s in sensors.split(",") if s.strip()]
+    if not names:
+        raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
+    opts = ExportOptions(store=store, out=out, format=name, sensors=names, pairs=pairs, illuminants=illuminants,
+                         count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
+                         split=parse_fractions(split), noise=noise, bayer=BAYER_PATTERNS.canonical(bayer),
+                         exr_dtype=exr_dtype)
+    quiet = as_json and not console.is_terminal
+    with progress_bar(console, disable=quiet) as prog:
+        task = None
+
+        def on_progress(n: int, label: str | None) -> None:
+            nonlocal task
+            if label is None:
+                task = prog.add_task(f"export {name}", total=n, last="")
+            else:
+                prog.update(task, advance=n, last=label)
+
+        summary = export_dataset(opts, on_progress)
+    console.print(f"exported {summary['counts']} into {summary['out']} ({summary['files']} files; "
+                  f"{len(summary['skipped'])} skipped)", highlight=False)
+    if as_json:
+        print(json.dumps({k: v for k, v in summary.items() if k not in ("layout", "reading")}))
+
+
+def register(app: typer.Typer) -> None:
+    app.command("export")(export)

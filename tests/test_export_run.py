@@ -1,0 +1,128 @@
+"""The export as a run: splits by scene, manifest checksums, resume after an interruption, atomic
+files, and the command line's one-line errors (exit 2)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from cli_testutil import run_cli
+from export_testutil import build_export_store
+from test_cli_spectra import assert_one_line_error
+
+pytest.importorskip("rawpy")
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return build_export_store(tmp_path_factory.mktemp("run") / "store")
+
+
+def test_split_scenes_disjoint_and_seeded():
+    from export.splits import split_counts, split_scenes
+
+    scenes = [f"s{i}" for i in range(23)]
+    a = split_scenes(scenes, (0.7, 0.15, 0.15), seed=5)
+    assert a == split_scenes(reversed(scenes), (0.7, 0.15, 0.15), seed=5)  # order-free, seeded
+    assert a != split_scenes(scenes, (0.7, 0.15, 0.15), seed=6)
+    assert sorted(a) == sorted(scenes)
+    assert [list(a.values()).count(s) for s in ("train", "val", "test")] == split_counts(23, (0.7, 0.15, 0.15))
+    assert split_counts(3, (0.8, 0.1, 0.1)) == [1, 1, 1] and split_counts(2, (0.8, 0.1, 0.1)) == [2, 0, 0]
+
+
+def test_places_split_by_scene(store, tmp_path):
+    """Repeated views (count > views) stay in their scene's split; no scene in two splits."""
+    from export.run import ExportOptions, export_dataset
+
+    s = export_dataset(ExportOptions(store=store, out=str(tmp_path / "o"), count=9, seed=2,
+                                     pairs="A,D65;FL11,D50", split=(0.5, 0.25, 0.25)))
+    meta = json.loads((tmp_path / "o" / "Nikon-5100-NPL" / "meta.json").read_text())
+    split = json.loads((tmp_path / "o" / "Nikon-5100-NPL" / "split.json").read_text())
+    scene_split = {}
+    for name, places in split.items():
+        for p in places:
+            assert scene_split.setdefault(meta[p]["Scene"], name) == name
+    assert len(meta) == 9 and s["counts"]["places"] == 9 and len(set(scene_split.values())) == 3
+    assert {tuple(i["name"] for i in e["Illuminants"]) for e in meta.values()} == {("A", "D65"), ("FL11", "D50")}
+
+
+def test_resume_after_interruption(store, tmp_path):
+    """Interrupted after two places, then rerun: the same files as one uninterrupted run; a damaged
+    file is rewritten, a leftover temporary removed, and the manifest's checksums verify."""
+    from export.journal import verify_manifest
+    from export.run import ExportOptions, export_dataset
+
+    opts = dict(store=store, seed=4, size=(32, 24))
+    export_dataset(ExportOptions(out=str(tmp_path / "whole"), **opts))
+    calls = []
+
+    def stop(n, label):
+        if label is not None:
+            calls.append(label)
+            if len(calls) == 2:
+                raise KeyboardInterrupt
+
+    part = tmp_path / "part"
+    with pytest.raises(KeyboardInterrupt):
+        export_dataset(ExportOptions(out=str(part), **opts), stop)
+    assert not (part / "manifest.json").exists()
+    done = sorted(p.relative_to(part) for p in part.rglob("*.tiff"))
+    assert len(done) == 4
+    (part / done[0]).write_bytes(b"damaged")
+    (part / "Nikon-5100-NPL" / "x" ).mkdir()
+    (part / "Nikon-5100-NPL" / "x" / ".y.part.tiff").write_bytes(b"half")
+    export_dataset(ExportOptions(out=str(part), **opts))
+    assert verify_manifest(part) == []
+    assert not list(part.rglob("*.part*"))
+    whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())["files"]
+    again = json.loads((part / "manifest.json").read_text())["files"]
+    assert {k: v for k, v in whole.items() if k != "README.md"} == {k: v for k, v in again.items() if k != "README.md"}
+
+
+def test_interrupted_write_leaves_no_file(tmp_path):
+    from export.journal import Journal
+
+    j = Journal(tmp_path, {"a": 1})
+
+    def half(path):
+        path.write_bytes(b"half")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError):
+        j.write("d/f.tiff", half)
+    assert not (tmp_path / "d" / "f.tiff").exists() and not list(tmp_path.rglob("*.part*"))
+    assert not j.complete("d/f.tiff")
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--sensors", "Nikon 5100"], "did you mean 'Nikon 5100 (NPL)'"),
+    (["--pairs", "A,D66"], "did you mean 'D65'"),
+    (["--pairs", "A,D65,FL2"], "is not two illuminants"),
+    (["--illuminants", "A,D65,FL2,D50"], "at most 3 lights"),
+    (["--format", "exrr"], "did you mean 'exr'"),
+    (["--format", "exr", "--pairs", "A,D65"], "drop --pairs"),
+    (["--size", "12x"], "WxH"),
+    (["--split", "0.5,0.5"], "three fractions"),
+    (["--gt", "physics"], "physical or formula"),
+    (["--noise", "loud"], "noise"),
+])
+def test_cli_errors(store, tmp_path, capsys, args, says):
+    line = assert_one_line_error(*run_cli(capsys, "export", store, str(tmp_path / "o"), *args))
+    assert says in line
+
+
+def test_cli_missing_store_and_unwritable_out(store, tmp_path, capsys):
+    line = assert_one_line_error(*run_cli(capsys, "export", str(tmp_path / "none"), str(tmp_path / "o")))
+    assert "no illumix store" in line
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    line = assert_one_line_error(*run_cli(capsys, "export", store, str(blocker / "o")))
+    assert "cannot write into" in line
+
+
+def test_cli_json_and_rerun_with_other_options(store, tmp_path, capsys):
+    out = str(tmp_path / "o")
+    code, stdout, _ = run_cli(capsys, "export", store, out, "--count", "2", "--json")
+    assert code == 0 and json.loads(stdout)["counts"]["places"] == 2
+    line = assert_one_line_error(*run_cli(capsys, "export", store, out, "--count", "3"))
+    assert "other parameters (differing: count)" in line
