@@ -18,16 +18,21 @@ from retarget.registry import MethodRegistry
 @dataclass(frozen=True)
 class ExportFormat:
     """What a format writes: ``raw_ext`` the raw frame's file extension (``None``: no frames, cubes);
-    ``bayer``: frames are composed as a colour-filter-array mosaic."""
+    ``bayer``: frames are composed as a colour-filter-array mosaic; ``modules``: the packages of the
+    ``export`` extra it writes with (checked before any work)."""
 
     name: str
     raw_ext: str | None
     bayer: bool = False
     description: str = ""
+    modules: tuple[str, ...] = ()
 
 
 EXPORT_FORMATS: MethodRegistry[ExportFormat] = MethodRegistry("export format", {
-    "lsmi": ExportFormat("lsmi", ".tiff", description="LSMI layout, 16-bit RGB TIFF raws"),
-    "dng": ExportFormat("dng", ".dng", bayer=True, description="LSMI layout, Bayer DNG raws"),
-    "exr": ExportFormat("exr", None, description="spectral OpenEXR cubes (Fichet et al. 2021)"),
+    "lsmi": ExportFormat("lsmi", ".tiff", description="LSMI layout, 16-bit RGB TIFF raws",
+                         modules=("pidng",)),
+    "dng": ExportFormat("dng", ".dng", bayer=True, description="LSMI layout, Bayer DNG raws",
+                        modules=("pidng",)),
+    "exr": ExportFormat("exr", None, description="spectral OpenEXR cubes (Fichet et al. 2021)",
+                        modules=("OpenEXR",)),
 }, aliases={"tiff": "lsmi", "openexr": "exr", "spectral exr": "exr", "raw": "dng"})

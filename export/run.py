@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from export.errors import ExportError
+from export.errors import ExportError, require
 from export.formats import EXPORT_FORMATS
 from export.journal import MANIFEST, Journal
 from export.plan import parse_lightings, plan_places
@@ -77,6 +77,8 @@ def _views(st) -> list[tuple[str, str, tuple[str, ...]]]:
 def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], None] | None = None) -> dict:
     """Write the dataset ``o`` describes into ``o.out``; returns the summary (also in the card)."""
     fmt = EXPORT_FORMATS[o.format]
+    for module in fmt.modules:
+        require(module, f"--format {fmt.name}")
     out = Path(o.out)
     st = _open_store(o.store)
     views = _views(st)

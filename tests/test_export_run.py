@@ -126,3 +126,13 @@ def test_cli_json_and_rerun_with_other_options(store, tmp_path, capsys):
     assert code == 0 and json.loads(stdout)["counts"]["places"] == 2
     line = assert_one_line_error(*run_cli(capsys, "export", store, out, "--count", "3"))
     assert "other parameters (differing: count)" in line
+
+
+def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
+    """Without the export extra's packages: one line naming the install command, exit 2, nothing written."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pidng", None)
+    code, _, err = run_cli(capsys, "export", str(tmp_path / "nostore"), str(tmp_path / "out"), "--format", "dng")
+    assert code == 2 and "pip install" in err and "pidng" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
