@@ -65,7 +65,7 @@ def read_levels(dng: Path) -> CameraLevels:
             m = np.asarray(r.rgb_xyz_matrix, dtype=np.float64)[:3]
             return CameraLevels(float(min(r.black_level_per_channel)), float(r.white_level),
                                 m if np.any(m) else None, f"{dng.name} (rawpy)")
-    except Exception as exc:  # libraw's own error types; the tags may still say it
+    except Exception as exc:  # noqa: BLE001 — libraw raises its own types; the tags may still say it
         try:
             return _levels_from_tags(dng)
         except SpectralError as tag_exc:
@@ -86,7 +86,7 @@ def _levels_from_tags(dng: Path) -> CameraLevels:
                     tag = page.tags.get(code)
                     if tag is not None and code not in found:
                         found[code] = _tag_numbers(tag.value, int(tag.dtype))
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 — tifffile raises many kinds; one line for all
         raise SpectralError(f"{dng}: not a readable DNG ({type(exc).__name__}: {exc})") from None
     if _BLACK not in found or _WHITE not in found:
         raise SpectralError(f"{dng}: no BlackLevel/WhiteLevel tags; install rawpy (pip install 'illumix[evaluate]') "

@@ -143,7 +143,7 @@ def resolve(names: list[str], *, grid: tuple[int, int] | None = None, interpolat
 def _call_plugin(fn: Callable, case: Case, spec: str) -> np.ndarray:
     try:
         return fn(case.raw.copy())  # a copy: a plug-in that writes into its input cannot change the next method's
-    except Exception as exc:  # the user's code: report it in one line, naming the image
+    except Exception as exc:  # noqa: BLE001 — the user's code: one line, naming the image
         raise SpectralError(f"plug-in {spec!r} failed on {case.name}: {type(exc).__name__}: {exc}") from None
 
 
@@ -185,7 +185,7 @@ def load_plugin(spec: str) -> Callable[[np.ndarray], np.ndarray]:
             raise SpectralError(f"plug-in {spec!r}: no module named {exc.name!r}; run from the directory that "
                                 "holds it or add that directory to PYTHONPATH") from None
         raise SpectralError(f"plug-in {spec!r}: importing {module_name} failed: {exc}") from None
-    except Exception as exc:  # the user's module: a syntax error, an import-time failure
+    except Exception as exc:  # noqa: BLE001 — the user's module: a syntax error, an import-time failure
         raise SpectralError(f"plug-in {spec!r}: importing {module_name} failed: {type(exc).__name__}: {exc}") from None
     finally:
         if added:

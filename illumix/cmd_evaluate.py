@@ -123,10 +123,12 @@ def evaluate(
         console.print(f"wrote {', '.join(written[:4])}{' …' if len(written) > 4 else ''} to {out}", highlight=False)
     if as_json:
         print(json.dumps(doc))
-    else:
+    elif (stdout := Console()).is_terminal:
         from rich.markdown import Markdown
 
-        Console().print(Markdown(table))
+        stdout.print(Markdown(table))
+    else:  # piped: the markdown itself, ready to paste
+        print(table, end="")
     if res.skipped:
         console.print(f"skipped {len(res.skipped)} image(s): {res.skipped[0]['name']}: {res.skipped[0]['why']}",
                       highlight=False)
