@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 
@@ -41,3 +42,10 @@ class Case:
     @property
     def shape(self) -> tuple[int, int]:
         return self.raw.shape[:2]
+
+
+def unsaturated(raw: np.ndarray, white: float) -> np.ndarray:
+    """``(H, W)`` bool: pixels a statistical method may use — no channel at the white level, nor
+    next to one (a 3×3 dilation of the saturated pixels, as van de Weijer's ``general_cc``)."""
+    saturated = np.any(np.asarray(raw) >= np.float32(white), axis=-1).astype(np.uint8)
+    return cv2.dilate(saturated, np.ones((3, 3), np.uint8)) == 0

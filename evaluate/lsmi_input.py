@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from evaluate.case import Case
+from evaluate.case import Case, unsaturated
 from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
@@ -257,10 +257,8 @@ class LsmiCases:
         mask &= np.all(illum > 0, axis=-1)
         fill = illum[mask].mean(axis=0) if mask.any() else np.ones(3, np.float32)
         illum[~mask] = fill  # any positive colour: never scored, keeps gains finite
-        saturated = np.any(raw >= top, axis=-1).astype(np.uint8)
-        usable = cv2.dilate(saturated, np.ones((3, 3), np.uint8)) == 0  # as general_cc's dilation33
         return Case(name=item.name, pair=item.lights, raw=raw, illum=illum, mask=mask, mixture=mix,
-                    white_points=wps, ccm=self.ccm, usable=usable)
+                    white_points=wps, ccm=self.ccm, usable=unsaturated(raw, top))
 
 
 def _read_json(path: Path) -> dict:

@@ -19,9 +19,9 @@ GLOBAL_METHODS = {
     "White Patch": "maximum of each channel, max-RGB (Land 1977): e = max f; e^{0,∞,0}",
     "Shades of Gray": "Minkowski p-norm of each channel (Finlayson & Trezzi 2004), p = 6: e^{0,6,0}",
     "Gray Edge": "Minkowski norm of the gradient magnitude of the Gaussian-smoothed image (van de Weijer, "
-                 "Gevers & Gijsenij 2007, eq. 10), n = 1, p = 5, σ = 2 px: e^{1,5,2}",
+                 "Gevers & Gijsenij 2007, eq. 10), n = 1, p = 1, σ = 6 px: e^{1,1,6}",
     "2nd Order Gray Edge": "as Gray Edge on the 2nd-order derivatives √(f_xx² + 4 f_xy² + f_yy²) "
-                           "(van de Weijer et al. 2007), n = 2, p = 5, σ = 2 px: e^{2,5,2}",
+                           "(van de Weijer et al. 2007), n = 2, p = 1, σ = 1 px: e^{2,1,1}",
 }
 GLOBAL_ALIASES = {
     "Grey World": "Gray World", "GW": "Gray World",

@@ -4,6 +4,11 @@ Each case is ``service.sampling.build_sample`` of a :class:`service.spec.SampleS
 /sample`` and the client's local mode compose it): the raw, the GT illumination map, mixture, mask
 and CCM map, and the per-group white points from the sample's metadata. Nothing is re-implemented.
 
+The raw is what a camera records: exposed by the thesis' AEC (eq. 4.2, ``exposure=auto``: raw in
+units of the white level) and clipped at the white level, so directly visible lamps and windows
+saturate as they would, and the methods' statistics leave saturated pixels out
+(:func:`evaluate.case.unsaturated`). The ground truth does not depend on the exposure.
+
 Which images: every view with enough light groups × every lighting in ``pairs`` (``"A,D65"`` lights
 the view's first two groups, as ``pair=``; a single name ``"D65"`` lights every group with it),
 optionally only ``count`` views drawn with ``seed``.
@@ -17,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evaluate.case import Case
+from evaluate.case import Case, unsaturated
 from retarget.errors import SpectralError
 
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"  # a measured camera that every install has (colour-science)
@@ -122,7 +127,7 @@ class StoreCases:
         light = {"pair": list(job.lights)} if len(job.lights) == 2 else {"illuminants": list(job.lights) * n_groups}
         try:
             spec = SampleSpec(scene=job.scene, view=job.view, sensor=self.sensor, seed=self.seed, size=self.size,
-                              gt=self.gt, outputs=list(OUTPUTS), **light)
+                              gt=self.gt, outputs=list(OUTPUTS), exposure="auto", **light)
             arrays, meta = build_sample(spec, self.ctx)
         except ValidationError as exc:
             first = exc.errors()[0]
@@ -133,6 +138,7 @@ class StoreCases:
             raise SpectralError(f"{job.name}: store problem: {exc}; run `illumix store verify`") from None
         lit = [i for i, g in enumerate(meta["illuminants"]) if g["illuminant"] is not None and g["intensity"] > 0]
         wps = np.array([meta["illuminants"][i]["white_point_rgb"] for i in range(len(meta["illuminants"]))])
-        mixture = arrays["mixture"]
-        return Case(name=job.name, pair=job.pair, raw=arrays["raw"], illum=arrays["illum"], mask=arrays["mask"],
-                    mixture=mixture[..., lit], white_points=wps[lit], ccm=arrays["ccm"])
+        raw = np.minimum(arrays["raw"], np.float32(1))  # the white level
+        return Case(name=job.name, pair=job.pair, raw=raw, illum=arrays["illum"], mask=arrays["mask"],
+                    mixture=arrays["mixture"][..., lit], white_points=wps[lit], ccm=arrays["ccm"],
+                    usable=unsaturated(raw, 1.0))

@@ -38,10 +38,13 @@ def test_store_cases_are_the_service_samples(store):
     assert len(src) == 2 and [j.pair for j in src.jobs] == ["A,D65", "D50"]
     case = next(iter(src))
     arrays, meta = build_sample(SampleSpec(scene="synth", view="v0", pair=["A", "D65"], sensor="Nikon 5100 (NPL)",
-                                           seed=0, outputs=["raw", "illum", "mask", "ccm", "meta"]),
+                                           seed=0, outputs=["raw", "illum", "mask", "ccm", "meta"], exposure="auto"),
                                 make_context(CubeStore.open(store, mode="r")))
-    for k in ("raw", "illum", "mask", "ccm"):
+    for k in ("illum", "mask", "ccm"):
         np.testing.assert_array_equal(getattr(case, k), arrays[k])
+    # the raw a camera records: auto-exposed (the service's AEC) and clipped at the white level
+    np.testing.assert_array_equal(case.raw, np.minimum(arrays["raw"], 1))
+    assert case.usable is not None and not case.usable[case.raw.max(axis=-1) >= 1].any()
     np.testing.assert_allclose(case.white_points, [g["white_point_rgb"] for g in meta["illuminants"]])
     assert case.mixture.shape == (*case.shape, 2) and not case.mask.all()  # the dark rows are masked
 
