@@ -33,8 +33,9 @@ from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
 _FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.tiff$")
-# DNG tags (Adobe DNG specification 1.6): BlackLevel, WhiteLevel, ColorMatrix1, ColorMatrix2
-_BLACK, _WHITE, _CM1, _CM2 = 50714, 50717, 50721, 50722
+# DNG tags (Adobe DNG specification 1.6): BlackLevel, WhiteLevel, ColorMatrix1/2, CalibrationIlluminant1/2
+_BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2 = 50714, 50717, 50721, 50722, 50778, 50779
+_TAGS = (_BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2)
 
 
 def is_lsmi(path: str | Path) -> bool:
@@ -54,25 +55,34 @@ class CameraLevels:
 
 
 def read_levels(dng: Path) -> CameraLevels:
-    """Black/white level and colour matrix of a template DNG: rawpy (libraw, what LSMI uses) when
-    installed and it can open the file, else the DNG tags of IFD0 and its SubIFDs (tifffile)."""
+    """Black/white level and colour matrix of a template DNG. The levels as LSMI reads them: rawpy
+    (libraw) when installed and it opens the file, else the DNG's BlackLevel/WhiteLevel tags; the
+    colour matrix from the DNG's ColorMatrix tags (libraw leaves ``rgb_xyz_matrix`` zero for a camera
+    it does not know), else libraw's."""
+    tags = _dng_tags(dng)
+    cam_xyz = _colour_matrix(tags)
     try:
         import rawpy
     except ImportError:
-        return _levels_from_tags(dng)
-    try:
-        with rawpy.imread(str(dng)) as r:
-            m = np.asarray(r.rgb_xyz_matrix, dtype=np.float64)[:3]
-            return CameraLevels(float(min(r.black_level_per_channel)), float(r.white_level),
-                                m if np.any(m) else None, f"{dng.name} (rawpy)")
-    except Exception as exc:  # noqa: BLE001 — libraw raises its own types; the tags may still say it
+        rawpy = None
+    libraw_error = ""
+    if rawpy is not None:
         try:
-            return _levels_from_tags(dng)
-        except SpectralError as tag_exc:
-            raise SpectralError(f"{tag_exc} (libraw: {type(exc).__name__}: {exc})") from None
+            with rawpy.imread(str(dng)) as r:
+                m = np.asarray(r.rgb_xyz_matrix, dtype=np.float64)[:3]
+                return CameraLevels(float(min(r.black_level_per_channel)), float(r.white_level),
+                                    cam_xyz if cam_xyz is not None else (m if np.any(m) else None),
+                                    f"{dng.name} (rawpy)")
+        except Exception as exc:  # noqa: BLE001 — libraw raises its own types; the tags may still say it
+            libraw_error = f" (libraw: {type(exc).__name__}: {exc})"
+    if _BLACK not in tags or _WHITE not in tags:
+        raise SpectralError(f"{dng}: no BlackLevel/WhiteLevel tags{libraw_error}; give --black-level and "
+                            "--white-level" + ("" if rawpy else " or install rawpy (pip install 'illumix[evaluate]')"))
+    return CameraLevels(float(tags[_BLACK].min()), float(tags[_WHITE].max()), cam_xyz, f"{dng.name} (DNG tags)")
 
 
-def _levels_from_tags(dng: Path) -> CameraLevels:
+def _dng_tags(dng: Path) -> dict[int, np.ndarray]:
+    """The DNG tags this module reads, from IFD0 and its SubIFDs (the first found wins)."""
     import tifffile
 
     found: dict[int, np.ndarray] = {}
@@ -82,18 +92,23 @@ def _levels_from_tags(dng: Path) -> CameraLevels:
             for page in list(pages):
                 pages.extend(page.pages or [])
             for page in pages:
-                for code in (_BLACK, _WHITE, _CM1, _CM2):
+                for code in _TAGS:
                     tag = page.tags.get(code)
                     if tag is not None and code not in found:
                         found[code] = _tag_numbers(tag.value, int(tag.dtype))
     except Exception as exc:  # noqa: BLE001 — tifffile raises many kinds; one line for all
         raise SpectralError(f"{dng}: not a readable DNG ({type(exc).__name__}: {exc})") from None
-    if _BLACK not in found or _WHITE not in found:
-        raise SpectralError(f"{dng}: no BlackLevel/WhiteLevel tags; install rawpy (pip install 'illumix[evaluate]') "
-                            "or give --black-level and --white-level")
-    cm = found.get(_CM2, found.get(_CM1))  # ColorMatrix2 is the D65-side calibration in most DNGs
-    cam_xyz = cm.reshape(3, 3) if cm is not None and cm.size == 9 else None
-    return CameraLevels(float(found[_BLACK].min()), float(found[_WHITE].max()), cam_xyz, f"{dng.name} (DNG tags)")
+    return found
+
+
+def _colour_matrix(tags: dict[int, np.ndarray]) -> np.ndarray | None:
+    """XYZ → camera ``(3, 3)``: the ColorMatrix calibrated under D65 (CalibrationIlluminant 21), else
+    ColorMatrix2 (the daylight side in most DNGs), else ColorMatrix1; None without one."""
+    d65 = [cm for cm, ill in ((_CM1, _CAL1), (_CM2, _CAL2)) if cm in tags and ill in tags and tags[ill][0] == 21]
+    for code in (*d65, _CM2, _CM1):
+        if code in tags and tags[code].size == 9:
+            return tags[code].reshape(3, 3)
+    return None
 
 
 def _tag_numbers(value, dtype: int) -> np.ndarray:

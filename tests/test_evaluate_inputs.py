@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evaluate.lsmi_input import LsmiCases, _levels_from_tags, is_lsmi
+from evaluate.lsmi_input import LsmiCases, is_lsmi, read_levels
 from evaluate.methods import resolve
 from evaluate.report import aggregate
 from evaluate.run import evaluate
@@ -117,8 +117,9 @@ def test_ground_truth_scores_zero_on_lsmi(lsmi):
 
 
 def test_lsmi_levels_and_errors(lsmi, tmp_path):
-    levels = _levels_from_tags(lsmi / "cam.dng")  # the tag reader, whether or not rawpy is installed
+    levels = read_levels(lsmi / "cam.dng")  # libraw cannot open this tag-only file: the tags are read
     assert (levels.black, levels.white) == (BLACK, WHITE) and levels.cam_xyz.shape == (3, 3)
+    assert levels.source == "cam.dng (DNG tags)"
     bare = make_lsmi(tmp_path / "bare", dng=False)
     with pytest.raises(SpectralError, match="--black-level"):
         LsmiCases(bare)
