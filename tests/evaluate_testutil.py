@@ -13,7 +13,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
 import synthetic_store
 
 BLACK, WHITE = 512, 16383
@@ -66,7 +65,7 @@ def make_lsmi(root: Path, *, dng: bool = True) -> Path:
         import colour
 
         cm = colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB
-        rationals = [v for c in cm.ravel() for v in (int(round(c * 1e6)), 1_000_000)]
+        rationals = [v for c in cm.ravel() for v in (round(c * 1e6), 1_000_000)]
         tifffile.imwrite(root / "cam.dng", np.zeros((8, 8, 3), np.uint16), photometric="rgb",
                          extratags=[(50714, "H", 1, BLACK, True), (50717, "H", 1, WHITE, True),
                                     (50722, 10, 9, rationals, True)])

@@ -6,13 +6,13 @@ import json
 import textwrap
 
 import pytest
-
 from cli_testutil import run_cli
-from evaluate.methods import load_plugin
 from evaluate_testutil import make_lsmi, make_store
-from retarget.errors import SpectralError
 from test_cli_spectra import assert_one_line_error
 from test_cli_startup import run_fresh
+
+from evaluate.methods import load_plugin
+from retarget.errors import SpectralError
 
 KEYS = {"angular_mean", "angular_median", "angular_worst25", "grid_de00_worst25"}
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from evaluate_testutil import BLACK, LIGHTS, WHITE, lsmi_image, make_lsmi, make_store
 
 from evaluate.lsmi_input import LsmiCases, is_lsmi, read_levels
 from evaluate.methods import resolve
 from evaluate.report import aggregate
 from evaluate.run import evaluate
 from evaluate.store_input import StoreCases, parse_pairs
-from evaluate_testutil import BLACK, LIGHTS, WHITE, lsmi_image, make_lsmi, make_store
 from retarget.errors import SpectralError, UnknownName
 
 ZERO = 1e-3  # degrees; module docstring
@@ -57,7 +57,7 @@ def test_ground_truth_scores_zero_on_a_store(store):
     assert gt["images"] == 3 and gt["angular_max"] < ZERO and gt["grid_de00_worst25"] == 0.0
     assert summary["methods"]["Gray World"]["angular_mean"] > 1.0  # a mixed light it cannot see
     # one illuminant everywhere: the single weighted white point is the ground truth
-    single = [im for im in res.images if im["pair"] == "D65"][0]["methods"]["Weighted Average"]
+    single = next(im for im in res.images if im["pair"] == "D65")["methods"]["Weighted Average"]
     assert single["angular_max"] < ZERO
     assert set(summary["pairs"]) == {"A,D65", "FL11,D50", "D65"}
 
@@ -85,7 +85,7 @@ def test_lsmi_files_read_back_as_lsmi_reads_them(lsmi):
     # the sRGB matrix as the colour matrix (written as rationals n/1e6: the inverse is the identity to 1e-4)
     np.testing.assert_allclose(src.ccm, np.eye(3), atol=1e-4)
     cases = {c.name: c for c in src}
-    _, mix, raw = lsmi_image("123", np.random.default_rng(0))
+    _, mix, _raw = lsmi_image("123", np.random.default_rng(0))
     c = cases["p1_123"]
     assert c.mixture.shape == (*c.shape, 3) and not c.mask[-3:].any() and c.mask[:-3].all()
     # the GT map is LSMI's mix_chroma: Σ_i mix_i · Light_i

@@ -34,7 +34,7 @@ def test_angular_error_of_a_uniform_estimate():
     ref = reference(case)
     estimate = np.array([0.7, 1.0, 0.45])
     gain = gain_from_illuminant(np.broadcast_to(np.float32(estimate), (H, W, 3)))
-    s, err = score(case, gain, ref)
+    s, _err = score(case, gain, ref)
     expect = angle(estimate, case.illum[0, 0])
     assert abs(s["angular_mean"] - expect) < 1e-4 and abs(s["angular_worst25"] - expect) < 1e-4
     # a gain map's overall scale is not its colour: 3× the gains score the same
