@@ -9,7 +9,7 @@ method over ``--pairs`` through :mod:`evaluate` exactly as the command does. Rep
 - ``score_ms``: scoring one method on one image (angular error map + ΔE00 grid);
 - the aggregate table (angular error °, ΔE00 grid worst 25 %) per method and per pair, plus the
   Gray-Edge variants e^{1,5,2} and e^{2,5,2} (the authors' demo setting) beside the defaults
-  e^{1,1,6} and e^{2,1,1} (:data:`evaluate.methods.STATISTICAL`).
+  e^{1,1,6} and e^{2,1,1} (:data:`awb_eval.methods.STATISTICAL`).
 
 Usage: ``python bench/evaluate.py [--store /tmp/illumix-bench-evaluate] [--rooms 5] [--resolution 320x240]
 [--spp 16]``. Progress on stderr; the JSON result is the last line on stdout.
@@ -29,11 +29,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from evaluate.method_names import AWB_METHODS  # noqa: E402
-from evaluate.methods import Method, resolve, statistical_gain  # noqa: E402
-from evaluate.report import aggregate, markdown  # noqa: E402
-from evaluate.run import evaluate  # noqa: E402
-from evaluate.store_input import StoreCases  # noqa: E402
+from awb_eval.method_names import AWB_METHODS  # noqa: E402
+from awb_eval.methods import Method, resolve, statistical_gain  # noqa: E402
+from awb_eval.report import aggregate, markdown  # noqa: E402
+from awb_eval.run import evaluate  # noqa: E402
+from awb_eval.store_input import StoreCases  # noqa: E402
 
 
 def log(msg: str) -> None:

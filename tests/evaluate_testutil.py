@@ -1,7 +1,7 @@
 """Test inputs for ``illumix evaluate``: a synthetic store and a small LSMI-layout folder.
 
 The LSMI folder is written with cv2/numpy/tifffile the way the LSMI release lays out a camera (see
-:mod:`evaluate.lsmi_input`), independently of ``illumix export``: camera ``cam`` with places
+:mod:`awb_eval.lsmi_input`), independently of ``illumix export``: camera ``cam`` with places
 ``p0`` (lights 1, 12) and ``p1`` (lights 12, 123), a template ``cam.dng`` carrying BlackLevel 512,
 WhiteLevel 16383 and a colour matrix.
 """

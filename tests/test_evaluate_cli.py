@@ -11,7 +11,7 @@ from evaluate_testutil import make_lsmi, make_store
 from test_cli_spectra import assert_one_line_error
 from test_cli_startup import run_fresh
 
-from evaluate.methods import load_plugin
+from awb_eval.methods import load_plugin
 from retarget.errors import SpectralError
 
 KEYS = {"angular_mean", "angular_median", "angular_worst25", "grid_de00_worst25"}

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from evaluate_testutil import BLACK, LIGHTS, WHITE, lsmi_image, make_lsmi, make_store
 
-from evaluate.lsmi_input import LsmiCases, is_lsmi, read_levels
-from evaluate.methods import resolve
-from evaluate.report import aggregate
-from evaluate.run import evaluate
-from evaluate.store_input import StoreCases, parse_pairs
+from awb_eval.lsmi_input import LsmiCases, is_lsmi, read_levels
+from awb_eval.methods import resolve
+from awb_eval.report import aggregate
+from awb_eval.run import evaluate
+from awb_eval.store_input import StoreCases, parse_pairs
 from retarget.errors import SpectralError, UnknownName
 
 ZERO = 1e-3  # degrees; module docstring

@@ -1,4 +1,4 @@
-"""AWB methods (:mod:`evaluate.statistical`, :mod:`evaluate.methods`) against hand-computed cases.
+"""AWB methods (:mod:`awb_eval.statistical`, :mod:`awb_eval.methods`) against hand-computed cases.
 
 Each estimate is compared with an independent float64 computation of its defining equation (van de
 Weijer et al. 2007, eq. 10) or a closed form. Tolerances: the methods work in float64 and return
@@ -14,10 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from evaluate.case import Case
-from evaluate.method_names import AWB_METHODS, DEFAULT_METHODS
-from evaluate.methods import awb_gain_map, statistical_gain, weighted_average_gain
-from evaluate.statistical import derivative_magnitude, grid_estimates, illuminant_map
+from awb_eval.case import Case
+from awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
+from awb_eval.methods import awb_gain_map, statistical_gain, weighted_average_gain
+from awb_eval.statistical import derivative_magnitude, grid_estimates, illuminant_map
 from retarget.errors import SpectralError, UnknownName
 
 RNG = np.random.default_rng(3)

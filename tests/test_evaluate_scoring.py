@@ -1,4 +1,4 @@
-"""Per-image scores (:mod:`evaluate.scoring`) against independent computations: the angle between
+"""Per-image scores (:mod:`awb_eval.scoring`) against independent computations: the angle between
 two illuminants by the dot-product formula, and the ΔE00 grid through colour-science's own sRGB
 encoding, Lab conversion and CIEDE2000 on hand-made 2×2-pixel cells (float64 references; the
 scoring path renders in float32, so ΔE00 agrees to 1e-3 and angles to 1e-4°)."""
@@ -8,9 +8,9 @@ from __future__ import annotations
 import colour
 import numpy as np
 
-from evaluate.case import Case
-from evaluate.methods import gain_from_illuminant
-from evaluate.scoring import reference, score
+from awb_eval.case import Case
+from awb_eval.methods import gain_from_illuminant
+from awb_eval.scoring import reference, score
 
 H, W = 24, 32  # 12 × 16 cells of 2 × 2 pixels
 

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from evaluate.case import Case
-from evaluate.methods import Method
-from evaluate.scoring import reference, score
+from awb_eval.case import Case
+from awb_eval.methods import Method
+from awb_eval.scoring import reference, score
 
 MIN_SIDE = (12, 16)  # the ΔE00 grid's cells: an image needs at least one pixel per cell
 

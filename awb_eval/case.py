@@ -1,7 +1,7 @@
 """One evaluation image: camera raw plus its exact ground truth.
 
-Built by :mod:`evaluate.store_input` (a sample composed by the service's own pipeline) or by
-:mod:`evaluate.lsmi_input` (a file of an LSMI-layout dataset).
+Built by :mod:`awb_eval.store_input` (a sample composed by the service's own pipeline) or by
+:mod:`awb_eval.lsmi_input` (a file of an LSMI-layout dataset).
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """The AWB method family by name, the colour-science way (``method="Gray World"``).
 
 Pure Python, like :mod:`retarget.denoise_methods`: ``illumix evaluate --help`` lists these names
-before numpy is imported. The implementations are in :mod:`evaluate.methods`; every method answers
+before numpy is imported. The implementations are in :mod:`awb_eval.methods`; every method answers
 a per-pixel white-balance gain map ``(H, W, 3)``.
 
 Besides these names, a method may be a plug-in ``module.path:callable`` (see
-:func:`evaluate.methods.load_plugin`): a name with a colon is always read as one.
+:func:`awb_eval.methods.load_plugin`): a name with a colon is always read as one.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from evaluate.case import Case, unsaturated
+from awb_eval.case import Case, unsaturated
 from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black

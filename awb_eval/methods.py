@@ -1,12 +1,12 @@
-"""AWB methods as ``raw → per-pixel gain map``, dispatched by name (:data:`evaluate.method_names.AWB_METHODS`).
+"""AWB methods as ``raw → per-pixel gain map``, dispatched by name (:data:`awb_eval.method_names.AWB_METHODS`).
 
 Every method answers a gain map ``(H, W, 3)`` float32 (a global method broadcasts one gain). Gains
 follow the ground truth's convention (thesis eq. 3.3): for an illuminant estimate ``e``,
 ``gain_k = max_j e_j / e_k``, so the method's implied illuminant is ``1 / gain`` (up to scale).
 
-- statistical methods (:mod:`evaluate.statistical`): e^{n,p,σ} of van de Weijer et al. 2007,
+- statistical methods (:mod:`awb_eval.statistical`): e^{n,p,σ} of van de Weijer et al. 2007,
   globally or patch-wise; parameters overridable (``p``, ``sigma``, ``grid``, ``interpolation``);
-- oracles, which read the ground truth (a :class:`evaluate.case.Case`): ``Ground Truth`` and the
+- oracles, which read the ground truth (a :class:`awb_eval.case.Case`): ``Ground Truth`` and the
   thesis' ``Weighted Average`` single white point (§5.2);
 - plug-ins ``module.path:callable``: a user's model, called as ``fn(raw)`` with raw ``(H, W, 3)``
   float32, answering a gain map ``(H, W, 3)`` (or ``(3,)``, broadcast).
@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evaluate.case import Case
-from evaluate.method_names import AWB_METHODS, PATCH_PREFIX, is_plugin
-from evaluate.statistical import estimate
+from awb_eval.case import Case
+from awb_eval.method_names import AWB_METHODS, PATCH_PREFIX, is_plugin
+from awb_eval.statistical import estimate
 from retarget.errors import SpectralError
 from retarget.groundtruth import gain_map
 
@@ -97,7 +97,7 @@ def awb_gain_map(raw: np.ndarray, method: str = "Gray World", *, truth: Case | N
                  valid: np.ndarray | None = None, **kwargs) -> np.ndarray:
     """The gain map ``(H, W, 3)`` float32 of ``method`` on raw ``(H, W, 3)``, colour-science style.
 
-    method : a name of :data:`evaluate.method_names.AWB_METHODS` (any case, aliases) or a plug-in
+    method : a name of :data:`awb_eval.method_names.AWB_METHODS` (any case, aliases) or a plug-in
     ``module.path:callable``. truth : the ground truth, needed by the oracles. valid : pixels the
     statistics may use. kwargs : parameters of a statistical method (:func:`statistical_gain`).
     """

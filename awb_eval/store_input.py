@@ -7,7 +7,7 @@ and CCM map, and the per-group white points from the sample's metadata. Nothing 
 The raw is what a camera records: exposed by the thesis' AEC (eq. 4.2, ``exposure=auto``: raw in
 units of the white level) and clipped at the white level, so directly visible lamps and windows
 saturate as they would, and the methods' statistics leave saturated pixels out
-(:func:`evaluate.case.unsaturated`). The ground truth does not depend on the exposure.
+(:func:`awb_eval.case.unsaturated`). The ground truth does not depend on the exposure.
 
 Which images: every view with enough light groups × every lighting in ``pairs`` (``"A,D65"`` lights
 the view's first two groups, as ``pair=``; a single name ``"D65"`` lights every group with it),
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evaluate.case import Case, unsaturated
+from awb_eval.case import Case, unsaturated
 from retarget.errors import SpectralError
 
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"  # a measured camera that every install has (colour-science)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluate.run import ErrorMaps
+from awb_eval.run import ErrorMaps
 
 
 def _pyplot():

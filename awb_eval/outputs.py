@@ -10,7 +10,7 @@ import os
 import re
 from pathlib import Path
 
-from evaluate.run import Results
+from awb_eval.run import Results
 from retarget.errors import SpectralError
 
 
@@ -41,7 +41,7 @@ def write_outputs(out: Path, doc: dict, table: str, res: Results, labels: list[s
     except ImportError:
         raise SpectralError("--out draws plots with matplotlib, which is not installed: "
                             "pip install 'illumix[evaluate]'") from None
-    from evaluate.plots import box_plots, error_map
+    from awb_eval.plots import box_plots, error_map
 
     out.mkdir(parents=True, exist_ok=True)
     written = ["table.md", "results.json"]

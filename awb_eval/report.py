@@ -1,4 +1,4 @@
-"""Aggregates and tables of an evaluation (:class:`evaluate.run.Results`).
+"""Aggregates and tables of an evaluation (:class:`awb_eval.run.Results`).
 
 Aggregation: every per-image score is averaged over the images, per method and per illuminant
 pair; so ``angular_mean`` is the mean over images of each image's mean per-pixel angular error,
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluate.run import Results
-from evaluate.scoring import ANGULAR_STATS
+from awb_eval.run import Results
+from awb_eval.scoring import ANGULAR_STATS
 
 KEYS = (*(f"angular_{k}" for k in ANGULAR_STATS), "grid_de00_worst25", "ms")
 # (column title, key) of the markdown tables

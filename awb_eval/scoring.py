@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evaluate.case import Case
-from evaluate.methods import gain_from_illuminant
+from awb_eval.case import Case
+from awb_eval.methods import gain_from_illuminant
 from retarget.exposure import aec_gain
 from retarget.isp import apply_ccm, render_srgb
 from retarget.metrics import angular_error, grid_delta_e00, summary_statistics
