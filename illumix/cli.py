@@ -48,11 +48,11 @@ def _root(show_version: bool = typer.Option(False, "--version", callback=_versio
 def _register() -> None:
     if app.registered_commands:  # main() runs many times in one process in the tests
         return
-    from illumix import (cmd_dataset, cmd_demo, cmd_export, cmd_import, cmd_render, cmd_scenes, cmd_serve,
-                         cmd_spectra, cmd_store, cmd_validate)
+    from illumix import (cmd_dataset, cmd_demo, cmd_evaluate, cmd_export, cmd_import, cmd_render, cmd_scenes,
+                         cmd_serve, cmd_spectra, cmd_store, cmd_validate)
 
     for module in (cmd_spectra, cmd_store, cmd_render, cmd_import, cmd_validate, cmd_serve, cmd_demo, cmd_scenes,
-                   cmd_dataset, cmd_export):
+                   cmd_dataset, cmd_export, cmd_evaluate):
         module.register(app)
 
 

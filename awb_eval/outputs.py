@@ -1,0 +1,59 @@
+"""The ``--out DIR`` folder of an evaluation: ``table.md``, ``results.json``, ``boxplots.png`` and
+``maps/<image>.png``. Every file is written to a temporary name and renamed into place, so an
+interrupted run never leaves a half-written file; a rerun overwrites them with its own results.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+from awb_eval.run import Results
+from retarget.errors import SpectralError
+
+
+def write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def save_figure(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(f".{path.name}.tmp")
+    fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def safe_name(name: str) -> str:
+    """A file name for an image label (``demo-room-0/corner A,D65`` → ``demo-room-0_corner_A-D65``)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name.replace(",", "-")).strip("_") or "image"
+
+
+def write_outputs(out: Path, doc: dict, table: str, res: Results, labels: list[str]) -> list[str]:
+    """Write the folder; returns the paths written (relative to ``out``)."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise SpectralError("--out draws plots with matplotlib, which is not installed: "
+                            "pip install 'illumix[evaluate]'") from None
+    from awb_eval.plots import box_plots, error_map
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = ["table.md", "results.json"]
+    write_text(out / "table.md", table)
+    write_text(out / "results.json", json.dumps(doc, indent=1) + "\n")
+    if res.images:
+        save_figure(box_plots(res.images, labels), out / "boxplots.png")
+        written.append("boxplots.png")
+    if res.maps:
+        (out / "maps").mkdir(exist_ok=True)
+        for m in res.maps:
+            rel = f"maps/{safe_name(m.name)}.png"
+            save_figure(error_map(m), out / rel)
+            written.append(rel)
+    return written

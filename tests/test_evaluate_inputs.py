@@ -1,0 +1,134 @@
+"""Evaluation inputs: samples composed from a store (the service's pipeline) and LSMI-layout files
+read back as LSMI reads them; on both the ground truth scores 0 (to float32 rounding: the GT gain is
+a float32 division, so 1/gain is the GT illuminant to ~1e-7 relative, an angle below 1e-3°)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from evaluate_testutil import BLACK, LIGHTS, WHITE, lsmi_image, make_lsmi, make_store
+
+from awb_eval.lsmi_input import LsmiCases, is_lsmi, read_levels
+from awb_eval.methods import resolve
+from awb_eval.report import aggregate
+from awb_eval.run import evaluate
+from awb_eval.store_input import StoreCases, parse_pairs
+from retarget.errors import SpectralError, UnknownName
+
+ZERO = 1e-3  # degrees; module docstring
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return str(make_store(tmp_path_factory.mktemp("evalstore") / "s"))
+
+
+@pytest.fixture(scope="module")
+def lsmi(tmp_path_factory):
+    return make_lsmi(tmp_path_factory.mktemp("lsmi"))
+
+
+def test_store_cases_are_the_service_samples(store):
+    from service.context import make_context
+    from service.sampling import build_sample
+    from service.spec import SampleSpec
+    from store import CubeStore
+
+    src = StoreCases(store, pairs="A,D65;D50", sensor="Nikon 5100 (NPL)")
+    assert len(src) == 2 and [j.pair for j in src.jobs] == ["A,D65", "D50"]
+    case = next(iter(src))
+    arrays, meta = build_sample(SampleSpec(scene="synth", view="v0", pair=["A", "D65"], sensor="Nikon 5100 (NPL)",
+                                           seed=0, outputs=["raw", "illum", "mask", "ccm", "meta"], exposure="auto"),
+                                make_context(CubeStore.open(store, mode="r")))
+    for k in ("illum", "mask", "ccm"):
+        np.testing.assert_array_equal(getattr(case, k), arrays[k])
+    # the raw a camera records: auto-exposed (the service's AEC) and clipped at the white level
+    np.testing.assert_array_equal(case.raw, np.minimum(arrays["raw"], 1))
+    assert case.usable is not None and not case.usable[case.raw.max(axis=-1) >= 1].any()
+    np.testing.assert_allclose(case.white_points, [g["white_point_rgb"] for g in meta["illuminants"]])
+    assert case.mixture.shape == (*case.shape, 2) and not case.mask.all()  # the dark rows are masked
+
+
+def test_ground_truth_scores_zero_on_a_store(store):
+    src = StoreCases(store, pairs="A,D65;FL11,D50;D65")
+    res = evaluate(src, resolve(["Ground Truth", "Gray World", "Weighted Average"]))
+    summary = aggregate(res, ["Ground Truth", "Gray World", "Weighted Average"])
+    gt = summary["methods"]["Ground Truth"]
+    assert gt["images"] == 3 and gt["angular_max"] < ZERO and gt["grid_de00_worst25"] == 0.0
+    assert summary["methods"]["Gray World"]["angular_mean"] > 1.0  # a mixed light it cannot see
+    # one illuminant everywhere: the single weighted white point is the ground truth
+    single = next(im for im in res.images if im["pair"] == "D65")["methods"]["Weighted Average"]
+    assert single["angular_max"] < ZERO
+    assert set(summary["pairs"]) == {"A,D65", "FL11,D50", "D65"}
+
+
+def test_store_input_errors(store, tmp_path):
+    with pytest.raises(UnknownName, match="sensor"):
+        StoreCases(store, sensor="Nikon 5101")
+    with pytest.raises(UnknownName, match="FL11"):
+        StoreCases(store, pairs="A,F11")
+    with pytest.raises(SpectralError, match="one or two"):
+        parse_pairs("A,D65,D50")
+    empty = tmp_path / "empty"
+    from store import CubeStore
+
+    CubeStore.open(str(empty), mode="a")
+    with pytest.raises(SpectralError, match="no rendered views"):
+        StoreCases(str(empty))
+
+
+def test_lsmi_files_read_back_as_lsmi_reads_them(lsmi):
+    assert is_lsmi(lsmi) and is_lsmi(lsmi / "cam")
+    src = LsmiCases(lsmi)
+    assert [i.name for i in src.items] == ["p0_1", "p0_12", "p1_12", "p1_123"]
+    assert (src.levels.black, src.levels.white) == (BLACK, WHITE)
+    # the sRGB matrix as the colour matrix (written as rationals n/1e6: the inverse is the identity to 1e-4)
+    np.testing.assert_allclose(src.ccm, np.eye(3), atol=1e-4)
+    cases = {c.name: c for c in src}
+    _, mix, _raw = lsmi_image("123", np.random.default_rng(0))
+    c = cases["p1_123"]
+    assert c.mixture.shape == (*c.shape, 3) and not c.mask[-3:].any() and c.mask[:-3].all()
+    # the GT map is LSMI's mix_chroma: Σ_i mix_i · Light_i
+    chroma = np.array([LIGHTS[f"Light{i}"] for i in "123"])
+    np.testing.assert_allclose(c.illum[:-3], (mix @ chroma)[:-3], rtol=1e-6)
+    # raw = tiff - black, exactly (the texture is random per file: compare the lit structure)
+    assert c.raw.dtype == np.float32 and float(c.raw[-3:].max()) == 0.0 and c.raw.max() <= WHITE - BLACK
+    single = cases["p0_1"]  # one light: no .npy, the mixture is ones everywhere (LSMI), so every pixel is scored
+    assert single.mixture.shape[-1] == 1 and single.mask.all()
+
+
+def test_lsmi_raw_is_the_tiff_minus_black(tmp_path):
+    root = make_lsmi(tmp_path)
+    import cv2
+
+    tiff = cv2.cvtColor(cv2.imread(str(root / "cam/p0/p0_12.tiff"), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB)
+    case = LsmiCases(root, pairs="12", split="train").load(LsmiCases(root, pairs="12", split="train").items[0])
+    np.testing.assert_array_equal(case.raw, np.clip(tiff.astype(np.float32) - BLACK, 0, WHITE - BLACK))
+
+
+def test_ground_truth_scores_zero_on_lsmi(lsmi):
+    src = LsmiCases(lsmi, split="test")
+    res = evaluate(src, resolve(["GT", "GW", "WA", "Patch GE1"]))
+    s = aggregate(res, ["Ground Truth", "Gray World", "Weighted Average", "Patch Gray Edge"])
+    assert s["methods"]["Ground Truth"]["angular_max"] < ZERO
+    assert s["methods"]["Ground Truth"]["grid_de00_worst25"] == 0.0
+    assert s["methods"]["Gray World"]["angular_mean"] > 0.5
+    assert set(s["pairs"]) == {"12", "123"}
+
+
+def test_lsmi_levels_and_errors(lsmi, tmp_path):
+    levels = read_levels(lsmi / "cam.dng")  # libraw cannot open this tag-only file: the tags are read
+    assert (levels.black, levels.white) == (BLACK, WHITE) and levels.cam_xyz.shape == (3, 3)
+    assert levels.source == "cam.dng (DNG tags)"
+    bare = make_lsmi(tmp_path / "bare", dng=False)
+    with pytest.raises(SpectralError, match="--black-level"):
+        LsmiCases(bare)
+    src = LsmiCases(bare, black_level=BLACK, white_level=WHITE)
+    assert src.levels.source == "given"
+    np.testing.assert_array_equal(src.ccm, np.eye(3))  # no colour matrix: identity
+    with pytest.raises(UnknownName, match="did you mean 'cam'"):
+        LsmiCases(lsmi, camera="cma")
+    with pytest.raises(SpectralError, match="no split 'dev'"):
+        LsmiCases(lsmi, split="dev")
+    with pytest.raises(SpectralError, match="no <place>_<lights>.tiff"):
+        LsmiCases(lsmi, pairs="13")
