@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Annotated
 
 import numpy as np
@@ -51,7 +52,9 @@ BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor 
 def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
     single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,
-    dtype and bayer (the page needs these fixed)."""
+    dtype and bayer (the page needs these fixed). ``Server-Timing`` says where the time went (ms):
+    ``compose`` (the sample), ``baseline``, ``total`` (to the encoded body, before sending)."""
+    t0 = time.perf_counter()
     given = [f for f in FIXED if f in params.model_fields_set]
     if given:
         raise fail(422, f"/explore/frame sends fixed outputs; drop {', '.join(given)} (use /sample to choose them)",
@@ -63,13 +66,18 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     extra = w * h * 3 * (4 + 4 + 2)
     hold = ctx.memory.acquire(price(p, ctx) + extra, f"this explorer frame ({w}x{h})")
     try:
+        t1 = time.perf_counter()
         arrays, meta = build(p, ctx)
+        t2 = time.perf_counter()
         meta["baseline"] = _baseline(arrays, meta, spec)
         out = {k: arrays[k] for k in SENT}
         out["srgb"] = _bytes(arrays["srgb"])
         out["baseline"] = _bytes(meta["baseline"].pop("image"))
         del arrays
-        return _HeldResponse(arrays_format.encode(out, meta=meta), hold, media_type=arrays_format.MEDIA_TYPE)
+        body = arrays_format.encode(out, meta=meta)
+        t3 = time.perf_counter()
+        timing = f"compose;dur={1e3 * (t2 - t1):.1f}, baseline;dur={1e3 * (t3 - t2):.1f}, total;dur={1e3 * (t3 - t0):.1f}"
+        return _HeldResponse(body, hold, media_type=arrays_format.MEDIA_TYPE, headers={"Server-Timing": timing})
     except BaseException:
         hold.release()
         raise

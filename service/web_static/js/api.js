@@ -46,9 +46,19 @@ export function decodeArrays(buffer) {
   return { arrays, meta: header.meta };
 }
 
-/** GET an arrays container; `signal` aborts it (a newer update supersedes it). */
+/** The `Server-Timing` header as {name: ms}. */
+function serverTiming(header) {
+  const out = {};
+  for (const part of (header || "").split(",")) {
+    const m = part.trim().match(/^([\w-]+);dur=([\d.]+)/);
+    if (m) out[m[1]] = Number(m[2]);
+  }
+  return out;
+}
+
+/** GET an arrays container (+ `timing`, the server's ms); `signal` aborts it (a newer update supersedes it). */
 export async function getArrays(url, signal) {
   const r = await fetch(url, { signal });
   if (!r.ok) throw await failure(r);
-  return decodeArrays(await r.arrayBuffer());
+  return { ...decodeArrays(await r.arrayBuffer()), timing: serverTiming(r.headers.get("Server-Timing")) };
 }

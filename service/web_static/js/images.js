@@ -90,8 +90,8 @@ export function gainValues(gain, channel) {
   const c = { r: 0, g: 1, b: 2 }[channel];
   // B÷R on a log scale: warm light (needs a large B gain) and cool light sit symmetric around equal gains
   for (let i = 0; i < n; i++) out[i] = channel === "br" ? Math.log2(d[3 * i + 2] / d[3 * i]) : d[3 * i + c];
-  const label = channel === "br" ? "gain B ÷ gain R (log scale; > 1: light warmer than the sensor's balance)"
-    : `gain ${channel.toUpperCase()} (multiplies raw ${channel.toUpperCase()})`;
+  const label = channel === "br" ? "gain B ÷ gain R, log scale: high where the light is warm (blue boosted), low where it is cool"
+    : `gain ${channel.toUpperCase()}: the factor raw ${channel.toUpperCase()} is multiplied by (the strongest channel gets 1)`;
   return { values: out, log: channel === "br", label };
 }
 
@@ -153,14 +153,17 @@ export function scalarLegend(el, lo, hi, log, label) {
     <div>${label}</div><div class="muted">${NO_GT}</div>`;
 }
 
-/** Group swatches (and, for two groups, the gradient between them). */
+/** Group swatches (and, for two lit groups, the gradient between them). */
 export function mixtureLegend(el, groups) {
+  const colour = (k) => GROUP_COLOURS[k % GROUP_COLOURS.length];
   const items = groups.map((g, k) =>
-    `<span class="swatch" style="background:${GROUP_COLOURS[k % GROUP_COLOURS.length]}"></span>${g.group}: ${g.illuminant ?? "off"}`);
+    `<span class="swatch" style="background:${colour(k)}"></span>${g.group}: ${g.intensity > 0 ? g.illuminant : "off"}`);
   let html = `<div>${items.join(" &nbsp; ")}</div>`;
-  if (groups.length === 2) {
-    html = `<div class="bar" style="background: linear-gradient(to right, ${GROUP_COLOURS[0]}, ${GROUP_COLOURS[1]})"></div>
-      <div class="ticks"><span>100 % ${groups[0].group}</span><span>50 / 50</span><span>100 % ${groups[1].group}</span></div>` + html;
+  const lit = groups.map((g, k) => [g, k]).filter(([g]) => g.intensity > 0);
+  if (lit.length === 2) {
+    const [[a, i], [b, j]] = lit;
+    html = `<div class="bar" style="background: linear-gradient(to right, ${colour(i)}, ${colour(j)})"></div>
+      <div class="ticks"><span>100 % ${a.group}</span><span>50 / 50</span><span>100 % ${b.group}</span></div>` + html;
   }
   el.innerHTML = html + `<div class="muted">${NO_GT}</div>`;
 }

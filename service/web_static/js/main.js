@@ -176,8 +176,7 @@ async function update() {
     frame = prepare(f);
     drawAll(s);
     const [h, w] = f.arrays.raw.shape;
-    const ms = f.meta.timings_ms;
-    status(`${w}×${h} · ${Math.round(t1 - t0)} ms request (compose ${Math.round(ms.setup + ms.read + ms.compose)} ms) · `
+    status(`${w}×${h} · server ${Math.round(f.timing.total)} ms, request ${Math.round(t1 - t0)} ms, `
       + `draw ${Math.round(performance.now() - t1)} ms · ground truth: ${f.meta.ground_truth.method}`);
     document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1); // for tests
   } catch (e) {
@@ -206,7 +205,7 @@ function drawAll(s) {
   const shares = Object.entries(b.shares).map(([g, v]) => `${g} ${(100 * v).toFixed(0)} %`).join(", ");
   $("baseline-note").textContent = `white point R/G ${b.white_point_rgb[0].toFixed(3)}, B/G `
     + `${b.white_point_rgb[2].toFixed(3)}: the groups' white points weighted by their share of the frame (${shares})`;
-  const lit = meta.illuminants.filter((g) => g.intensity > 0).map((g) => g.group);
+  const lit = meta.illuminants.map((g, index) => ({ group: g.group, index, on: g.intensity > 0 })).filter((g) => g.on);
   plotSpectra(s, lit);
   plotSensor(s);
   plotChroma(s, frame, null);
@@ -230,13 +229,14 @@ function hover(ev) {
   const rgb = (arr) => [0, 1, 2].map((c) => arr.data[3 * i + c]);
   const [raw, gain, wp] = [rgb(a.raw), rgb(a.gain), rgb(a.illum)];
   const valid = a.mask.data[i];
-  const mix = frame.meta.illuminants.map((m, k) => `${m.group} ${(100 * a.mixture.data[g * i + k]).toFixed(1)} %`);
+  const mix = frame.meta.illuminants.map((m, k) =>
+    `${m.group} (${m.illuminant ?? "off"}) ${(100 * a.mixture.data[g * i + k]).toFixed(1)} %`);
   $("readout").className = "readout";
   $("readout").innerHTML = `<div>pixel x ${x}, y ${y} ${valid ? "" : '<b class="error">· no ground truth here</b>'}</div>
     <table><tr><th></th><th>R</th><th>G</th><th>B</th></tr>
     <tr><td>raw <span class="muted">(relative)</span></td>${raw.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
     <tr><td>gain</td>${gain.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
-    <tr><td>white point <span class="muted">(G = 1)</span></td>${wp.map((v) => `<td>${f3(v)}</td>`).join("")}</tr></table>
+    <tr><td>white point <span class="muted">(R/G, 1, B/G)</span></td>${wp.map((v) => `<td>${f3(v)}</td>`).join("")}</tr></table>
     <div>mixture: ${mix.join(" · ")}</div>`;
   for (const c of document.querySelectorAll(".cross")) {
     c.hidden = false;

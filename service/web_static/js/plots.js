@@ -20,12 +20,13 @@ function replace(id, opts, data) {
 const nm = { label: "wavelength (nm)", size: 40 };
 const rel = { label: "relative", size: 50 };
 
-/** Each lit group's illuminant SPD (peak 1), coloured like the mixture map. */
-export function plotSpectra(spectra, groups) {
+/** Each lit group's illuminant SPD (peak 1), coloured like the mixture map; `lit`: [{group, index}]. */
+export function plotSpectra(spectra, lit) {
   const series = [{ label: "λ (nm)" }];
   const data = [spectra.wavelengths];
   spectra.illuminants.forEach((c, k) => {
-    series.push({ label: `${groups[k]}: ${c.name}`, stroke: GROUP_COLOURS[k % GROUP_COLOURS.length], width: 2 });
+    const { group, index } = lit[k];
+    series.push({ label: `${group}: ${c.name}`, stroke: GROUP_COLOURS[index % GROUP_COLOURS.length], width: 2 });
     data.push(c.spd);
   });
   replace("p-spd", { series, axes: [nm, rel], scales: { x: { time: false }, y: { range: [0, 1.05] } } }, data);
@@ -88,7 +89,7 @@ export function plotChroma(spectra, frame, hover) {
   const series = [{},
     { label: "Planckian locus", ...line("#444", 1.5) },
     { label: "daylight locus", ...line("#888", 1, [5, 4]) },
-    { label: "pixels (sample)", ...dots("rgba(120,120,120,0.3)", 4, "rgba(0,0,0,0)") }];
+    { label: "pixels of the frame (sample)", ...dots("rgba(90,90,90,0.45)", 5, "rgba(0,0,0,0)") }];
   groups.forEach((g) => {
     const k = frame.meta.illuminants.indexOf(g);
     sets.push([[g.white_point_rgb[0], g.white_point_rgb[2]]]);
@@ -111,7 +112,7 @@ export function plotChroma(spectra, frame, hover) {
 export function chromaHover(point) {
   if (!chroma) return;
   chroma.sets[chroma.sets.length - 1] = point ? [point] : [];
-  chroma.u.setData([null, ...chroma.sets.map(xy)], false);
+  chroma.u.setData([null, ...chroma.sets.map(xy)]); // the scales' ranges are fixed: nothing jumps
 }
 
 export function resizePlots() {
