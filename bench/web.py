@@ -95,7 +95,15 @@ def run(client, args) -> dict:
     view = next(v for s in page[3].json()["scenes"] if s["name"] == args.scene for v in s["views"]
                 if v["name"] == args.view)
     w, h = view["width"], view["height"]
-    state = {"scene": args.scene, "view": args.view, "sensor": "XYZ", "illuminants": "A,D65", "intensities": "1,1"}
+    lights = ["A", "D65", "FL11", "D50", "F2"][:len(view["groups"])]
+    state = {"scene": args.scene, "view": args.view, "sensor": "XYZ", "illuminants": ",".join(lights),
+             "intensities": ",".join("1" * len(lights))}
+
+    def changed(illuminant: str | None = None, intensity: float | None = None) -> dict:
+        """The page's state with the first group's illuminant or the last group's intensity changed."""
+        if illuminant is not None:
+            return {"illuminants": ",".join([illuminant, *lights[1:]])}
+        return {"intensities": ",".join(["1"] * (len(lights) - 1) + [f"{intensity:.2f}"])}
 
     def update(changes: dict, spectra: bool) -> tuple[float, float, float]:
         q = {**state, **changes}
@@ -116,12 +124,12 @@ def run(client, args) -> dict:
     log(f"first frame (cubes decoded from the store): server {first[0]:.0f} ms")
     update({}, False)  # the page's second look at the same lights: its projections are kept from here on
     kinds = {
-        "intensity": lambda i: ({"intensities": f"1,{0.9 - 0.1 * i:.1f}"}, False),
-        "illuminant": lambda i: ({"illuminants": f"{ILLUMINANTS[i % len(ILLUMINANTS)]},D65"}, True),
-        "cct": lambda i: ({"illuminants": f"blackbody:{2500 + 137 * i},D65"}, True),
+        "intensity": lambda i: (changed(intensity=0.9 - 0.1 * i), False),
+        "illuminant": lambda i: (changed(ILLUMINANTS[i % len(ILLUMINANTS)]), True),
+        "cct": lambda i: (changed(f"blackbody:{2500 + 137 * i}"), True),
         "sensor": lambda i: ({"sensor": cameras[i % len(cameras)]}, True),
-        "gt_formula": lambda i: ({"gt": "formula", "intensities": f"1,{0.85 - 0.1 * i:.2f}"}, False),
-        "half_size": lambda i: ({"size": f"{w // 2}x{h // 2}", "intensities": f"1,{0.95 - 0.1 * i:.2f}"}, False),
+        "gt_formula": lambda i: ({"gt": "formula", **changed(intensity=0.85 - 0.1 * i)}, False),
+        "half_size": lambda i: ({"size": f"{w // 2}x{h // 2}", **changed(intensity=0.95 - 0.1 * i)}, False),
     }
     times: dict[str, list[tuple[float, float, float]]] = {k: [] for k in kinds}
     for i in range(args.repeats):
