@@ -18,15 +18,14 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("selenium", reason="the test extra installs selenium (pip install -e '.[test]')")
-from selenium import webdriver  # noqa: E402
-from selenium.webdriver.chrome.options import Options  # noqa: E402
-from selenium.webdriver.chrome.service import Service  # noqa: E402
-from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
-from selenium.webdriver.common.by import By  # noqa: E402
-from selenium.webdriver.support.ui import Select, WebDriverWait  # noqa: E402
-
-import synthetic_store as synth  # noqa: E402
-from server_testutil import ThreadServer  # noqa: E402
+import synthetic_store as synth
+from selenium import webdriver
+from selenium.webdriver.chrome.options import Options
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select, WebDriverWait
+from server_testutil import ThreadServer
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 DRIVER = shutil.which("chromedriver")
@@ -89,7 +88,7 @@ def test_page_loads_without_errors_or_other_hosts(browser, url):
                  (json.loads(e["message"])["message"] for e in browser.get_log("performance"))
                  if m["method"] == "Network.requestWillBeSent"]
     assert any("/explore/frame" in u for u in requested) and any("/web/vendor/uPlot.esm.js" in u for u in requested)
-    others = [u for u in requested if not (u.startswith(url + "/") or u.startswith("data:"))]
+    others = [u for u in requested if not u.startswith((url + "/", "data:"))]
     assert not others, others
     assert "ground truth" in browser.find_element(By.ID, "status").text
     for legend in ("gain-legend", "mixture-legend"):
@@ -127,8 +126,9 @@ def test_an_upload_with_the_token_appears_in_the_sensor_list(browser, url, tmp_p
     form.find_element(By.NAME, "file").send_keys(str(csv))
     n = ready(browser)
     form.find_element(By.TAG_NAME, "button").click()
-    WebDriverWait(browser, WAIT_S).until(
-        lambda d: "browser-cam" in [o.get_attribute("value") for o in Select(d.find_element(By.ID, "sensor")).options])
+    # read in one script: the page rebuilds the list, so element handles could go stale between calls
+    WebDriverWait(browser, WAIT_S).until(lambda d: "browser-cam" in d.execute_script(
+        "return Array.from(document.querySelectorAll('#sensor option'), o => o.value)"))
     assert "uploaded sensor 'browser-cam'" in browser.find_element(By.ID, "upload-status").text
     WebDriverWait(browser, WAIT_S).until(lambda d: ready(d) > n)  # the page switches to the new sensor
     assert "sensor=browser-cam" in browser.current_url

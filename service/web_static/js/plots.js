@@ -7,7 +7,7 @@ const LABELLED_KELVIN = [2000, 3000, 4000, 5000, 6500, 10000];
 const charts = {};
 
 function size(el) {
-  return { width: Math.max(240, el.clientWidth - 8), height: 220 };
+  return { width: Math.max(240, el.clientWidth - 8), height: el.id === "p-chroma" ? 300 : 220 };
 }
 
 function replace(id, opts, data) {
@@ -80,7 +80,7 @@ const xy = (pts) => [pts.map((p) => p[0]), pts.map((p) => p[1])];
 export function plotChroma(spectra, frame, hover) {
   const groups = frame.meta.illuminants.filter((g) => g.intensity > 0);
   const base = frame.meta.baseline.white_point_rgb;
-  const near = spectra.planckian.filter((p) => p.kelvin >= 2000 && p.kelvin <= 10000);
+  const near = spectra.planckian.filter((p) => p.kelvin >= 2500 && p.kelvin <= 10000); // the usual AWB range
   const xs = [...groups.map((g) => g.white_point_rgb[0]), base[0], ...near.map((p) => p.r_over_g)];
   const ys = [...groups.map((g) => g.white_point_rgb[2]), base[2], ...near.map((p) => p.b_over_g)];
   bounds = { x: pad([Math.min(...xs), Math.max(...xs)]), y: pad([Math.min(...ys), Math.max(...ys)]) };
