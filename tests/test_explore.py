@@ -156,6 +156,19 @@ def test_baseline_shows_the_cast_the_ground_truth_removes(client):
     assert cast(a["baseline"]).max() >= 20  # measured 80
 
 
+def test_frame_shares_edge_cases():
+    from retarget.errors import SpectralError
+    from retarget.global_wb import frame_shares
+
+    mix = np.zeros((2, 3, 2), np.float32)
+    mix[0] = [1, 0]
+    mix[1] = [0.25, 0.75]
+    np.testing.assert_allclose(frame_shares(mix, np.array([[True] * 3, [False] * 3])), [1, 0])
+    np.testing.assert_allclose(frame_shares(mix, np.zeros((2, 3), bool)), [0.625, 0.375])  # no valid pixel: all
+    with pytest.raises(SpectralError, match="no positive share"):
+        frame_shares(np.zeros((2, 3, 2), np.float32))
+
+
 @pytest.mark.parametrize("bad, status, code", [
     ({"outputs": "raw"}, 422, "invalid_parameter"),
     ({"format": "npz"}, 422, "invalid_parameter"),

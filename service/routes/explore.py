@@ -53,7 +53,8 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
     single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,
     dtype and bayer (the page needs these fixed). ``Server-Timing`` says where the time went (ms):
-    ``compose`` (the sample), ``baseline``, ``total`` (to the encoded body, before sending)."""
+    ``compose`` (the sample), ``baseline`` (with the uint8 images and the encoding), ``total`` (from the
+    request to the encoded body, before sending)."""
     t0 = time.perf_counter()
     given = [f for f in FIXED if f in params.model_fields_set]
     if given:
@@ -62,8 +63,10 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     spec = params.model_copy(update={"outputs": list(FRAME_OUTPUTS), "format": "arrays"})
     p = plan(spec, ctx)
     w, h = p.out_size
-    # beyond /sample's price: the ground truth's linear image, the baseline's, and two uint8 images
-    extra = w * h * 3 * (4 + 4 + 2)
+    # beyond /sample's price: the ground truth's linear image for its exposure (raw × gain, the CCM'd
+    # copy, the percentile's copy), the baseline's rendering (the same two plus encode_srgb's three
+    # float32 temporaries) and two uint8 images — at most ~100 bytes a pixel alive at once
+    extra = w * h * 3 * (4 * 8 + 2)
     hold = ctx.memory.acquire(price(p, ctx) + extra, f"this explorer frame ({w}x{h})")
     try:
         t1 = time.perf_counter()

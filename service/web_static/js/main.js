@@ -20,25 +20,21 @@ function readURL() {
   Object.assign(state, {
     scene: q.get("scene"), view: q.get("view"), sensor: q.get("sensor") || "XYZ",
     illuminants: list("illuminants"), intensities: list("intensities").map(Number),
-    gt: q.get("gt") || "", size: q.get("size") || "1", ev: Number(q.get("ev") || 0), gain: q.get("gain") || "br",
+    gt: q.get("gt") || "", size: q.get("size") || "", ev: Number(q.get("ev") || 0), gain: q.get("gain") || "br",
   });
 }
 
 /** The /sample parameters of the current view (shared by the frame request and the downloads). */
 function sampleParams() {
-  const v = currentView();
-  const d = Number(state.size) || 1;
   const p = { scene: state.scene, view: state.view, sensor: state.sensor, illuminants: state.illuminants.join(","),
     intensities: state.intensities.join(",") };
-  if (d !== 1) p.size = `${Math.max(1, Math.round(v.width / d))}x${Math.max(1, Math.round(v.height / d))}`;
+  if (state.size) p.size = state.size; // WxH, as /sample takes it; none: the view's own size
   if (state.gt) p.gt = state.gt;
   return p;
 }
 
 function writeURL() {
   const q = new URLSearchParams(sampleParams());
-  q.delete("size");
-  if (state.size !== "1") q.set("size", state.size);
   if (state.ev) q.set("ev", state.ev);
   if (state.gain !== "br") q.set("gain", state.gain);
   history.replaceState(null, "", `?${q}`);
@@ -71,7 +67,7 @@ function chooseScene() {
     b.title = `${v.name}: ${v.width}×${v.height}, groups ${v.groups.map((g) => g.name).join(", ")}`;
     const q = new URLSearchParams({ scene: scene.name, view: v.name, outputs: "srgb", format: "png", size: `${w}x${h}`, seed: "0" });
     b.innerHTML = `<img alt="${v.name}" width="${w}" height="${h}" src="/sample?${q}"><span>${v.name}</span>`;
-    b.onclick = () => { state.view = v.name; chooseScene(); chooseView(); update(); };
+    b.onclick = () => { state.view = v.name; state.size = ""; chooseScene(); chooseView(); update(); };
     thumbs.append(b);
   }
 }
@@ -96,7 +92,17 @@ function chooseView() {
     box.append(div);
     wireGroup(div, k);
   });
+  sizeOptions(v);
   setDownloads(sampleParams(), `${state.scene}-${state.view}`);
+}
+
+/** Full, half and quarter size of the view; a size from the URL that is none of them is kept. */
+function sizeOptions(v) {
+  const sizes = [1, 2, 4].map((d) => `${Math.max(1, Math.round(v.width / d))}x${Math.max(1, Math.round(v.height / d))}`);
+  if (state.size === sizes[0]) state.size = "";
+  const items = sizes.map((s, k) => [k ? s : "", `${["full", "1/2", "1/4"][k]} (${s.replace("x", "×")})`]);
+  if (state.size && !sizes.includes(state.size)) items.push([state.size, state.size.replace("x", "×")]);
+  options($("size"), [["frame size", items]], state.size);
 }
 
 function illuminantOptions(select, name) {
@@ -264,11 +270,6 @@ async function start() {
   sensorOptions();
   chooseScene();
   chooseView();
-  $("size").innerHTML = "";
-  for (const d of ["1", "2", "4"]) {
-    const v = currentView();
-    $("size").append(new Option(`${d === "1" ? "full" : `1/${d}`} (${Math.round(v.width / d)}×${Math.round(v.height / d)})`, d, false, d === state.size));
-  }
   $("gt").value = state.gt;
   $("gainch").value = state.gain;
   $("ev").value = state.ev;
@@ -279,7 +280,11 @@ async function start() {
     fr.append(c);
     fr.addEventListener("mousemove", hover);
   }
-  $("scene").onchange = () => { state.scene = $("scene").value; state.view = currentScene().views[0].name; chooseScene(); chooseView(); update(); };
+  $("scene").onchange = () => {
+    state.scene = $("scene").value;
+    Object.assign(state, { view: currentScene().views[0].name, size: "" });
+    chooseScene(); chooseView(); update();
+  };
   $("sensor").onchange = () => { state.sensor = $("sensor").value; update(); };
   $("gt").onchange = () => { state.gt = $("gt").value; update(); };
   $("size").onchange = () => { state.size = $("size").value; update(); };
