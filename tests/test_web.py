@@ -94,6 +94,14 @@ def test_page_loads_without_errors_or_other_hosts(browser, url):
     for legend in ("gain-legend", "mixture-legend"):
         assert browser.find_element(By.ID, legend).text.strip()
     assert browser.find_elements(By.CSS_SELECTOR, "#p-chroma canvas")
+    # the downloads are GET /sample with the page's parameters
+    import httpx
+
+    for link, kind in (("dl-npz", "application/octet-stream"), ("dl-srgb", "image/png"), ("dl-raw", "image/png")):
+        href = browser.find_element(By.ID, link).get_attribute("href")
+        assert href.startswith(url + "/sample?"), href
+        r = httpx.get(href, timeout=WAIT_S)
+        assert r.status_code == 200 and r.headers["content-type"] == kind, (link, r.status_code, r.text[:200])
 
 
 def test_changing_the_illuminants_changes_the_image_and_the_url(browser, url):

@@ -1,8 +1,24 @@
 // Uploads (sensor, illuminant) and the download links of the current sample.
 import { postForm } from "./api.js";
 
-/** Point the download links at GET /sample with the page's parameters. */
-export function setDownloads(params, stem) {
+//: what the npz download may hold (GET /sample outputs; ccm is 36 bytes a pixel, so off by default)
+export const NPZ_OUTPUTS = ["raw", "gain", "srgb", "weights", "mask", "illum", "mixture", "ccm"];
+export const DEFAULT_NPZ = NPZ_OUTPUTS.filter((o) => o !== "ccm");
+
+/** One checkbox per output the npz may hold; `onChange(list)` when one is toggled. */
+export function outputChecks(chosen, onChange) {
+  const box = document.getElementById("dl-outputs");
+  for (const name of NPZ_OUTPUTS) {
+    const label = document.createElement("label");
+    label.innerHTML = `<input type="checkbox" value="${name}"${chosen.includes(name) ? " checked" : ""}> ${name}`;
+    box.append(label);
+  }
+  box.addEventListener("change", () =>
+    onChange([...box.querySelectorAll("input:checked")].map((c) => c.value)));
+}
+
+/** Point the download links at GET /sample with the page's parameters (`outputs`: the npz's). */
+export function setDownloads(params, stem, outputs) {
   const link = (id, extra, ext) => {
     const a = document.getElementById(id);
     const q = new URLSearchParams(params);
@@ -10,7 +26,7 @@ export function setDownloads(params, stem) {
     a.href = `/sample?${q}`;
     a.download = `${stem}${ext}`;
   };
-  link("dl-npz", { format: "npz" }, ".npz");
+  link("dl-npz", { format: "npz", outputs: [...outputs, "meta"].join(",") }, ".npz");
   link("dl-srgb", { format: "png", outputs: "srgb" }, "-srgb.png");
   link("dl-raw", { format: "png", outputs: "raw" }, "-raw.png");
 }

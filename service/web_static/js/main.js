@@ -1,6 +1,6 @@
 // The web explorer: controls ↔ URL query string ↔ one /explore/frame request per update.
 import { getArrays, getJSON } from "./api.js";
-import { setDownloads, wireUploads } from "./forms.js";
+import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js";
 import {
   GROUP_COLOURS, drawMixture, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
 } from "./images.js";
@@ -21,6 +21,7 @@ function readURL() {
     scene: q.get("scene"), view: q.get("view"), sensor: q.get("sensor") || "XYZ",
     illuminants: list("illuminants"), intensities: list("intensities").map(Number),
     gt: q.get("gt") || "", size: q.get("size") || "", ev: Number(q.get("ev") || 0), gain: q.get("gain") || "br",
+    npz: q.get("npz") ? q.get("npz").split(",") : DEFAULT_NPZ,
   });
 }
 
@@ -37,6 +38,7 @@ function writeURL() {
   const q = new URLSearchParams(sampleParams());
   if (state.ev) q.set("ev", state.ev);
   if (state.gain !== "br") q.set("gain", state.gain);
+  if (String(state.npz) !== String(DEFAULT_NPZ)) q.set("npz", state.npz.join(","));
   history.replaceState(null, "", `?${q}`);
 }
 
@@ -93,7 +95,7 @@ function chooseView() {
     wireGroup(div, k);
   });
   sizeOptions(v);
-  setDownloads(sampleParams(), `${state.scene}-${state.view}`);
+  downloads();
 }
 
 /** Full, half and quarter size of the view; a size from the URL that is none of them is kept. */
@@ -137,6 +139,10 @@ function wireGroup(div, k) {
   int.oninput = () => { state.intensities[k] = Number(int.value); show(); later(); };
 }
 
+function downloads() {
+  setDownloads(sampleParams(), `${state.scene}-${state.view}`, state.npz);
+}
+
 function sensorOptions() {
   options($("sensor"), [["uploaded", lib.sensors.uploaded.map((x) => [x, x])],
     ["built in", lib.sensors.builtin.map((x) => [x, x])]], state.sensor);
@@ -169,7 +175,7 @@ async function loadSpectra() {
 async function update() {
   clearTimeout(timer);
   writeURL();
-  setDownloads(sampleParams(), `${state.scene}-${state.view}`);
+  downloads();
   inflight?.abort();
   const mine = (inflight = new AbortController());
   status("composing…");
@@ -295,6 +301,7 @@ async function start() {
     if (frame) drawRaw($("c-raw"), frame.arrays.raw, frame.scale, state.ev);
   };
   $("gainch").onchange = () => { state.gain = $("gainch").value; writeURL(); if (frame) drawGain(); };
+  outputChecks(state.npz, (list) => { state.npz = list; writeURL(); downloads(); });
   wireUploads(async (kind, name) => {
     await refreshLists();
     if (kind === "sensors") state.sensor = name;
