@@ -8,6 +8,11 @@ export const GROUP_COLOURS = ["#e69f00", "#56b4e9", "#009e73", "#cc79a7", "#f0e4
 const VIRIDIS = ["#440154", "#472d7b", "#3b528b", "#2c728e", "#21918c", "#28ae80", "#5ec962", "#addc30", "#fde725"];
 const LUT = buildLut(VIRIDIS.map(hexRgb));
 
+/** Text for an innerHTML template: names come from the store and from uploads. */
+export function esc(text) {
+  return String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+}
+
 export function hexRgb(hex) {
   const n = parseInt(hex.slice(1), 16);
   return [(n >> 16) & 255, (n >> 8) & 255, n & 255];
@@ -157,13 +162,13 @@ export function scalarLegend(el, lo, hi, log, label) {
 export function mixtureLegend(el, groups) {
   const colour = (k) => GROUP_COLOURS[k % GROUP_COLOURS.length];
   const items = groups.map((g, k) =>
-    `<span class="swatch" style="background:${colour(k)}"></span>${g.group}: ${g.intensity > 0 ? g.illuminant : "off"}`);
+    `<span class="swatch" style="background:${colour(k)}"></span>${esc(g.group)}: ${g.intensity > 0 ? esc(g.illuminant) : "off"}`);
   let html = `<div>${items.join(" &nbsp; ")}</div>`;
   const lit = groups.map((g, k) => [g, k]).filter(([g]) => g.intensity > 0);
   if (lit.length === 2) {
     const [[a, i], [b, j]] = lit;
     html = `<div class="bar" style="background: linear-gradient(to right, ${colour(i)}, ${colour(j)})"></div>
-      <div class="ticks"><span>100 % ${a.group}</span><span>50 / 50</span><span>100 % ${b.group}</span></div>` + html;
+      <div class="ticks"><span>100 % ${esc(a.group)}</span><span>50 / 50</span><span>100 % ${esc(b.group)}</span></div>` + html;
   }
   el.innerHTML = html + `<div class="muted">${NO_GT}</div>`;
 }

@@ -2,7 +2,7 @@
 import { getArrays, getJSON } from "./api.js";
 import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js";
 import {
-  GROUP_COLOURS, drawMixture, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
+  GROUP_COLOURS, drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
 } from "./images.js";
 import { chromaHover, plotChroma, plotSensor, plotSpectra, resizePlots } from "./plots.js";
 
@@ -68,7 +68,7 @@ function chooseScene() {
     b.className = v.name === state.view ? "thumb selected" : "thumb";
     b.title = `${v.name}: ${v.width}×${v.height}, groups ${v.groups.map((g) => g.name).join(", ")}`;
     const q = new URLSearchParams({ scene: scene.name, view: v.name, outputs: "srgb", format: "png", size: `${w}x${h}`, seed: "0" });
-    b.innerHTML = `<img alt="${v.name}" width="${w}" height="${h}" src="/sample?${q}"><span>${v.name}</span>`;
+    b.innerHTML = `<img alt="${esc(v.name)}" width="${w}" height="${h}" src="/sample?${q}"><span>${esc(v.name)}</span>`;
     b.onclick = () => { state.view = v.name; state.size = ""; chooseScene(); chooseView(); update(); };
     thumbs.append(b);
   }
@@ -87,8 +87,8 @@ function chooseView() {
     const div = document.createElement("div");
     div.className = "group";
     div.innerHTML = `<div><span class="swatch" style="background:${GROUP_COLOURS[k % GROUP_COLOURS.length]}"></span>
-        <b>${g.name}</b> <span class="muted">rendered with ${g.emission} emission</span></div>
-      <select class="ill" aria-label="illuminant of ${g.name}"></select>
+        <b>${esc(g.name)}</b> <span class="muted">rendered with ${esc(g.emission)} emission</span></div>
+      <select class="ill" aria-label="illuminant of ${esc(g.name)}"></select>
       <label class="cct">CCT <input type="range"> <output></output></label>
       <label>intensity <input class="int" type="range" min="0" max="4" step="0.05"> <output></output></label>`;
     box.append(div);
@@ -242,7 +242,7 @@ function hover(ev) {
   const [raw, gain, wp] = [rgb(a.raw), rgb(a.gain), rgb(a.illum)];
   const valid = a.mask.data[i];
   const mix = frame.meta.illuminants.map((m, k) =>
-    `${m.group} (${m.illuminant ?? "off"}) ${(100 * a.mixture.data[g * i + k]).toFixed(1)} %`);
+    `${esc(m.group)} (${m.intensity > 0 ? esc(m.illuminant) : "off"}) ${(100 * a.mixture.data[g * i + k]).toFixed(1)} %`);
   $("readout").className = "readout";
   $("readout").innerHTML = `<div>pixel x ${x}, y ${y} ${valid ? "" : '<b class="error">· no ground truth here</b>'}</div>
     <table><tr><th></th><th>R</th><th>G</th><th>B</th></tr>
