@@ -5,6 +5,7 @@
 #   --blender: the Cycles backend — Blender's bpy 4.5 in its own Python environment (it pins numpy < 2,
 #              illumix needs numpy 2), at $ILLUMIX_BLENDER_VENV (default ~/.cache/illumix/blender-venv);
 #              a ~370 MB download. --test implies it (the Cycles tests run in CI).
+#   --test:    also Debian's chromium + chromium-driver (root only) for the web explorer's browser tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 test_install=0
@@ -48,6 +49,18 @@ if [ "$blender" = 1 ]; then
   fi
 fi
 if [ "$test_install" = 1 ]; then
+  # The web explorer's browser tests (tests/test_web.py) drive Debian's headless Chromium with
+  # Selenium; without it they skip with a reason.
+  if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then
+    true  # already there
+  elif command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
+    echo "install: adding chromium + chromium-driver (the web explorer's browser tests)" >&2
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver) >&2 \
+      || echo "install: could not install chromium; the browser tests will skip" >&2
+  else
+    echo "install: no chromium/chromedriver and cannot apt-get them (not root / not Debian);" \
+         "the browser tests will skip. On Debian: apt-get install chromium chromium-driver" >&2
+  fi
   # The client's PyTorch dataset tests want torch. Pin the CPU build so pip takes the local CPU
   # wheel and never pulls the multi-GB CUDA one; without it those tests skip with a reason.
   python3 -m pip install -q "torch==2.13.0+cpu" \

@@ -9,7 +9,8 @@ inf (pixels with no light are flagged in ``mask``). Memory is bounded per reques
 Routers (one per resource): :mod:`service.routes.samples` (``/sample``, ``/batch``),
 :mod:`service.routes.registries` (``/sensors``, ``/illuminants``), :mod:`service.routes.status`
 (``/health``, ``/scenes``), :mod:`service.routes.metrics` (``/metrics``, Prometheus; collected by
-:mod:`service.metrics`).
+:mod:`service.metrics`), :mod:`service.routes.explore` (``/explore/*``) and :mod:`service.routes.web`
+(``/``, the web explorer page, and its static files under ``/web/``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from service import errors
 from service.body_guard import BodyGuard
 from service.limits import Limits
 from service.metrics import Metrics, RequestMetrics
-from service.routes import metrics, registries, samples, status
+from service.routes import explore, metrics, registries, samples, status, web
 from service.sampling import make_context
 from service.spec import SAMPLE_PARAMETERS
 
@@ -55,9 +56,10 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.state.token = token
     errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
     app.state.metrics = Metrics(app.state.ctx)
-    routers = (samples.router, registries.router, status.router, metrics.router)
+    routers = (samples.router, registries.router, status.router, metrics.router, explore.router, web.router)
     for router in routers:
         app.include_router(router)
+    web.mount_static(app)
     # every concrete route, for the Allow header of a 405 (FastAPI wraps included routers)
     app.state.routes = [r for r in app.routes if hasattr(r, "methods")] + [r for x in routers for r in x.routes]
     app.add_middleware(BodyGuard, limit_for=_body_limits(limits), timeout=limits.body_timeout_s,

@@ -102,3 +102,29 @@ class BatchRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     samples: list[SampleSpec] = Field(description="1..max_batch sample specs (the GET /sample parameters)")
+
+
+class LocusPoint(BaseModel):
+    kelvin: float = Field(description="colour temperature, K")
+    r_over_g: float = Field(description="R/G of the sensor white point")
+    b_over_g: float = Field(description="B/G of the sensor white point")
+
+
+class IlluminantCurve(BaseModel):
+    name: str
+    spd: list[float] = Field(description="band-averaged SPD on the grid, scaled to peak 1")
+    white_point_rgb: list[float] = Field(description="sensor white point (thesis eq. 3.2), G = 1")
+    r_over_g: float
+    b_over_g: float
+
+
+class Spectra(BaseModel):
+    """``GET /explore/spectra``: the curves the web explorer plots."""
+
+    sensor: str
+    grid: dict = Field(description="spectral grid {start, end, step} in nm")
+    wavelengths: list[float] = Field(description="band centres, nm")
+    sensitivities: list[list[float]] = Field(description="(bands, 3) R, G, B band averages, peak 1")
+    illuminants: list[IlluminantCurve]
+    planckian: list[LocusPoint] = Field(description="blackbody white points on this sensor, 1500-20000 K")
+    daylight: list[LocusPoint] = Field(description="CIE daylight white points on this sensor, 4000-20000 K")

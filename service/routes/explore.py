@@ -1,0 +1,145 @@
+"""``/explore/*``: what the web explorer (:mod:`service.routes.web`) shows, one request per update.
+
+- ``GET /explore/frame`` — the ``GET /sample`` parameters; one ``arrays`` container with what the page
+  draws: ``raw``, ``gain``, ``illum``, ``mixture`` (float32), ``mask`` (bool), and two display-ready
+  sRGB images as uint8 ``(H, W, 3)``: ``srgb`` (the pixel-wise ground truth) and ``baseline`` (the same
+  frame white-balanced by one global white point, :mod:`retarget.global_wb`, at the same exposure);
+  ``meta`` as ``/sample``'s, plus ``meta["baseline"]``. outputs, format, dtype and bayer are fixed.
+- ``GET /explore/spectra`` — the curves to plot: the sensor's sensitivities, each illuminant's SPD and
+  sensor white point, and the Planckian and daylight loci in the sensor's r/g, b/g
+  (:mod:`retarget.locus`), on the default spectral grid.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Query
+from fastapi.responses import Response
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from retarget import global_wb
+from retarget.exposure import aec_gain
+from retarget.grid import DEFAULT_GRID
+from retarget.groundtruth import white_point
+from retarget.isp import apply_ccm
+from retarget.locus import locus
+from service import arrays_format
+from service.deps import CtxDep
+from service.errors import error_responses, fail
+from service.models import IlluminantCurve, LocusPoint, Spectra
+from service.routes.samples import _HeldResponse
+from service.sampling import build, exposure_for, plan, price
+from service.spec import MAX_NAME, SampleSpec
+
+router = APIRouter(prefix="/explore", tags=["explore"])
+#: what a frame is composed with (ccm only to expose the baseline like the ground-truth rendering)
+FRAME_OUTPUTS = ("raw", "gain", "ccm", "srgb", "mixture", "illum", "mask", "meta")
+SENT = ("raw", "gain", "illum", "mixture", "mask")  # sent as composed; srgb and baseline as uint8
+FIXED = ("outputs", "format", "dtype", "bayer")
+BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor white points weighted by their "
+                       "mean mixture share over valid pixels (thesis §5.2), with the CCMs weighted alike and "
+                       "the ground-truth rendering's exposure")
+
+
+@router.get("/frame", response_class=Response,
+            responses={200: {"content": {arrays_format.MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}}},
+                             "description": "arrays container: raw, gain, illum, mixture (float32), mask (bool), "
+                                            "srgb and baseline (uint8 sRGB), meta with meta.baseline"},
+                       **error_responses(404, 413, 422, 503)})
+def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
+    """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
+    single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,
+    dtype and bayer (the page needs these fixed). ``Server-Timing`` says where the time went (ms):
+    ``compose`` (the sample), ``baseline`` (with the uint8 images and the encoding), ``total`` (from the
+    request to the encoded body, before sending)."""
+    t0 = time.perf_counter()
+    given = [f for f in FIXED if f in params.model_fields_set]
+    if given:
+        raise fail(422, f"/explore/frame sends fixed outputs; drop {', '.join(given)} (use /sample to choose them)",
+                   loc=["query", given[0]])
+    spec = params.model_copy(update={"outputs": list(FRAME_OUTPUTS), "format": "arrays"})
+    p = plan(spec, ctx)
+    w, h = p.out_size
+    # beyond /sample's price: the ground truth's linear image for its exposure (raw × gain, the CCM'd
+    # copy, the percentile's copy), the baseline's rendering (the same two plus encode_srgb's three
+    # float32 temporaries) and two uint8 images — at most ~100 bytes a pixel alive at once
+    extra = w * h * 3 * (4 * 8 + 2)
+    hold = ctx.memory.acquire(price(p, ctx) + extra, f"this explorer frame ({w}x{h})")
+    try:
+        t1 = time.perf_counter()
+        arrays, meta = build(p, ctx)
+        t2 = time.perf_counter()
+        meta["baseline"] = _baseline(arrays, meta, spec)
+        out = {k: arrays[k] for k in SENT}
+        out["srgb"] = _bytes(arrays["srgb"])
+        out["baseline"] = _bytes(meta["baseline"].pop("image"))
+        del arrays
+        body = arrays_format.encode(out, meta=meta)
+        t3 = time.perf_counter()
+        timing = f"compose;dur={1e3 * (t2 - t1):.1f}, baseline;dur={1e3 * (t3 - t2):.1f}, total;dur={1e3 * (t3 - t0):.1f}"
+        return _HeldResponse(body, hold, media_type=arrays_format.MEDIA_TYPE, headers={"Server-Timing": timing})
+    except BaseException:
+        hold.release()
+        raise
+
+
+def _baseline(arrays: dict[str, np.ndarray], meta: dict, spec: SampleSpec) -> dict:
+    """The single-global-white-point rendering and its parameters (``image``: float32 sRGB)."""
+    groups = meta["illuminants"]
+    shares = global_wb.frame_shares(arrays["mixture"], arrays["mask"])
+    wps = np.array([g["white_point_rgb"] for g in groups])
+    ccm = global_wb.global_ccm(shares, np.array([g["ccm"] for g in groups]))
+    wp = global_wb.global_white_point(shares, wps)
+    raw = arrays["raw"]
+    # compose exposes the ground truth's sRGB itself when no exposure was asked (retarget.compose): same here
+    exposure = aec_gain(apply_ccm(raw * arrays["gain"], arrays["ccm"]), "constant") if exposure_for(spec) is None else 1.0
+    return {"white_point_rgb": wp.tolist(), "ccm": ccm.round(8).tolist(), "exposure": exposure,
+            "shares": {g["group"]: float(s) for g, s in zip(groups, shares)}, "definition": BASELINE_DEFINITION,
+            "image": global_wb.render_global(raw, wp, ccm, exposure)}
+
+
+def _bytes(srgb: np.ndarray) -> np.ndarray:
+    """sRGB in [0, 1] → uint8 0..255 (rounded), ready for a canvas."""
+    return (np.clip(srgb, 0, 1) * np.float32(255) + np.float32(0.5)).astype(np.uint8)
+
+
+class SpectraQuery(BaseModel):
+    """``GET /explore/spectra`` parameters."""
+
+    model_config = ConfigDict(extra="forbid")
+    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name")
+    illuminants: str = Field("", max_length=16 * MAX_NAME,
+                             description="comma-separated illuminant names (registry, blackbody:K, daylight:K, "
+                                         "uploads), e.g. A,D65")
+
+    @field_validator("illuminants")
+    @classmethod
+    def _names(cls, v: str) -> str:
+        if len([x for x in v.split(",") if x.strip()]) > 16:
+            raise ValueError("illuminants: at most 16 names")
+        return v
+
+    def names(self) -> list[str]:
+        return [x.strip() for x in self.illuminants.split(",") if x.strip()]
+
+
+@router.get("/spectra", response_model=Spectra, responses=error_responses(404, 422))
+def spectra(q: Annotated[SpectraQuery, Query()], ctx: CtxDep) -> Spectra:
+    """The sensor's sensitivities, the illuminants' SPDs (peak 1) with their white points on the
+    sensor, and the Planckian and daylight loci in the sensor's r/g, b/g — on the default grid."""
+    grid = DEFAULT_GRID
+    sensor, _ = ctx.library.sensor(q.sensor, grid)
+    curves = []
+    for name in q.names():
+        spd, _ = ctx.library.illuminant(name, grid)
+        wp = white_point(sensor.weights(), spd, what=f"illuminant {name!r}")
+        curves.append(IlluminantCurve(name=name, spd=(spd / spd.max()).round(6).tolist(),
+                                      white_point_rgb=wp.tolist(), r_over_g=wp[0], b_over_g=wp[2]))
+    loci = {kind: [LocusPoint(kelvin=k, r_over_g=wp[0], b_over_g=wp[2])
+                   for k, wp in zip(*locus(sensor.weights(), grid, kind))] for kind in ("blackbody", "daylight")}
+    return Spectra(sensor=sensor.name, grid=grid.to_dict(), wavelengths=grid.wavelengths.tolist(),
+                   sensitivities=sensor.sensitivities.round(8).tolist(), illuminants=curves,
+                   planckian=loci["blackbody"], daylight=loci["daylight"])

@@ -1,0 +1,316 @@
+// The web explorer: controls ↔ URL query string ↔ one /explore/frame request per update.
+import { getArrays, getJSON } from "./api.js";
+import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js";
+import {
+  GROUP_COLOURS, drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
+} from "./images.js";
+import { chromaHover, plotChroma, plotSensor, plotSpectra, resizePlots } from "./plots.js";
+
+const $ = (id) => document.getElementById(id);
+const DEFAULT_LIGHTS = ["A", "D65", "FL11", "D50"];
+const CCT = { blackbody: [1500, 15000, 50, 3200], daylight: [4000, 20000, 100, 6500] }; // min, max, step, start
+const lib = { scenes: [], sensors: null, illuminants: null };
+const state = {};
+let frame = null, spectra = null, spectraKey = "", inflight = null, timer = null;
+
+// -- state ↔ URL -------------------------------------------------------------------------------
+function readURL() {
+  const q = new URLSearchParams(location.search);
+  const list = (k) => (q.get(k) ? q.get(k).split(",") : []);
+  Object.assign(state, {
+    scene: q.get("scene"), view: q.get("view"), sensor: q.get("sensor") || "XYZ",
+    illuminants: list("illuminants"), intensities: list("intensities").map(Number),
+    gt: q.get("gt") || "", size: q.get("size") || "", ev: Number(q.get("ev") || 0), gain: q.get("gain") || "br",
+    npz: q.get("npz") ? q.get("npz").split(",") : DEFAULT_NPZ,
+  });
+}
+
+/** The /sample parameters of the current view (shared by the frame request and the downloads). */
+function sampleParams() {
+  const p = { scene: state.scene, view: state.view, sensor: state.sensor, illuminants: state.illuminants.join(","),
+    intensities: state.intensities.join(",") };
+  if (state.size) p.size = state.size; // WxH, as /sample takes it; none: the view's own size
+  if (state.gt) p.gt = state.gt;
+  return p;
+}
+
+function writeURL() {
+  const q = new URLSearchParams(sampleParams());
+  if (state.ev) q.set("ev", state.ev);
+  if (state.gain !== "br") q.set("gain", state.gain);
+  if (String(state.npz) !== String(DEFAULT_NPZ)) q.set("npz", state.npz.join(","));
+  history.replaceState(null, "", `?${q}`);
+}
+
+const currentScene = () => lib.scenes.find((s) => s.name === state.scene);
+const currentView = () => currentScene().views.find((v) => v.name === state.view);
+
+// -- controls ----------------------------------------------------------------------------------
+function options(select, groups, selected) {
+  select.innerHTML = "";
+  for (const [label, items] of groups) {
+    if (!items.length) continue;
+    const og = document.createElement("optgroup");
+    og.label = label;
+    for (const [value, text] of items) og.append(new Option(text, value, false, value === selected));
+    select.append(og);
+  }
+}
+
+function chooseScene() {
+  const scene = currentScene();
+  options($("scene"), [["scenes", lib.scenes.map((s) => [s.name, s.name])]], state.scene);
+  const thumbs = $("thumbs");
+  thumbs.innerHTML = "";
+  for (const v of scene.views) {
+    const w = 96, h = Math.max(1, Math.round((96 * v.height) / v.width));
+    const b = document.createElement("button");
+    b.className = v.name === state.view ? "thumb selected" : "thumb";
+    b.title = `${v.name}: ${v.width}×${v.height}, groups ${v.groups.map((g) => g.name).join(", ")}`;
+    const q = new URLSearchParams({ scene: scene.name, view: v.name, outputs: "srgb", format: "png", size: `${w}x${h}`, seed: "0" });
+    b.innerHTML = `<img alt="${esc(v.name)}" width="${w}" height="${h}" src="/sample?${q}"><span>${esc(v.name)}</span>`;
+    b.onclick = () => { state.view = v.name; state.size = ""; chooseScene(); chooseView(); update(); };
+    thumbs.append(b);
+  }
+}
+
+/** Per light group: an illuminant (list or CCT slider) and an intensity. */
+function chooseView() {
+  const v = currentView();
+  const n = v.groups.length;
+  state.illuminants = v.groups.map((g, k) => state.illuminants[k] || DEFAULT_LIGHTS[k % DEFAULT_LIGHTS.length]);
+  state.intensities = v.groups.map((g, k) => (Number.isFinite(state.intensities[k]) ? state.intensities[k] : 1));
+  state.illuminants.length = state.intensities.length = n;
+  const box = $("groups");
+  box.innerHTML = "";
+  v.groups.forEach((g, k) => {
+    const div = document.createElement("div");
+    div.className = "group";
+    div.innerHTML = `<div><span class="swatch" style="background:${GROUP_COLOURS[k % GROUP_COLOURS.length]}"></span>
+        <b>${esc(g.name)}</b> <span class="muted">rendered with ${esc(g.emission)} emission</span></div>
+      <select class="ill" aria-label="illuminant of ${esc(g.name)}"></select>
+      <label class="cct">CCT <input type="range"> <output></output></label>
+      <label>intensity <input class="int" type="range" min="0" max="4" step="0.05"> <output></output></label>`;
+    box.append(div);
+    wireGroup(div, k);
+  });
+  sizeOptions(v);
+  downloads();
+}
+
+/** Full, half and quarter size of the view; a size from the URL that is none of them is kept. */
+function sizeOptions(v) {
+  const sizes = [1, 2, 4].map((d) => `${Math.max(1, Math.round(v.width / d))}x${Math.max(1, Math.round(v.height / d))}`);
+  if (state.size === sizes[0]) state.size = "";
+  const items = sizes.map((s, k) => [k ? s : "", `${["full", "1/2", "1/4"][k]} (${s.replace("x", "×")})`]);
+  if (state.size && !sizes.includes(state.size)) items.push([state.size, state.size.replace("x", "×")]);
+  options($("size"), [["frame size", items]], state.size);
+}
+
+function illuminantOptions(select, name) {
+  const kind = name.includes(":") ? name.split(":")[0] : name;
+  options(select, [
+    ["colour temperature (slider)", [["blackbody", "blackbody (Planck)"], ["daylight", "CIE daylight"]]],
+    ["uploaded", lib.illuminants.uploaded.map((x) => [x, x])],
+    ["CIE and measured", lib.illuminants.builtin.map((x) => [x, x])],
+  ], kind);
+}
+
+function wireGroup(div, k) {
+  const sel = div.querySelector(".ill"), cct = div.querySelector(".cct"), slider = cct.querySelector("input");
+  const int = div.querySelector(".int");
+  const show = () => {
+    const [kind, kelvin] = state.illuminants[k].split(":");
+    cct.hidden = !(kind in CCT);
+    if (kind in CCT) {
+      const [lo, hi, step, start] = CCT[kind];
+      Object.assign(slider, { min: lo, max: hi, step });
+      slider.value = kelvin || start;
+      state.illuminants[k] = `${kind}:${slider.value}`;
+      cct.querySelector("output").textContent = `${slider.value} K`;
+    }
+    int.nextElementSibling.textContent = state.intensities[k].toFixed(2);
+  };
+  illuminantOptions(sel, state.illuminants[k]);
+  int.value = state.intensities[k];
+  show();
+  sel.onchange = () => { state.illuminants[k] = sel.value; show(); update(); };
+  slider.oninput = () => { state.illuminants[k] = `${state.illuminants[k].split(":")[0]}:${slider.value}`; show(); later(); };
+  int.oninput = () => { state.intensities[k] = Number(int.value); show(); later(); };
+}
+
+function downloads() {
+  setDownloads(sampleParams(), `${state.scene}-${state.view}`, state.npz);
+}
+
+function sensorOptions() {
+  options($("sensor"), [["uploaded", lib.sensors.uploaded.map((x) => [x, x])],
+    ["built in", lib.sensors.builtin.map((x) => [x, x])]], state.sensor);
+}
+
+// -- updates -----------------------------------------------------------------------------------
+function status(text, error = false) {
+  $("status").textContent = text;
+  $("status").className = error ? "error" : "muted";
+}
+
+/** Slider drags: one request when the hand pauses, not one per pixel of travel. */
+function later() {
+  clearTimeout(timer);
+  timer = setTimeout(update, 80);
+}
+
+async function loadSpectra() {
+  const lit = state.illuminants.filter((_, k) => state.intensities[k] > 0);
+  const key = `${state.sensor}|${lit}`;
+  if (key !== spectraKey) {
+    const q = new URLSearchParams({ sensor: state.sensor, illuminants: lit.join(",") });
+    spectra = await getJSON(`/explore/spectra?${q}`);
+    spectraKey = key;
+  }
+  return spectra;
+}
+
+/** Compose the current view: one /explore/frame request (a newer update aborts an older one). */
+async function update() {
+  clearTimeout(timer);
+  writeURL();
+  downloads();
+  inflight?.abort();
+  const mine = (inflight = new AbortController());
+  status("composing…");
+  const t0 = performance.now();
+  try {
+    const [f, s] = await Promise.all([getArrays(`/explore/frame?${new URLSearchParams(sampleParams())}`, mine.signal),
+      loadSpectra()]);
+    if (mine !== inflight) return;
+    const t1 = performance.now();
+    frame = prepare(f);
+    drawAll(s);
+    const [h, w] = f.arrays.raw.shape;
+    status(`${w}×${h} · server ${Math.round(f.timing.total)} ms, request ${Math.round(t1 - t0)} ms, `
+      + `draw ${Math.round(performance.now() - t1)} ms · ground truth: ${f.meta.ground_truth.method}`);
+    document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1); // for tests
+  } catch (e) {
+    if (e.name !== "AbortError") status(e.message, true);
+  }
+}
+
+function prepare(f) {
+  const { raw, illum, mask } = f.arrays;
+  const [h, w] = raw.shape;
+  const pts = [];
+  const step = Math.max(1, Math.floor((w * h) / 400));
+  for (let i = 0; i < w * h; i += step) if (mask.data[i]) pts.push([illum.data[3 * i], illum.data[3 * i + 2]]);
+  return { ...f, w, h, scale: rawScale(raw), pixelWhitePoints: pts };
+}
+
+function drawAll(s) {
+  const { arrays: a, meta } = frame;
+  drawRaw($("c-raw"), a.raw, frame.scale, state.ev);
+  drawRGB8($("c-srgb"), a.srgb);
+  drawRGB8($("c-baseline"), a.baseline);
+  drawGain();
+  drawMixture($("c-mixture"), a.mixture, a.mask);
+  mixtureLegend($("mixture-legend"), meta.illuminants);
+  const b = meta.baseline;
+  const shares = Object.entries(b.shares).map(([g, v]) => `${g} ${(100 * v).toFixed(0)} %`).join(", ");
+  $("baseline-note").textContent = `white point R/G ${b.white_point_rgb[0].toFixed(3)}, B/G `
+    + `${b.white_point_rgb[2].toFixed(3)}: the groups' white points weighted by their share of the frame (${shares})`;
+  const lit = meta.illuminants.map((g, index) => ({ group: g.group, index, on: g.intensity > 0 })).filter((g) => g.on);
+  plotSpectra(s, lit);
+  plotSensor(s);
+  plotChroma(s, frame, null);
+}
+
+function drawGain() {
+  const { values, log, label } = gainValues(frame.arrays.gain, state.gain);
+  const [lo, hi] = drawScalar($("c-gain"), values, frame.arrays.mask, frame.w, frame.h);
+  scalarLegend($("gain-legend"), lo, hi, log, label);
+}
+
+// -- hover -------------------------------------------------------------------------------------
+const f3 = (v) => (Math.abs(v) >= 1000 || (Math.abs(v) < 0.001 && v !== 0) ? v.toExponential(2) : v.toFixed(3));
+
+function hover(ev) {
+  if (!frame) return;
+  const r = ev.currentTarget.getBoundingClientRect();
+  const x = Math.floor(((ev.clientX - r.left) / r.width) * frame.w), y = Math.floor(((ev.clientY - r.top) / r.height) * frame.h);
+  if (x < 0 || y < 0 || x >= frame.w || y >= frame.h) return;
+  const i = y * frame.w + x, a = frame.arrays, g = a.mixture.shape[2];
+  const rgb = (arr) => [0, 1, 2].map((c) => arr.data[3 * i + c]);
+  const [raw, gain, wp] = [rgb(a.raw), rgb(a.gain), rgb(a.illum)];
+  const valid = a.mask.data[i];
+  const mix = frame.meta.illuminants.map((m, k) =>
+    `${esc(m.group)} (${m.intensity > 0 ? esc(m.illuminant) : "off"}) ${(100 * a.mixture.data[g * i + k]).toFixed(1)} %`);
+  $("readout").className = "readout";
+  $("readout").innerHTML = `<div>pixel x ${x}, y ${y} ${valid ? "" : '<b class="error">· no ground truth here</b>'}</div>
+    <table><tr><th></th><th>R</th><th>G</th><th>B</th></tr>
+    <tr><td>raw <span class="muted">(relative)</span></td>${raw.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
+    <tr><td>gain</td>${gain.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
+    <tr><td>white point <span class="muted">(R/G, 1, B/G)</span></td>${wp.map((v) => `<td>${f3(v)}</td>`).join("")}</tr></table>
+    <div>mixture: ${mix.join(" · ")}</div>`;
+  for (const c of document.querySelectorAll(".cross")) {
+    c.hidden = false;
+    c.style.left = `${(100 * (x + 0.5)) / frame.w}%`;
+    c.style.top = `${(100 * (y + 0.5)) / frame.h}%`;
+  }
+  chromaHover(valid ? [wp[0], wp[2]] : null);
+}
+
+// -- start -------------------------------------------------------------------------------------
+async function refreshLists() {
+  [lib.sensors, lib.illuminants] = await Promise.all([getJSON("/sensors"), getJSON("/illuminants")]);
+}
+
+async function start() {
+  readURL();
+  const [scenes, health] = await Promise.all([getJSON("/scenes"), getJSON("/health"), refreshLists()]);
+  lib.scenes = scenes.scenes.filter((s) => s.views.length);
+  if (!lib.scenes.length) { status("the store holds no rendered views yet: run `illumix render`", true); return; }
+  if (!currentScene()) state.scene = lib.scenes[0].name;
+  if (!currentScene().views.some((v) => v.name === state.view)) state.view = currentScene().views[0].name;
+  const nviews = lib.scenes.reduce((n, s) => n + s.views.length, 0);
+  $("summary").textContent = `${lib.scenes.length} scene(s), ${nviews} view(s)`;
+  $("token-row").hidden = !health.auth;
+  sensorOptions();
+  chooseScene();
+  chooseView();
+  $("gt").value = state.gt;
+  $("gainch").value = state.gain;
+  $("ev").value = state.ev;
+  $("ev-out").textContent = `${state.ev >= 0 ? "+" : ""}${state.ev} EV`;
+  for (const fr of document.querySelectorAll(".frame")) {
+    const c = document.createElement("div");
+    c.className = "cross"; c.hidden = true;
+    fr.append(c);
+    fr.addEventListener("mousemove", hover);
+  }
+  $("scene").onchange = () => {
+    state.scene = $("scene").value;
+    Object.assign(state, { view: currentScene().views[0].name, size: "" });
+    chooseScene(); chooseView(); update();
+  };
+  $("sensor").onchange = () => { state.sensor = $("sensor").value; update(); };
+  $("gt").onchange = () => { state.gt = $("gt").value; update(); };
+  $("size").onchange = () => { state.size = $("size").value; update(); };
+  $("ev").oninput = () => {
+    state.ev = Number($("ev").value);
+    $("ev-out").textContent = `${state.ev >= 0 ? "+" : ""}${state.ev} EV`;
+    writeURL();
+    if (frame) drawRaw($("c-raw"), frame.arrays.raw, frame.scale, state.ev);
+  };
+  $("gainch").onchange = () => { state.gain = $("gainch").value; writeURL(); if (frame) drawGain(); };
+  outputChecks(state.npz, (list) => { state.npz = list; writeURL(); downloads(); });
+  wireUploads(async (kind, name) => {
+    await refreshLists();
+    if (kind === "sensors") state.sensor = name;
+    sensorOptions();
+    chooseView();
+    if (kind === "sensors") update();
+  });
+  window.addEventListener("resize", resizePlots);
+  await update();
+}
+
+start().catch((e) => status(`could not start: ${e.message}`, true));
