@@ -30,7 +30,7 @@ from service import arrays_format
 from service.deps import CtxDep
 from service.errors import error_responses, fail
 from service.models import IlluminantCurve, LocusPoint, Spectra
-from service.routes.samples import _HeldResponse
+from service.routes.samples import HeldResponse
 from service.sampling import build, exposure_for, plan, price
 from service.spec import MAX_NAME, SampleSpec
 
@@ -80,7 +80,7 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
         body = arrays_format.encode(out, meta=meta)
         t3 = time.perf_counter()
         timing = f"compose;dur={1e3 * (t2 - t1):.1f}, baseline;dur={1e3 * (t3 - t2):.1f}, total;dur={1e3 * (t3 - t0):.1f}"
-        return _HeldResponse(body, hold, media_type=arrays_format.MEDIA_TYPE, headers={"Server-Timing": timing})
+        return HeldResponse(body, hold, media_type=arrays_format.MEDIA_TYPE, headers={"Server-Timing": timing})
     except BaseException:
         hold.release()
         raise

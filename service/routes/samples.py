@@ -31,7 +31,7 @@ router = APIRouter(tags=["samples"])
 SEND_CHUNK = 1 << 18
 
 
-class _HeldResponse(Response):
+class HeldResponse(Response):
     """A response that gives its working-memory reservation back once it is sent — or once sending
     failed (a client that hangs up must not leak the reservation, as a background task would).
 
@@ -105,7 +105,7 @@ def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
             headers["X-Illumix-Meta"] = meta_json({k: meta[k] for k in ("scene", "view", "seed", "size",
                                                                          "exposure_gain")})
         del arrays
-        return _HeldResponse(body, hold, media_type=MEDIA[params.format], headers=headers)
+        return HeldResponse(body, hold, media_type=MEDIA[params.format], headers=headers)
     except BaseException:
         hold.release()
         raise
@@ -154,7 +154,7 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
                     arrays[f"{i}/scales"] = np.array(meta_json(s))
         payload = encode_npz(arrays, None) if fmt == "npz" else arrays_format.encode(arrays, scales, items=items)
         del arrays
-        return _HeldResponse(payload, hold, media_type=MEDIA[fmt])
+        return HeldResponse(payload, hold, media_type=MEDIA[fmt])
     except BaseException:
         hold.release()
         raise
