@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from retarget.global_wb import frame_shares, global_white_point
+
 DENOMINATOR = 1_000_000
 
 
@@ -49,7 +51,8 @@ def as_shot_neutral(white_points, mixture: np.ndarray | None = None, valid: np.n
 
     One light (``mixture`` ``None``): its white point. Mixed light: the mean over the ``valid`` pixels
     of LSMI's illumination map ``Σ_i mixture_i · white_i`` (= the mean of the service's ``illum``
-    output for ``gt=formula``), i.e. the lights' white points weighted by their mean mixture share;
+    output for ``gt=formula``) — the lights' white points weighted by their mean mixture share, the
+    thesis' single global white point (:mod:`retarget.global_wb`, the web explorer's baseline);
     equal shares where no pixel is valid.
 
     white_points : ``(k, 3)`` camera RGB (G = 1) of the lit lights; mixture : ``(H, W, k)`` their
@@ -57,9 +60,8 @@ def as_shot_neutral(white_points, mixture: np.ndarray | None = None, valid: np.n
     c = np.asarray(white_points, np.float64)
     if mixture is None:
         return c[0].tolist()
-    w = mixture[valid].mean(axis=0) if valid.any() else np.full(len(c), 1 / len(c))
-    n = w @ c
-    return (n / n[1]).tolist()
+    shares = frame_shares(mixture, valid) if valid.any() else np.full(len(c), 1 / len(c))
+    return global_white_point(shares, c).tolist()
 
 
 def _rationals(values) -> list[list[int]]:
