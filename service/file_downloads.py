@@ -5,9 +5,9 @@
   the white level, highlights clip) and quantised to digital numbers like ``illumix export``'s
   frames: with ``noise=``, the sensor model's digital numbers, black and white level; without, the
   export's default sensor levels (black 64, white 4095: 12 bits) with ``DN = round(64 + raw · (4095 −
-  64))`` clipped to [0, 4095] (:func:`retarget.sensor_model.simulate_raw` without noise), so the file
-  is the one ``illumix export --format dng`` writes for the same parameters. ``ColorMatrix1``: the
-  sensor's under D65 (:func:`fileformats.dng.color_matrix`); ``AsShotNeutral``: the ground-truth
+  64))`` clipped to [0, 4095] (:func:`retarget.sensor_model.simulate_raw` without noise): the digital
+  numbers, levels, matrix and neutral ``illumix export --format dng`` writes for the same
+  parameters. ``ColorMatrix1``: the sensor's under D65 (:func:`fileformats.dng.color_matrix`); ``AsShotNeutral``: the ground-truth
   white point (:func:`fileformats.dng.as_shot_neutral`: one lit group's white point; for mixed
   light the mean mixed white point over the valid pixels). libraw opens frames of 22 × 22 pixels
   and more: smaller ones are refused.
