@@ -40,7 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fileformats.spectral_exr import EMISSIVE, REFLECTIVE, channel_name, layout_attributes
+from fileformats.spectral_exr import (
+    EMISSIVE,
+    REFLECTIVE,
+    channel_name,
+    layout_attributes,
+)
 
 RGB = ("R", "G", "B")
 COMPONENTS = {"normal": ("X", "Y", "Z")}  # 3-channel outputs that are not colours

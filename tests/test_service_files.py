@@ -13,14 +13,14 @@ import pytest
 rawpy = pytest.importorskip("rawpy", reason="the export extra installs rawpy (pip install -e '.[export]')")
 pytest.importorskip("pidng", reason="the export extra installs pidng")
 pytest.importorskip("OpenEXR", reason="the export extra installs OpenEXR")
-import synthetic_store as synth  # noqa: E402
-from fastapi.testclient import TestClient  # noqa: E402
+import synthetic_store as synth
+from fastapi.testclient import TestClient
 
-from retarget.grid import DEFAULT_GRID  # noqa: E402
-from retarget.illuminants import illuminant_spd  # noqa: E402
-from retarget.sensors import get_sensor  # noqa: E402
-from service.app import create_app  # noqa: E402
-from store import CubeStore  # noqa: E402
+from retarget.grid import DEFAULT_GRID
+from retarget.illuminants import illuminant_spd
+from retarget.sensors import get_sensor
+from service.app import create_app
+from store import CubeStore
 
 SENSOR = "Nikon 5100 (NPL)"
 BLACK, WHITE = 64, 4095  # the DNG's levels without noise= (the export's default sensor levels)
