@@ -10,9 +10,10 @@ the manifest records. One concept per module:
 - :mod:`export.frames` — composing one place's LSMI capture set (``_1``, ``_12``, …) at one exposure;
 - :mod:`export.chart` — the ColorChecker's corners in the image, found in the view's albedo AOV;
 - :mod:`export.lsmi` — the LSMI release's layout (tiff / npy / meta.json / split.json / template DNG);
-- :mod:`export.dng` — DNG raw files (pidng) with colour matrix and as-shot neutral, read by libraw;
-- :mod:`export.exr` — spectral OpenEXR (Fichet et al. 2021 channel names) writer and reader;
 - :mod:`export.splits` — train/val/test by scene; :mod:`export.journal` — atomic writes, resume,
   checksums, ``manifest.json``; :mod:`export.card` — the dataset card ``README.md``;
 - :mod:`export.run` — the whole export (what ``illumix export`` calls).
+
+The file encoders themselves (DNG, spectral OpenEXR) live one room below, in :mod:`fileformats`, so
+that the service serves the same files (``GET /sample?format=dng|exr``).
 """

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from export.plan import Place, derive_seed
+from fileformats.dng import as_shot_neutral
 
 OUTPUTS = ["raw", "mixture", "illum", "mask", "meta"]
 ZERO_MASK = -1.0  # LSMI's mixture value where no light reaches the pixel (never NaN, never other negatives)
@@ -136,10 +137,4 @@ class Composer:
 def _neutral(mixture: np.ndarray | None, chroma: list[list[float]]) -> list[float]:
     """The frame's as-shot neutral (G = 1): its light's white point, or the mean of LSMI's
     illumination map ``Σ mixture_i Light_i`` over the lit pixels."""
-    c = np.asarray(chroma, np.float64)
-    if mixture is None:
-        return c[0].tolist()
-    lit = mixture[..., 0] != ZERO_MASK
-    w = mixture[lit].mean(axis=0) if lit.any() else np.full(len(c), 1 / len(c))
-    n = w @ c
-    return (n / n[1]).tolist()
+    return as_shot_neutral(chroma, mixture, None if mixture is None else mixture[..., 0] != ZERO_MASK)

@@ -22,6 +22,8 @@
   the ``X-Illumix-Scale``/``X-Illumix-Black-Level``/``X-Illumix-White-Level`` headers and in the
   sample's metadata (``meta["encoding"]``).
 - ``tiff``: one image output as float32 (``mask`` as uint8), exact.
+- ``dng`` (the raw as a Bayer DNG) and ``exr`` (every output in one float32 OpenEXR):
+  :mod:`service.file_downloads`.
 
 Metadata JSON never carries NaN or inf: it is written with ``allow_nan=False``.
 """
@@ -41,9 +43,10 @@ from retarget.errors import SpectralError
 
 GAIN_PNG_SCALE = 4096.0
 RAW_PNG_WHITE = 65535
-IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights")}
+IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights"),
+                 "dng": ("raw",)}
 MEDIA = {"npz": "application/octet-stream", "arrays": "application/x-illumix-arrays", "png": "image/png",
-         "tiff": "image/tiff"}
+         "tiff": "image/tiff", "dng": "image/x-adobe-dng", "exr": "image/x-exr"}
 #: float16 scaling puts each output's largest magnitude in [2^(HALF_TOP-1), 2^HALF_TOP) as stored
 HALF_TOP = 15
 

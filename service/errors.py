@@ -62,6 +62,7 @@ _DESCRIPTIONS = {
          "says which limit and how to ask for less.",
     422: "A parameter is invalid or unknown; `detail` says which and how to fix it.",
     500: "A bug in the service (logged); `detail` names the error type.",
+    501: "A format whose optional package this service lacks (format=dng|exr); `detail` names the install.",
     503: "The service is busy (retry after `Retry-After` seconds) or its store is damaged or "
          "unreachable (`detail` says to run `illumix store verify`).",
     507: "The store's disk is full: the upload was not written.",

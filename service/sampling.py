@@ -332,9 +332,9 @@ def _aov_reader(ctx: Context, p: Plan):
 
 
 def exposure_for(spec: SampleSpec) -> float | str | None:
-    """The exposure to apply: as asked, else auto for a PNG of raw (its 16 bits map 1.0 = white level)."""
+    """The exposure to apply: as asked, else auto for a PNG or DNG of raw (1.0 = its white level)."""
     value = spec.exposure_value()
-    if value is None and spec.format == "png" and "raw" in spec.outputs:
+    if value is None and spec.format in ("png", "dng") and "raw" in spec.outputs:
         return "constant"
     return value
 

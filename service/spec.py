@@ -31,7 +31,7 @@ from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 from service.encoding import IMAGE_OUTPUTS
 
-FORMATS = ("npz", "arrays", "png", "tiff")
+FORMATS = ("npz", "arrays", "png", "tiff", "dng", "exr")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
 SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spectra over the bands
 # ccm is 36 bytes a pixel (25 MB of a 56 MB 720x960 answer) and is exactly Σ_g mixture_g CCM_g from
@@ -158,9 +158,10 @@ class SampleSpec(BaseModel):
         description=f"none (the cubes as rendered) or a denoise method ({', '.join(DENOISE_CHOICES.names[1:])}): "
                     "the cubes' stored denoised copies (guide-only, linear: relighting stays exact). Default: the "
                     "stored copies where every lit group has them, else none")
-    format: Literal["npz", "arrays", "png", "tiff"] = Field(
+    format: Literal["npz", "arrays", "png", "tiff", "dng", "exr"] = Field(
         "npz", description="npz (all outputs), arrays (all outputs, the flat illumix container: faster; "
-                           "application/x-illumix-arrays), or png/tiff (one image output)")
+                           "application/x-illumix-arrays), png/tiff (one image output), dng (outputs=raw: a "
+                           "Bayer DNG, bayer= or RGGB) or exr (all outputs, one float32 OpenEXR, a layer each)")
     dtype: Literal["float32", "float16"] = Field(
         "float32", description="float outputs as float32, or as float16 with a power-of-two scale per output "
                                "(value = stored × scale; meta.encoding.scales); npz and arrays only")
@@ -181,14 +182,19 @@ class SampleSpec(BaseModel):
 
     @model_validator(mode="after")
     def _one_image(self) -> SampleSpec:
-        if self.dtype != "float32" and self.format in IMAGE_OUTPUTS:
-            raise ValueError(f"dtype={self.dtype} is for format=npz or arrays; format={self.format} has its own "
-                             "fixed scale: drop dtype= or ask format=arrays")
-        if self.format in IMAGE_OUTPUTS:
-            images = [o for o in self.outputs if o != "meta"]
-            if len(images) != 1 or images[0] not in IMAGE_OUTPUTS[self.format]:
-                raise ValueError(f"format={self.format} returns exactly one image output, one of "
-                                 f"{', '.join(IMAGE_OUTPUTS[self.format])}; ask e.g. outputs=srgb&format={self.format}")
+        if self.dtype != "float32" and self.format not in ("npz", "arrays"):
+            how = "is float32, exact" if self.format == "exr" else "has its own fixed scale"
+            raise ValueError(f"dtype={self.dtype} is for format=npz or arrays; format={self.format} {how}: drop "
+                             "dtype= or ask format=arrays")
+        if self.format == "dng" and "outputs" not in self.model_fields_set:
+            self.outputs = ["raw", "meta"]  # a DNG holds the raw: nothing else to choose
+        images = [o for o in self.outputs if o != "meta"]
+        if self.format in IMAGE_OUTPUTS and (len(images) != 1 or images[0] not in IMAGE_OUTPUTS[self.format]):
+            example = "raw" if self.format == "dng" else "srgb"
+            raise ValueError(f"format={self.format} returns exactly one image output, one of "
+                             f"{', '.join(IMAGE_OUTPUTS[self.format])}; ask e.g. outputs={example}&format={self.format}")
+        if self.format == "exr" and not images:
+            raise ValueError("format=exr writes array outputs (meta goes in its header); ask e.g. outputs=raw,gain,meta")
         return self
 
     @field_validator("denoise")

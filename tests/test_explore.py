@@ -89,6 +89,22 @@ def test_static_files_ship_with_the_package():
             assert any(fnmatch(rel, g) and rel.count("/") == g.count("/") for g in globs), rel
 
 
+def test_the_page_offers_every_download_the_service_serves(client):
+    """Each download link (``forms.js``) names a format ``GET /sample`` serves — npz, PNG, DNG, EXR —
+    and is answered with its media type for the page's parameters (the browser test follows the
+    links themselves); nothing is marked "not served" any more."""
+    page = (STATIC / "index.html").read_text()
+    links = dict(re.findall(r'link\("(dl-[a-z]+)", \{ format: "([a-z]+)"', (STATIC / "js" / "forms.js").read_text()))
+    assert links == {"dl-npz": "npz", "dl-exr": "exr", "dl-srgb": "png", "dl-raw": "png", "dl-dng": "dng"}
+    assert all(f'id="{k}"' in page for k in links) and "not served" not in page
+    page_params = {"scene": "synth", "view": "v0", "sensor": "XYZ", "illuminants": "A,D65", "intensities": "1,1"}
+    for fmt, outputs, media in (("dng", "raw", "image/x-adobe-dng"),
+                                ("exr", "raw,gain,srgb,weights,mask,illum,mixture,meta", "image/x-exr")):
+        r = client.get("/sample", params=page_params | {"format": fmt, "outputs": outputs})
+        assert r.status_code == 200 and r.headers["content-type"] == media, r.text
+        assert r.headers["content-disposition"].endswith(f'.{fmt}"')
+
+
 # -- /explore/frame --------------------------------------------------------------------------------
 def test_frame_holds_what_the_page_draws(client):
     a, meta = frame(client, illuminants="A,D65")

@@ -97,7 +97,8 @@ def test_page_loads_without_errors_or_other_hosts(browser, url):
     # the downloads are GET /sample with the page's parameters
     import httpx
 
-    for link, kind in (("dl-npz", "application/octet-stream"), ("dl-srgb", "image/png"), ("dl-raw", "image/png")):
+    for link, kind in (("dl-npz", "application/octet-stream"), ("dl-srgb", "image/png"), ("dl-raw", "image/png"),
+                       ("dl-dng", "image/x-adobe-dng"), ("dl-exr", "image/x-exr")):
         href = browser.find_element(By.ID, link).get_attribute("href")
         assert href.startswith(url + "/sample?"), href
         r = httpx.get(href, timeout=WAIT_S)

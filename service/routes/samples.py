@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
 from service import arrays_format, budget
+from service import file_downloads as files
 from service.deps import CtxDep
 from service.encoding import (
     MEDIA,
@@ -64,7 +65,7 @@ class HeldResponse(Response):
 
 _BINARY = {"schema": {"type": "string", "format": "binary"}}
 _NPZ = {"application/octet-stream": _BINARY, arrays_format.MEDIA_TYPE: _BINARY}
-_SAMPLE_CONTENT = {**_NPZ, "image/png": _BINARY, "image/tiff": _BINARY}
+_SAMPLE_CONTENT = {**_NPZ, **{MEDIA[f]: _BINARY for f in ("png", "tiff", "dng", "exr")}}
 
 
 def _encoding(spec: SampleSpec, arrays: dict[str, np.ndarray], meta: dict) -> tuple[dict[str, np.ndarray], dict]:
@@ -80,13 +81,14 @@ def _encoding(spec: SampleSpec, arrays: dict[str, np.ndarray], meta: dict) -> tu
 @router.get("/sample", response_class=Response,
             responses={200: {"content": _SAMPLE_CONTENT,
                              "description": "npz or arrays container with one array per output (+ meta JSON), "
-                                            "or one PNG/TIFF image"},
-                       **error_responses(404, 413, 422, 500, 503)})
+                                            "one PNG/TIFF image, a DNG of the raw or an OpenEXR of the outputs"},
+                       **error_responses(404, 413, 422, 500, 501, 503)})
 def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One sample: the view lit by the given illuminants, projected through the sensor, with exact
     pixel-wise ground truth. Unknown parameters are refused with the close match."""
-    p = plan(params, ctx)
-    hold = ctx.memory.acquire(price(p, ctx), f"this sample ({_describe(params, p)})")
+    p = plan(files.compose_spec(params), ctx)
+    files.check(p)
+    hold = ctx.memory.acquire(price(p, ctx) + files.extra_bytes(p), f"this sample ({_describe(params, p)})")
     try:
         arrays, meta = build(p, ctx)
         headers: dict[str, str] = {}
@@ -97,6 +99,8 @@ def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
                 body = encode_npz(arrays, meta, scales)
             else:
                 body = arrays_format.encode(arrays, scales, **({"meta": meta} if meta is not None else {}))
+        elif params.format in files.FILE_FORMATS:
+            body, headers = files.encode(p, ctx, arrays, meta, with_meta="meta" in params.outputs)
         else:
             name = image_output(arrays, params.format)
             noise = params.noise_model() if name == "raw" else None

@@ -17,7 +17,7 @@ export function outputChecks(chosen, onChange) {
     onChange([...box.querySelectorAll("input:checked")].map((c) => c.value)));
 }
 
-/** Point the download links at GET /sample with the page's parameters (`outputs`: the npz's). */
+/** Point the download links at GET /sample with the page's parameters (`outputs`: the npz's and the EXR's). */
 export function setDownloads(params, stem, outputs) {
   const link = (id, extra, ext) => {
     const a = document.getElementById(id);
@@ -27,8 +27,11 @@ export function setDownloads(params, stem, outputs) {
     a.download = `${stem}${ext}`;
   };
   link("dl-npz", { format: "npz", outputs: [...outputs, "meta"].join(",") }, ".npz");
+  link("dl-exr", { format: "exr", outputs: [...outputs, "meta"].join(",") }, ".exr");
+  if (!outputs.length) document.getElementById("dl-exr").removeAttribute("href"); // an EXR needs an image layer
   link("dl-srgb", { format: "png", outputs: "srgb" }, "-srgb.png");
   link("dl-raw", { format: "png", outputs: "raw" }, "-raw.png");
+  link("dl-dng", { format: "dng", outputs: "raw" }, ".dng");
 }
 
 /**

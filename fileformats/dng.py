@@ -12,7 +12,10 @@ sensor model, and the camera's colour as DNG expects it:
   (Y = 1) maps to a camera value whose largest channel is 1 (the DNG specification's normalisation);
 - ``AsShotNeutral``: the ground-truth white point of the frame in camera RGB (G = 1) — the
   illuminant's white point for a single-light frame, the mean of the mixed illumination map for a
-  multi-light one (:func:`export.frames._neutral`). libraw's ``camera_whitebalance`` is its inverse.
+  multi-light one (:func:`as_shot_neutral`). libraw's ``camera_whitebalance`` is its inverse.
+
+Used by ``illumix export --format dng`` (:mod:`export.raw_layout`) and ``GET /sample?format=dng``
+(:mod:`service.file_downloads`).
 
 Rationals are written with denominator 10⁶ (6 significant decimals; the tests check to 1e-5).
 """
@@ -22,6 +25,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from retarget.global_wb import frame_shares, global_white_point
 
 DENOMINATOR = 1_000_000
 
@@ -38,6 +43,25 @@ def color_matrix(sensor_weights: np.ndarray, spd_d65: np.ndarray, ccm_d65: np.nd
     cm = np.diag(rho) @ np.linalg.inv(np.asarray(ccm_d65, np.float64)) @ np.linalg.inv(srgb_to_xyz)
     white = srgb_to_xyz @ np.ones(3)  # D65, Y = 1
     return cm / np.max(cm @ white)
+
+
+def as_shot_neutral(white_points, mixture: np.ndarray | None = None, valid: np.ndarray | None = None
+                    ) -> list[float]:
+    """A frame's as-shot neutral in camera RGB (G = 1), the ground-truth white point.
+
+    One light (``mixture`` ``None``): its white point. Mixed light: the mean over the ``valid`` pixels
+    of LSMI's illumination map ``Σ_i mixture_i · white_i`` (= the mean of the service's ``illum``
+    output for ``gt=formula``) — the lights' white points weighted by their mean mixture share, the
+    thesis' single global white point (:mod:`retarget.global_wb`, the web explorer's baseline);
+    equal shares where no pixel is valid.
+
+    white_points : ``(k, 3)`` camera RGB (G = 1) of the lit lights; mixture : ``(H, W, k)`` their
+    shares; valid : ``(H, W)`` bool."""
+    c = np.asarray(white_points, np.float64)
+    if mixture is None:
+        return c[0].tolist()
+    shares = frame_shares(mixture, valid) if valid.any() else np.full(len(c), 1 / len(c))
+    return global_white_point(shares, c).tolist()
 
 
 def _rationals(values) -> list[list[int]]:
