@@ -14,6 +14,6 @@ the manifest records. One concept per module:
   checksums, ``manifest.json``; :mod:`export.card` — the dataset card ``README.md``;
 - :mod:`export.run` — the whole export (what ``illumix export`` calls).
 
-The file encoders themselves (DNG, spectral OpenEXR) live one room below, in :mod:`fileformats`, so
+The file encoders themselves (DNG, spectral OpenEXR) live one room below, in :mod:`imagefiles`, so
 that the service serves the same files (``GET /sample?format=dng|exr``).
 """

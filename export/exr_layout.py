@@ -12,7 +12,7 @@ the other formats do; ``cubes.json`` lists each file's scene, view, group, kind 
 from __future__ import annotations
 
 from export.card import LICENCES
-from fileformats.spectral_exr import spectrum_attribute, write_spectral_exr
+from imagefiles.spectral_exr import spectrum_attribute, write_spectral_exr
 
 
 def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
@@ -57,7 +57,7 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
                                              "bands": len(wl), "values clipped to float16": clipped},
                 "layout": (f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
                            f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`."),
-                "reading": ("`from fileformats.spectral_exr import read_spectral_exr; wavelengths, cube, header = read_spectral_exr(path)`"
+                "reading": ("`from imagefiles.spectral_exr import read_spectral_exr; wavelengths, cube, header = read_spectral_exr(path)`"
                             " or any reader of Fichet et al.'s layout (colour-science's `read_spectral_image_Fichet2021`)."),
                 "licences": [LICENCES["scenes"]],
                 "cameras": [], "illuminants": {}}

@@ -3,9 +3,9 @@
 - ``lsmi`` — the LSMI release's layout (Kim et al., ICCV 2021): 16-bit RGB TIFF raws, mixture
   ``.npy``, ``meta.json``, ``split.json`` and a template DNG per camera (:mod:`export.lsmi`);
 - ``dng`` — the same layout with Bayer DNG raws in place of the TIFFs, as LSMI's cameras recorded
-  them before its ``0_cvt2tiff.py`` (:mod:`fileformats.dng`);
+  them before its ``0_cvt2tiff.py`` (:mod:`imagefiles.dng`);
 - ``exr`` — the store's spectral transport and illumination cubes as OpenEXR, one channel per band
-  (:mod:`fileformats.spectral_exr`; no camera, no illuminant: the cubes are what every sample is composed from).
+  (:mod:`imagefiles.spectral_exr`; no camera, no illuminant: the cubes are what every sample is composed from).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from export.plan import Place, derive_seed
-from fileformats.dng import as_shot_neutral
+from imagefiles.dng import as_shot_neutral
 
 OUTPUTS = ["raw", "mixture", "illum", "mask", "meta"]
 ZERO_MASK = -1.0  # LSMI's mixture value where no light reaches the pixel (never NaN, never other negatives)

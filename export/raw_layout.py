@@ -74,7 +74,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     skipped_places: set[str] = set()
     for (sensor_name, (sensor, skey)), cam in zip(sensors.items(), folders):
         ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
-        from fileformats.dng import color_matrix, template_bytes
+        from imagefiles.dng import color_matrix, template_bytes
 
         matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
         dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
@@ -125,7 +125,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
 
 
 def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
-    from fileformats.dng import write_dng
+    from imagefiles.dng import write_dng
 
     files, samples = [], []
     for fr in cap.frames:

@@ -1,19 +1,19 @@
 """``GET /sample?format=dng|exr``: the sample as a camera raw file or as one OpenEXR image.
 
-- ``dng``: one Bayer DNG of ``raw`` (:mod:`fileformats.dng`; CFA ``bayer=``, RGGB when not given),
+- ``dng``: one Bayer DNG of ``raw`` (:mod:`imagefiles.dng`; CFA ``bayer=``, RGGB when not given),
   exposed as the PNG of raw is (auto exposure, thesis eq. 4.2, unless ``exposure=`` is given: 1.0 is
   the white level, highlights clip) and quantised to digital numbers like ``illumix export``'s
   frames: with ``noise=``, the sensor model's digital numbers, black and white level; without, the
   export's default sensor levels (black 64, white 4095: 12 bits) with ``DN = round(64 + raw · (4095 −
   64))`` clipped to [0, 4095] (:func:`retarget.sensor_model.simulate_raw` without noise): the digital
   numbers, levels, matrix and neutral ``illumix export --format dng`` writes for the same
-  parameters. ``ColorMatrix1``: the sensor's under D65 (:func:`fileformats.dng.color_matrix`); ``AsShotNeutral``: the ground-truth
-  white point (:func:`fileformats.dng.as_shot_neutral`: one lit group's white point; for mixed
+  parameters. ``ColorMatrix1``: the sensor's under D65 (:func:`imagefiles.dng.color_matrix`); ``AsShotNeutral``: the ground-truth
+  white point (:func:`imagefiles.dng.as_shot_neutral`: one lit group's white point; for mixed
   light the mean mixed white point over the valid pixels). libraw opens frames of 22 × 22 pixels
   and more: smaller ones are refused.
 - ``exr``: every requested output in one float32 OpenEXR, a layer per output (``raw.R``,
   ``mixture.<group>``, ``mask``, spectra as Fichet et al. 2021's ``S0.<λ>nm`` / ``T.<λ>nm``;
-  :mod:`fileformats.layered_exr`), the metadata in its ``illumixMeta`` attribute when asked for.
+  :mod:`imagefiles.layered_exr`), the metadata in its ``illumixMeta`` attribute when asked for.
 
 Both write with the ``export`` extra's packages (pidng, OpenEXR): without them the answer is a 501
 naming the install, before any work.
@@ -109,7 +109,7 @@ def encode(p, ctx, arrays: dict[str, np.ndarray], meta: dict, with_meta: bool) -
 
 def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
     """The DNG of a sample composed with :func:`compose_spec` (module docstring)."""
-    from fileformats.dng import as_shot_neutral, color_matrix, dng_bytes
+    from imagefiles.dng import as_shot_neutral, color_matrix, dng_bytes
     from service.encoding import meta_json
 
     spec = p.spec
@@ -139,7 +139,7 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
 
 def encode_exr(p, arrays: dict[str, np.ndarray], meta: dict | None) -> bytes:
     """The OpenEXR of the sample's array outputs (module docstring); ``meta`` in ``illumixMeta`` when given."""
-    from fileformats.layered_exr import layered_exr_bytes
+    from imagefiles.layered_exr import layered_exr_bytes
     from service.encoding import meta_json
 
     return layered_exr_bytes(arrays, groups=p.groups, wavelengths=p.metas[0].spectral_grid.wavelengths,

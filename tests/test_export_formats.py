@@ -73,7 +73,7 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
     from colour.io.fichet2021 import PATTERN_FICHET2021
 
-    from fileformats.spectral_exr import read_spectral_exr
+    from imagefiles.spectral_exr import read_spectral_exr
     from export.run import ExportOptions, export_dataset
     from store import CubeStore
 
@@ -95,7 +95,7 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
 
 def test_exr_half_clips_not_inf(tmp_path):
-    from fileformats.spectral_exr import read_spectral_exr, write_spectral_exr
+    from imagefiles.spectral_exr import read_spectral_exr, write_spectral_exr
 
     cube = np.full((2, 3, 4), 7e4, np.float32)
     assert write_spectral_exr(tmp_path / "x.exr", cube, [400, 450, 500, 550], dtype="float16") == 24

@@ -111,12 +111,12 @@ def test_dng_with_noise_holds_the_sensor_models_numbers(client):
 
 
 def test_exr_round_trip_equals_the_npz(client, tmp_path):
-    """Every output read back from the EXR (with the reader of :mod:`fileformats.layered_exr` and
+    """Every output read back from the EXR (with the reader of :mod:`imagefiles.layered_exr` and
     with OpenEXR alone) equals the npz's array bit for bit; the spectra are Fichet et al.'s channels."""
     import OpenEXR
 
-    from fileformats.layered_exr import read_layered_exr
-    from fileformats.spectral_exr import read_spectral_exr
+    from imagefiles.layered_exr import read_layered_exr
+    from imagefiles.spectral_exr import read_spectral_exr
 
     outputs = "raw,gain,ccm,srgb,weights,mask,illum,mixture,reflectance,illumination,meta"
     q = {"view": "v0", "illuminants": "FL11,D50", "crop": "8,4,40,32"}
@@ -148,7 +148,7 @@ def test_exr_round_trip_equals_the_npz(client, tmp_path):
 
 def test_exr_of_a_bayer_raw_without_meta(client):
     r = get(client, format="exr", outputs="raw", bayer="RGGB", view="v0")
-    from fileformats.layered_exr import read_layered_exr
+    from imagefiles.layered_exr import read_layered_exr
 
     back, header = read_layered_exr(r.content)
     ref, _ = npz(client, outputs="raw", bayer="RGGB", view="v0")

@@ -5,8 +5,8 @@ A room below :mod:`service` and :mod:`export`: it imports numpy, colour-science,
 inside its functions, the optional packages of the ``export`` extra (pidng, OpenEXR) — nothing above.
 One concept per module:
 
-- :mod:`fileformats.dng` — Bayer DNG raws (pidng) with colour matrix and as-shot neutral, read by libraw;
-- :mod:`fileformats.spectral_exr` — spectral OpenEXR (Fichet et al. 2021 channel names), writer and reader;
-- :mod:`fileformats.layered_exr` — a sample's outputs as one multi-channel float32 OpenEXR
+- :mod:`imagefiles.dng` — Bayer DNG raws (pidng) with colour matrix and as-shot neutral, read by libraw;
+- :mod:`imagefiles.spectral_exr` — spectral OpenEXR (Fichet et al. 2021 channel names), writer and reader;
+- :mod:`imagefiles.layered_exr` — a sample's outputs as one multi-channel float32 OpenEXR
   (``raw.R``, ``mixture.<group>``, ``mask``, spectra as ``S0.<λ>nm`` / ``T.<λ>nm``), writer and reader.
 """

@@ -22,7 +22,7 @@ output                                        shape                channels
 ============================================  ===================  ====================================
 
 Other arrays get ``<name>.0``, ``<name>.1``, … along their last axis. The spectra follow
-:mod:`fileformats.spectral_exr`, so readers of Fichet et al.'s layout (colour-science's
+:mod:`imagefiles.spectral_exr`, so readers of Fichet et al.'s layout (colour-science's
 ``read_spectral_image_Fichet2021``) find them; the header then carries ``spectralLayoutVersion``
 (and ``emissiveUnits`` with ``S0``). The header's ``illumixLayers`` (JSON ``{output: {"channels":
 […], "shape": […], "dtype": …}}``) says which channels make which array in which order, so
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fileformats.spectral_exr import (
+from imagefiles.spectral_exr import (
     EMISSIVE,
     REFLECTIVE,
     channel_name,

@@ -17,7 +17,7 @@ emission, see ``illumixEmission``), in ``float32`` or ``float16``. float32 round
 float16 holds values up to 65504: larger ones (directly seen emitters) are clipped to it and counted
 in ``illumixClippedToHalf`` — never written as inf. ``GET /sample?format=exr`` puts a sample's
 ``illumination`` (``S0``) and ``reflectance`` (``T``) spectra in its file the same way
-(:mod:`fileformats.layered_exr`). Written with the OpenEXR Python bindings (ZIP compression, lossless).
+(:mod:`imagefiles.layered_exr`). Written with the OpenEXR Python bindings (ZIP compression, lossless).
 """
 
 from __future__ import annotations
