@@ -50,9 +50,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=4)
     args = ap.parse_args()
-    from export.frames import Composer
-    from export.plan import parse_lightings, plan_places
-    from export.run import ExportOptions, _open_store, _views, export_dataset
+    from dataset_export.frames import Composer
+    from dataset_export.plan import parse_lightings, plan_places
+    from dataset_export.run import ExportOptions, _open_store, _views, export_dataset
     from retarget.sensor_model import NoiseModel
 
     tmp = Path(tempfile.mkdtemp(prefix="illumix-bench-export-"))

@@ -2,7 +2,7 @@
 [--count N] [--size WxH] [--seed S] [--gt physical|formula] [--split 0.7,0.15,0.15] [--noise …]
 [--bayer RGGB] [--exr-dtype float32|float16] [--json]``.
 
-Writes a frozen dataset from a cube store (:mod:`export`): the LSMI release's layout with TIFF
+Writes a frozen dataset from a cube store (:mod:`dataset_export`): the LSMI release's layout with TIFF
 (``lsmi``) or Bayer DNG (``dng``) raws, or the store's spectral cubes as OpenEXR (``exr``); splits
 by scene, ``manifest.json`` with every file's SHA-256, a dataset card ``README.md``. Resumable: run
 it again after an interruption and it skips what is complete.
@@ -16,7 +16,7 @@ import re
 import typer
 from rich.console import Console
 
-from export.formats import EXPORT_FORMATS
+from dataset_export.formats import EXPORT_FORMATS
 from illumix.errors import UserError
 
 console = Console(stderr=True)
@@ -59,8 +59,8 @@ def export(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Write a frozen dataset (LSMI layout, DNG or spectral EXR) with splits, manifest and card."""
-    from export.run import ExportOptions, export_dataset
-    from export.splits import parse_fractions
+    from dataset_export.run import ExportOptions, export_dataset
+    from dataset_export.splits import parse_fractions
     from illumix.progress import progress_bar
     from retarget.sensor_model import BAYER_PATTERNS
     from service.spec import parse_noise

@@ -14,7 +14,7 @@ sensor model, and the camera's colour as DNG expects it:
   illuminant's white point for a single-light frame, the mean of the mixed illumination map for a
   multi-light one (:func:`as_shot_neutral`). libraw's ``camera_whitebalance`` is its inverse.
 
-Used by ``illumix export --format dng`` (:mod:`export.raw_layout`) and ``GET /sample?format=dng``
+Used by ``illumix export --format dng`` (:mod:`dataset_export.raw_layout`) and ``GET /sample?format=dng``
 (:mod:`service.file_downloads`).
 
 Rationals are written with denominator 10⁶ (6 significant decimals; the tests check to 1e-5).

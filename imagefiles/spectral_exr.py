@@ -11,7 +11,7 @@ with its pattern (``colour.io.fichet2021.PATTERN_FICHET2021``), so any reader of
 them. The header carries the paper's ``spectralLayoutVersion`` (``"1.0"``) and, for emissive
 channels, ``emissiveUnits``; illumix's own attributes (``illumix*``) say what the values are.
 
-``illumix export --format exr`` writes the store's cubes this way (:mod:`export.exr_layout`): band
+``illumix export --format exr`` writes the store's cubes this way (:mod:`dataset_export.exr_layout`): band
 integrals over 5 nm, relative radiometric units (a group's cube is its radiance for its recorded
 emission, see ``illumixEmission``), in ``float32`` or ``float16``. float32 round-trips exactly.
 float16 holds values up to 65504: larger ones (directly seen emitters) are clipped to it and counted

@@ -19,7 +19,7 @@ def chart_albedo(h: int = CHART_SIZE[1], w: int = CHART_SIZE[0], hom: np.ndarray
     warped in by ``hom``; nearest-neighbour, so each patch holds its exact broad-band albedo."""
     import cv2
 
-    from export.chart import COLS, ROWS, chart_albedos
+    from dataset_export.chart import COLS, ROWS, chart_albedos
 
     ref = chart_albedos(3)
     chart = np.full((ROWS * s, COLS * s, 3), 0.04, np.float32)
@@ -34,7 +34,7 @@ def chart_albedo(h: int = CHART_SIZE[1], w: int = CHART_SIZE[0], hom: np.ndarray
 def chart_corners(hom: np.ndarray = CHART_H) -> np.ndarray:
     import cv2
 
-    from export.chart import OUTLINE
+    from dataset_export.chart import OUTLINE
 
     return cv2.perspectiveTransform(OUTLINE[None], hom)[0]
 

@@ -26,7 +26,7 @@ def test_dng_single_illuminant(store, tmp_path):
     """A single-light DNG: the raw values as composed, black/white level, RGGB, and libraw's
     camera white balance = 1 / the ground-truth white point (G = 1) to 1e-5; libraw's camera → sRGB
     matrix from ColorMatrix1 equals illumix's D65 CCM (what ColorMatrix1 was built from)."""
-    from export.run import ExportOptions, export_dataset
+    from dataset_export.run import ExportOptions, export_dataset
     from retarget.grid import DEFAULT_GRID
     from retarget.illuminants import illuminant_spd
     from retarget.sensor_model import NoiseModel, mosaic, simulate_raw
@@ -74,7 +74,7 @@ def test_exr_round_trip(store, tmp_path, dtype):
     from colour.io.fichet2021 import PATTERN_FICHET2021
 
     from imagefiles.spectral_exr import read_spectral_exr
-    from export.run import ExportOptions, export_dataset
+    from dataset_export.run import ExportOptions, export_dataset
     from store import CubeStore
 
     out = tmp_path / dtype
@@ -106,7 +106,7 @@ def test_exr_half_clips_not_inf(tmp_path):
 def test_chart_finder():
     """Corners of a perspective-warped chart within a pixel, with noise and a same-coloured decoy;
     nothing found where there is no chart."""
-    from export.chart import chart_albedos, find_chart
+    from dataset_export.chart import chart_albedos, find_chart
 
     rng = np.random.default_rng(0)
     a = chart_albedo() + rng.normal(0, 0.01, (96, 128, 3)).astype(np.float32)

@@ -20,7 +20,7 @@ SENSOR = "Nikon 5100 (NPL)"
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
-    from export.run import ExportOptions, export_dataset
+    from dataset_export.run import ExportOptions, export_dataset
 
     root = tmp_path_factory.mktemp("lsmi")
     store = build_export_store(root / "store")
@@ -135,7 +135,7 @@ def test_chart_corners_in_meta(exported):
 
 
 def test_card_and_manifest(exported):
-    from export.journal import verify_manifest
+    from dataset_export.journal import verify_manifest
 
     _, out, summary = exported
     assert verify_manifest(out) == []

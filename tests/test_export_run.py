@@ -19,7 +19,7 @@ def store(tmp_path_factory):
 
 
 def test_split_scenes_disjoint_and_seeded():
-    from export.splits import split_counts, split_scenes
+    from dataset_export.splits import split_counts, split_scenes
 
     scenes = [f"s{i}" for i in range(23)]
     a = split_scenes(scenes, (0.7, 0.15, 0.15), seed=5)
@@ -32,7 +32,7 @@ def test_split_scenes_disjoint_and_seeded():
 
 def test_places_split_by_scene(store, tmp_path):
     """Repeated views (count > views) stay in their scene's split; no scene in two splits."""
-    from export.run import ExportOptions, export_dataset
+    from dataset_export.run import ExportOptions, export_dataset
 
     s = export_dataset(ExportOptions(store=store, out=str(tmp_path / "o"), count=9, seed=2,
                                      pairs="A,D65;FL11,D50", split=(0.5, 0.25, 0.25)))
@@ -49,8 +49,8 @@ def test_places_split_by_scene(store, tmp_path):
 def test_resume_after_interruption(store, tmp_path):
     """Interrupted after two places, then rerun: the same files as one uninterrupted run; a damaged
     file is rewritten, a leftover temporary removed, and the manifest's checksums verify."""
-    from export.journal import verify_manifest
-    from export.run import ExportOptions, export_dataset
+    from dataset_export.journal import verify_manifest
+    from dataset_export.run import ExportOptions, export_dataset
 
     opts = dict(store=store, seed=4, size=(32, 24))
     export_dataset(ExportOptions(out=str(tmp_path / "whole"), **opts))
@@ -80,7 +80,7 @@ def test_resume_after_interruption(store, tmp_path):
 
 
 def test_interrupted_write_leaves_no_file(tmp_path):
-    from export.journal import Journal
+    from dataset_export.journal import Journal
 
     j = Journal(tmp_path, {"a": 1})
 

@@ -20,7 +20,7 @@ unchanged::
   output, physical or formula ground truth), summing to 1; ``-1`` (LSMI's ``ZERO_MASK``) where no
   light reaches the pixel or it has no surface (the sample's ``mask``) — never NaN, never another
   negative value (LSMI issues #9, #27).
-- ``MCCCoord``: the ColorChecker's corners (:mod:`export.chart`), TL, TR, BR, BL, at **twice** the
+- ``MCCCoord``: the ColorChecker's corners (:mod:`dataset_export.chart`), TL, TR, BR, BL, at **twice** the
   TIFF's pixel coordinates (LSMI annotated its full-size raws and ships half-size TIFFs; its scripts
   divide by 2). A scene has at most one chart found; absent charts (``mcc2``, ``mcc3``, or all when
   none is found) are four corners at ``(-2, -2)``: LSMI's script reads all three for the training
@@ -39,7 +39,7 @@ import re
 
 import numpy as np
 
-from export.frames import Capture
+from dataset_export.frames import Capture
 
 ABSENT_CHART = [[-2.0, -2.0]] * 4
 CHARTS = ("mcc1", "mcc2", "mcc3")

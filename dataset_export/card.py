@@ -34,7 +34,7 @@ def _table(rows: list[list[str]], head: list[str]) -> str:
 
 
 def dataset_card(s: dict) -> str:
-    """Markdown of the card from the export summary ``s`` (:func:`export.run.export_dataset`)."""
+    """Markdown of the card from the export summary ``s`` (:func:`dataset_export.run.export_dataset`)."""
     fmt = s["format"]
     what = "spectral cubes" if fmt == "exr" else "mixed-illuminant raw images with pixel-wise ground truth"
     splits = ", ".join(f"{k} {len(v)} place(s)" for k, v in s["splits"].items())
@@ -68,5 +68,5 @@ def dataset_card(s: dict) -> str:
     out += ["## Licences", "", "The images are generated; what they were generated from:", "",
             *(f"- {line}" for line in s["licences"]), "",
             ("`manifest.json` lists every file with its SHA-256; check them with `sha256sum` or "
-             "`python -c \"from export.journal import verify_manifest; print(verify_manifest('.'))\"`."), ""]
+             "`python -c \"from dataset_export.journal import verify_manifest; print(verify_manifest('.'))\"`."), ""]
     return "\n".join(out)

@@ -16,7 +16,7 @@ import random
 import re
 from dataclasses import dataclass
 
-from export.errors import ExportError
+from dataset_export.errors import ExportError
 
 MAX_LIGHTS = 3  # LSMI's Light1..Light3
 

@@ -17,7 +17,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from export.errors import ExportError
+from dataset_export.errors import ExportError
 
 JOURNAL = ".export-journal.jsonl"
 MANIFEST = "manifest.json"

@@ -1,7 +1,7 @@
-"""Raw-frame exports (``lsmi``: TIFF raws, ``dng``: Bayer DNG raws) in LSMI's layout (:mod:`export.lsmi`).
+"""Raw-frame exports (``lsmi``: TIFF raws, ``dng``: Bayer DNG raws) in LSMI's layout (:mod:`dataset_export.lsmi`).
 
-Per camera × place: compose the capture set (:mod:`export.frames`), find the chart once per view
-(:mod:`export.chart`), write ``<place>_<lights>.<tiff|dng>`` and the mixture ``.npy`` files
+Per camera × place: compose the capture set (:mod:`dataset_export.frames`), find the chart once per view
+(:mod:`dataset_export.chart`), write ``<place>_<lights>.<tiff|dng>`` and the mixture ``.npy`` files
 atomically and journal the place's ``meta.json`` entry with them; then, per camera, ``meta.json``,
 ``split.json``, ``illuminants.json`` and the template ``<camera>.dng``.
 """
@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from export import lsmi
-from export.card import LICENCES, sensor_licence
-from export.chart import find_chart, scale_corners
-from export.errors import ExportError
-from export.frames import Capture, Composer
+from dataset_export import lsmi
+from dataset_export.card import LICENCES, sensor_licence
+from dataset_export.chart import find_chart, scale_corners
+from dataset_export.errors import ExportError
+from dataset_export.frames import Capture, Composer
 
 
 def _cct(spd: np.ndarray, grid) -> dict:

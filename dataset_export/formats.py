@@ -1,7 +1,7 @@
 """The export formats by name (case-insensitive, with aliases), the colour-science way.
 
 - ``lsmi`` — the LSMI release's layout (Kim et al., ICCV 2021): 16-bit RGB TIFF raws, mixture
-  ``.npy``, ``meta.json``, ``split.json`` and a template DNG per camera (:mod:`export.lsmi`);
+  ``.npy``, ``meta.json``, ``split.json`` and a template DNG per camera (:mod:`dataset_export.lsmi`);
 - ``dng`` — the same layout with Bayer DNG raws in place of the TIFFs, as LSMI's cameras recorded
   them before its ``0_cvt2tiff.py`` (:mod:`imagefiles.dng`);
 - ``exr`` — the store's spectral transport and illumination cubes as OpenEXR, one channel per band

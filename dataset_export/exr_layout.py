@@ -11,7 +11,7 @@ the other formats do; ``cubes.json`` lists each file's scene, view, group, kind 
 
 from __future__ import annotations
 
-from export.card import LICENCES
+from dataset_export.card import LICENCES
 from imagefiles.spectral_exr import spectrum_attribute, write_spectral_exr
 
 

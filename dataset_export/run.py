@@ -1,6 +1,6 @@
 """The whole export (what ``illumix export`` runs): plan, compose, write, split, card, manifest.
 
-Resumable (:mod:`export.journal`): a rerun with the same options skips every place whose files are
+Resumable (:mod:`dataset_export.journal`): a rerun with the same options skips every place whose files are
 complete and unchanged, and an interrupted file never looks complete. ``on_progress(total, label)``
 is called once with ``label=None`` and the number of items, then once per item done.
 """
@@ -12,11 +12,11 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from export.errors import ExportError, require
-from export.formats import EXPORT_FORMATS
-from export.journal import MANIFEST, Journal
-from export.plan import parse_lightings, plan_places
-from export.splits import split_scenes
+from dataset_export.errors import ExportError, require
+from dataset_export.formats import EXPORT_FORMATS
+from dataset_export.journal import MANIFEST, Journal
+from dataset_export.plan import parse_lightings, plan_places
+from dataset_export.splits import split_scenes
 
 
 @dataclass
@@ -104,14 +104,14 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split
     if fmt.raw_ext is None:
-        from export.exr_layout import export_cubes
+        from dataset_export.exr_layout import export_cubes
 
         export_cubes(st, places, journal, o, summary, on_progress)
     else:
-        from export.raw_layout import export_frames
+        from dataset_export.raw_layout import export_frames
 
         export_frames(st, places, journal, o, fmt, summary, by_split, on_progress)
-    from export.card import dataset_card
+    from dataset_export.card import dataset_card
 
     journal.write_bytes("README.md", dataset_card(summary).encode())
     journal.write_json(MANIFEST, journal.manifest({"created": summary["created"], "counts": summary["counts"],

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from export.plan import Place, derive_seed
+from dataset_export.plan import Place, derive_seed
 from imagefiles.dng import as_shot_neutral
 
 OUTPUTS = ["raw", "mixture", "illum", "mask", "meta"]
