@@ -22,7 +22,9 @@ Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHO
   the normal, log depth and log of the group's *direct* light (``Guides.direct``): it stops at
   geometric edges and at the edges of shadows and sunlit patches, which no albedo or normal shows.
   Illumination cubes are irradiance already: filtered the same way without the division
-  (``kind="illumination"``). Measured in ``bench/DENOISE.md``.
+  (``kind="illumination"``). Surface pixels next to a light source or the sky behind a window, and
+  metal and glass, are classes of their own (:func:`irradiance_classes`). Measured in
+  ``bench/DENOISE.md``.
 - ``"dt-guides"`` (alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
   OpenCV ``ximgproc.dtFilter``, joint image = 4 guide channels: albedo R, G, B / ``sigma_albedo`` and
@@ -126,13 +128,33 @@ def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_a
     return dt_filter(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
 
 
-def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float
-                           ) -> np.ndarray:
-    """``dt-irradiance``'s joint image ``(H, W, 3)`` float32: the normal channel of
-    :func:`dt_guide_image` (pixel classes pushed apart), ``log depth`` (a relative step) and
-    ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it), each over its sigma."""
+def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
+    """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``):
+    0 a diffuse surface, 1 background, 2 emitter, 3 a surface with no diffuse reflectance (metal,
+    glass: its ``cube / ρ`` is on another scale), and 4–8 the surface pixels next to a background or
+    emitter pixel. Those may cover part of a light source or of the sky behind a window (the AOVs
+    flag a pixel by its majority, or its centre), whose radiance dwarfs the surface's: each gets a
+    code none of its eight neighbours has, so it is left as rendered and nothing flows out of it
+    into the wall (a halo around every window and lamp otherwise: ``bench/DENOISE.md``)."""
+    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+
+    cls = guides.pixel_class().astype(np.float32)
+    surface = cls == 0
+    if guides.albedo_bands is not None:
+        cls[surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)] = 3
+    near = cv2.dilate((~surface).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & surface
+    y, x = np.indices(cls.shape)
+    cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
+    return cls
+
+
+def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float,
+                           albedo_floor: float = 0.01) -> np.ndarray:
+    """``dt-irradiance``'s joint image ``(H, W, 3)`` float32: the normal's component along a fixed
+    axis with the classes of :func:`irradiance_classes` pushed apart, ``log depth`` (a relative
+    step) and ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it), each over its sigma."""
     g = np.empty((*guides.shape, 3), np.float32)
-    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * guides.pixel_class()
+    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * irradiance_classes(guides, albedo_floor)
     g[..., 1] = np.log(np.maximum(guides.depth, 1e-3)) / sigma_depth
     d = guides.direct
     g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
@@ -144,8 +166,9 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
                    albedo_floor: float = 0.01, iterations: int = 3) -> np.ndarray:
     """Filter ``cube / ρ`` (transport) or ``cube`` (illumination), then multiply ``ρ`` back;
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
-    reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear)."""
-    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct)
+    reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear; they are a
+    class of their own in the joint image, so their ``cube / ρ`` never mixes with a diffuse one's)."""
+    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor)
     if kind == "illumination":
         return dt_filter(cube, joint, sigma_spatial, iterations)
     rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))
@@ -338,5 +361,5 @@ def describe(method: str, **params: Any) -> dict[str, Any]:
             "linear": True, "reference": IMPLEMENTATIONS[name].reference}
 
 
-__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "method_guides", "method_params",
-           "dt_filter"]
+__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "dt_filter", "irradiance_classes",
+           "method_guides", "method_params"]
