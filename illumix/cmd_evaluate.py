@@ -77,7 +77,7 @@ def evaluate(
                                       help="Patch-wise methods: cell estimates interpolated between cell centres, or "
                                            "constant per cell."),
     maps: int = typer.Option(3, "--maps", min=0, help="With --out: error-map figures for the first N images."),
-    out: Path | None = typer.Option(None, "--out", help="Write table.md, results.json, boxplots.png and maps/ here."),
+    out: str | None = typer.Option(None, "--out", help="Write table.md, results.json, boxplots.png and maps/ here."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON on stdout instead of the table."),
 ) -> None:
     """Score white-balance methods on a store or an LSMI dataset: angular error and ΔE00 grid."""
