@@ -4,7 +4,8 @@ Every error body is :class:`ErrorBody`: ``{"detail": "<one line: what, where, ho
 "status": 422, "code": "invalid_parameter", "loc": ["query", "crop"]}``. ``detail`` is always one
 string a person can act on; ``code`` is a stable slug a program can branch on; ``loc`` points at the
 offending parameter when there is one. FastAPI's own validation errors (a list of dicts) are
-rewritten into this shape, and an unknown parameter names its close match and the parameters of the route it was sent to.
+rewritten into this shape, and an unknown parameter names its close match and the parameters of
+the route it was sent to.
 """
 
 from __future__ import annotations
