@@ -171,6 +171,18 @@ def test_a_bad_link_still_renders_with_a_notice(browser, url, tmp_path):
     shutil.copyfile(shot, ARTIFACT.with_name(shot.name))
 
 
+def test_the_default_sensor_falls_back_on_installs_without_it(browser, url):
+    """js/linkcheck.js run in the page on made-up lists: the first built-in camera, else XYZ."""
+    open_page(browser, url)
+    got = browser.execute_async_script("""
+        const done = arguments[arguments.length - 1];
+        import('/web/js/linkcheck.js').then((m) => done([
+            m.defaultSensor({builtin: ['XYZ', 'Canon EOS 5DS', 'Nikon 5100 (NPL)'], uploaded: []}),
+            m.defaultSensor({builtin: ['XYZ', 'Canon EOS 5DS'], uploaded: ['mine']}),
+            m.defaultSensor({builtin: ['XYZ'], uploaded: []})]));""")
+    assert got == ["Nikon 5100 (NPL)", "Canon EOS 5DS", "XYZ"]
+
+
 def test_an_upload_with_the_token_appears_in_the_sensor_list(browser, url, tmp_path):
     import numpy as np
 
