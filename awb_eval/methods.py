@@ -27,6 +27,7 @@ import numpy as np
 from awb_eval.case import Case
 from awb_eval.method_names import AWB_METHODS, PATCH_PREFIX, is_plugin
 from awb_eval.statistical import estimate
+from retarget import global_wb
 from retarget.errors import SpectralError
 from retarget.groundtruth import gain_map
 
@@ -75,15 +76,13 @@ def ground_truth_gain(case: Case) -> np.ndarray:
 
 def weighted_average_gain(case: Case) -> np.ndarray:
     """The thesis' single white balance (§5.2: "a weighted average of the white points of existing
-    illuminants is calculated and used for the whole image"): the white points ``w_g`` weighted by
+    illuminants is calculated and used for the whole image"), as the web explorer's baseline
+    computes it (:func:`retarget.global_wb.frame_white_point`): the white points ``w_g`` weighted by
     each illuminant's mean mixture over the valid pixels,
 
     ``W̄ = Σ_g ω̄_g w_g``, ``ω̄_g = mean_{x ∈ mask} ω_g(x)``; the gain ``max_j W̄_j / W̄_k`` everywhere.
     """
-    m = case.mask
-    mix = np.asarray(case.mixture, dtype=np.float64)
-    share = mix[m].mean(axis=0) if m.any() else np.full(mix.shape[-1], 1.0 / mix.shape[-1])
-    wp = share @ np.asarray(case.white_points, dtype=np.float64)
+    wp = global_wb.frame_white_point(case.mixture, case.mask, case.white_points)
     return gain_from_illuminant(np.broadcast_to(wp.astype(np.float32), (*case.shape, 3)))
 
 

@@ -34,13 +34,30 @@ def safe_name(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name.replace(",", "-")).strip("_") or "image"
 
 
-def write_outputs(out: Path, doc: dict, table: str, res: Results, labels: list[str]) -> list[str]:
-    """Write the folder; returns the paths written (relative to ``out``)."""
+def prepare_folder(out: Path) -> None:
+    """Check, before any image is scored, that the ``--out`` folder can be written: matplotlib is
+    installed, the folder exists or can be created, and a file can be written into it (probed with a
+    temporary file, removed again). Raises :class:`SpectralError` with one line otherwise."""
     try:
         import matplotlib  # noqa: F401
     except ImportError:
         raise SpectralError("--out draws plots with matplotlib, which is not installed: "
                             "pip install 'illumix[evaluate]'") from None
+    if out.exists() and not out.is_dir():
+        raise SpectralError(f"--out {out} is a file; give a directory")
+    probe = out / ".illumix-write-probe.tmp"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise SpectralError(f"--out {out}: cannot write there ({exc.strerror or exc}); "
+                            "give a folder you can write to") from None
+
+
+def write_outputs(out: Path, doc: dict, table: str, res: Results, labels: list[str]) -> list[str]:
+    """Write the folder (checked beforehand by :func:`prepare_folder`); returns the paths written
+    (relative to ``out``)."""
     from awb_eval.plots import box_plots, error_map
 
     out.mkdir(parents=True, exist_ok=True)

@@ -77,7 +77,7 @@ def evaluate(
                                       help="Patch-wise methods: cell estimates interpolated between cell centres, or "
                                            "constant per cell."),
     maps: int = typer.Option(3, "--maps", min=0, help="With --out: error-map figures for the first N images."),
-    out: Path | None = typer.Option(None, "--out", help="Write table.md, results.json, boxplots.png and maps/ here."),
+    out: str | None = typer.Option(None, "--out", help="Write table.md, results.json, boxplots.png and maps/ here."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON on stdout instead of the table."),
 ) -> None:
     """Score white-balance methods on a store or an LSMI dataset: angular error and ΔE00 grid."""
@@ -93,8 +93,11 @@ def evaluate(
         raise UserError(f"--interpolation {interpolation!r}: choose {' or '.join(INTERPOLATIONS)}")
     if gt is not None and gt.lower() not in ("physical", "formula"):
         raise UserError(f"--gt {gt!r}: choose physical or formula")
-    if out is not None and out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} is a file; give a directory")
+    if out is not None:
+        from awb_eval.outputs import prepare_folder
+
+        out = Path(out)
+        prepare_folder(out)  # before scoring: an unwritable --out fails in a second, not after the run
     names = split_methods(methods)
     if not names:
         raise UserError(f"--methods {methods!r} names no method; e.g. \"Gray World, Ground Truth\"")

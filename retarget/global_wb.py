@@ -45,6 +45,18 @@ def global_white_point(shares: np.ndarray, white_points: np.ndarray) -> np.ndarr
     return wp / wp[1]
 
 
+def frame_white_point(mixture: np.ndarray, mask: np.ndarray, white_points: np.ndarray) -> np.ndarray:
+    """``W̄`` of a frame — ``(3,)`` float64, G = 1 — from its mixture ``(H, W, G)``, valid pixels
+    ``(H, W)`` and the groups' white points ``(G, 3)``: :func:`frame_shares` over the valid pixels, or
+    equal shares where no valid pixel carries any (nothing to weight by)."""
+    wps = np.asarray(white_points, dtype=np.float64)
+    try:
+        shares = frame_shares(mixture, mask) if np.any(mask) else None
+    except SpectralError:
+        shares = None
+    return global_white_point(np.full(len(wps), 1.0 / len(wps)) if shares is None else shares, wps)
+
+
 def global_ccm(shares: np.ndarray, ccms: np.ndarray) -> np.ndarray:
     """``CCM̄ = Σ_g m̄_g CCM_g`` — ``(3, 3)`` float64 from shares ``(G,)`` and ``(G, 3, 3)`` CCMs."""
     return np.tensordot(np.asarray(shares, dtype=np.float64), np.asarray(ccms, dtype=np.float64), axes=1)

@@ -25,7 +25,6 @@ from service.limits import Limits
 from service.metrics import Metrics, RequestMetrics
 from service.routes import explore, metrics, registries, samples, status, web
 from service.sampling import make_context
-from service.spec import SAMPLE_PARAMETERS
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file
@@ -54,7 +53,7 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.state.ctx = make_context(store, cache_mb=cache_mb, projection_mb=projection_mb, limits=limits, device=device,
                                  device_cache_mb=device_cache_mb)
     app.state.token = token
-    errors.install(app, {"query": SAMPLE_PARAMETERS, "samples": SAMPLE_PARAMETERS, "body": ["samples"]})
+    errors.install(app)
     app.state.metrics = Metrics(app.state.ctx)
     routers = (samples.router, registries.router, status.router, metrics.router, explore.router, web.router)
     for router in routers:

@@ -4,7 +4,8 @@ Every error body is :class:`ErrorBody`: ``{"detail": "<one line: what, where, ho
 "status": 422, "code": "invalid_parameter", "loc": ["query", "crop"]}``. ``detail`` is always one
 string a person can act on; ``code`` is a stable slug a program can branch on; ``loc`` points at the
 offending parameter when there is one. FastAPI's own validation errors (a list of dicts) are
-rewritten into this shape, and an unknown parameter names its close match.
+rewritten into this shape, and an unknown parameter names its close match and the parameters of
+the route it was sent to.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import difflib
 import errno
 import logging
+import typing
 from collections.abc import Iterable
 from typing import Any
 
@@ -94,6 +96,57 @@ _CODES = {400: "bad_request", 401: "unauthorized", 403: "forbidden", 404: "not_f
           422: "invalid_parameter", 503: "unavailable"}
 
 
+REFUSED_ATTRIBUTE = "illumix_refused_parameters"
+
+
+def refuses(*names: str):
+    """Mark an endpoint as refusing some parameters its model accepts (``/explore/frame`` fixes
+    ``outputs``…): they are not offered as valid in its unknown-parameter answers."""
+    def mark(endpoint):
+        setattr(endpoint, REFUSED_ATTRIBUTE, names)
+        return endpoint
+    return mark
+
+
+def _model(annotation) -> type[BaseModel] | None:
+    """The pydantic model of a parameter annotated ``M``, ``list[M]`` or ``M | None``; else None."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return next(filter(None, (_model(a) for a in typing.get_args(annotation))), None)
+
+
+def _field_names(model: type[BaseModel]) -> list[str]:
+    return [f.alias or name for name, f in model.model_fields.items()]
+
+
+def route_parameters(route) -> dict[str, list[str]]:
+    """Location → the parameter names ``route`` (a FastAPI ``APIRoute``) accepts, read from its
+    signature: ``"query"`` (a model parameter counts as its fields, less what the endpoint
+    :func:`refuses`), ``"body"`` (the body model's fields) and, per body field holding models
+    (``/batch``'s ``samples``), that field's name → the inner model's fields."""
+    refused = set(getattr(getattr(route, "endpoint", None), REFUSED_ATTRIBUTE, ()))
+    known: dict[str, list[str]] = {"query": [], "body": []}
+    stack = [getattr(route, "dependant", None)]
+    while stack:
+        dep = stack.pop()
+        if dep is None:
+            continue
+        stack.extend(dep.dependencies)
+        for p in dep.query_params:
+            model = _model(p.field_info.annotation)
+            known["query"] += _field_names(model) if model else [p.alias]
+        for p in dep.body_params:
+            model = _model(p.field_info.annotation)
+            if model is None:
+                known["body"].append(p.alias)
+                continue
+            known["body"] += _field_names(model)
+            for name, f in model.model_fields.items():
+                if inner := _model(f.annotation):
+                    known[f.alias or name] = _field_names(inner)
+    return {where: [n for n in names if n not in refused] for where, names in known.items()}
+
+
 def _describe_validation(errors: Iterable[dict[str, Any]], known: dict[str, list[str]]) -> tuple[str, str, list]:
     """``(detail, code, loc)`` of the first pydantic/FastAPI validation error, made readable."""
     # A typo shows up twice (the unknown name, and the real one missing): name the typo first.
@@ -106,7 +159,7 @@ def _describe_validation(errors: Iterable[dict[str, Any]], known: dict[str, list
         name = str(loc[-1]) if loc else "?"
         options = known.get(str(loc[0]) if len(loc) > 1 else "body", [])
         close = difflib.get_close_matches(name, options, n=2, cutoff=0.6)
-        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else "."
         valid = f" Valid parameters: {', '.join(options)}." if options else ""
         return f"unknown parameter {name!r}{hint}{valid}", "unknown_parameter", loc
     if first.get("type") in ("missing", "missing_argument"):
@@ -120,12 +173,9 @@ def _describe_validation(errors: Iterable[dict[str, Any]], known: dict[str, list
     return f"{where}: {msg}", "invalid_parameter", loc
 
 
-def install(app: FastAPI, known_parameters: dict[str, list[str]]) -> None:
-    """Register the handlers that turn every failure into an :class:`ErrorBody` answer.
-
-    ``known_parameters``: location (``"query"``, ``"body"``) → accepted names, for the close-match
-    hint of an unknown parameter.
-    """
+def install(app: FastAPI) -> None:
+    """Register the handlers that turn every failure into an :class:`ErrorBody` answer (an unknown
+    parameter is matched against the parameters of the route it was sent to, :func:`route_parameters`)."""
 
     @app.exception_handler(ServiceError)
     async def _service(request: Request, exc: ServiceError):
@@ -133,7 +183,7 @@ def install(app: FastAPI, known_parameters: dict[str, list[str]]) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError):
-        detail, code, loc = _describe_validation(exc.errors(), known_parameters)
+        detail, code, loc = _describe_validation(exc.errors(), route_parameters(request.scope.get("route")))
         return error_response(422, code, detail, loc)
 
     @app.exception_handler(UnknownName)

@@ -271,6 +271,3 @@ def parse_noise(text: str) -> NoiseModel | None:
             raise SpectralError(f"noise: {key} must be a {'whole ' if key == 'bit_depth' else ''}number, "
                                 f"got {val!r}") from None
     return NoiseModel(**fields)
-
-
-SAMPLE_PARAMETERS = list(SampleSpec.model_fields)

@@ -108,6 +108,22 @@ def test_bad_input_is_one_line_exit_2(store, capsys, plugin_dir, args, expect):
     assert expect is None or expect in line, line
 
 
+@pytest.mark.parametrize("where, expect", [("/proc/illumix-no-such-dir", "cannot write there"),
+                                           ("afile/sub", "cannot write there"), ("afile", "is a file")])
+def test_unwritable_out_fails_before_scoring(store, capsys, tmp_path, monkeypatch, where, expect):
+    """--out is created and probed up front: one line, exit 2, and no image scored first."""
+    (tmp_path / "afile").write_text("not a folder")
+    monkeypatch.chdir(tmp_path)
+
+    def must_not_score(*args, **kwargs):
+        raise AssertionError("scored before checking --out")
+
+    monkeypatch.setattr("awb_eval.run.evaluate", must_not_score)
+    line = assert_one_line_error(*run_cli(capsys, "evaluate", store, "--methods", "GW", "--out", where))
+    assert f"--out {where}" in line and expect in line, line
+    assert [p.name for p in tmp_path.iterdir()] == ["afile"]  # no probe left behind
+
+
 def test_neither_store_nor_dataset(tmp_path, capsys):
     line = assert_one_line_error(*run_cli(capsys, "evaluate", str(tmp_path)))
     assert "neither an illumix store" in line

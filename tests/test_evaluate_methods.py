@@ -145,6 +145,30 @@ def test_weighted_average_is_the_mean_mixture_of_white_points():
         awb_gain_map(case.raw, "Weighted Average")
 
 
+def test_weighted_average_is_the_explorers_baseline(monkeypatch):
+    """One implementation of the thesis' single white point: the evaluator's Weighted Average goes
+    through :mod:`retarget.global_wb` (the web explorer's and the DNG's), with the same numbers."""
+    from retarget import global_wb
+
+    h, w = 6, 8
+    share = np.tile(np.linspace(0, 1, w, dtype=np.float32), (h, 1))
+    mixture = np.stack([share, 1 - share], axis=-1)
+    wps = np.array([[0.5, 1.0, 1.6], [1.4, 1.0, 0.6]])
+    case = Case("c", "A,D65", raw=np.ones((h, w, 3), np.float32), illum=(mixture @ wps).astype(np.float32),
+                mask=np.ones((h, w), bool), mixture=mixture, white_points=wps, ccm=np.eye(3, dtype=np.float32))
+    calls = []
+    real = global_wb.global_white_point
+    monkeypatch.setattr(global_wb, "global_white_point", lambda *a: calls.append(a) or real(*a))
+    expected = global_wb.render_global(case.raw, real(global_wb.frame_shares(mixture, case.mask), wps), np.eye(3))
+    got = global_wb.render_global(case.raw * weighted_average_gain(case), np.ones(3), np.eye(3))
+    assert len(calls) == 1
+    np.testing.assert_allclose(got, expected, atol=1e-6)
+    # no valid pixel: nothing to weight by, every light counts the same
+    case.mask[:] = False
+    case.mixture = np.zeros_like(mixture)
+    np.testing.assert_allclose(weighted_average_gain(case)[0, 0], expected_gain(wps.mean(axis=0)), rtol=1e-6)
+
+
 def test_registry_names_aliases_and_case():
     canon = AWB_METHODS.canonical
     assert canon("grey world") == canon("GW") == canon("gray-world") == "Gray World"

@@ -201,6 +201,22 @@ def test_frame_refusals(client, bad, status, code):
         assert "drop outputs" in body["detail"]
 
 
+@pytest.mark.parametrize("path, typo, close, listed, not_listed", [
+    ("/explore/spectra", "sensr", "sensor", ["sensor", "illuminants"], ["scene", "bayer", "outputs"]),
+    ("/explore/frame", "sceen", "scene", ["scene", "view", "illuminants", "exposure"],
+     ["outputs", "format", "dtype", "bayer"]),  # the ones /explore/frame refuses are not offered
+    ("/explore/frame", "output", None, ["scene"], ["outputs"]),
+    ("/sample", "sceen", "scene", ["scene", "outputs", "format", "bayer"], ["sensr"]),
+])
+def test_unknown_parameter_lists_the_routes_own(client, path, typo, close, listed, not_listed):
+    body = client.get(path, params={typo: "x"}).json()
+    assert body["code"] == "unknown_parameter", body
+    detail = body["detail"]
+    offered = detail.split("Valid parameters: ")[1].rstrip(".").split(", ")
+    assert set(listed) <= set(offered) and not set(not_listed) & set(offered), detail
+    assert (f"did you mean {close!r}" in detail) if close else "did you mean" not in detail, detail
+
+
 # -- /explore/spectra ------------------------------------------------------------------------------
 def _planck_white_point_xyz(kelvin: float) -> tuple[float, float]:
     """X/Y and Z/Y of a blackbody over the grid's span [392.5, 707.5] nm, from Planck's law (closed

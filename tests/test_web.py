@@ -3,8 +3,10 @@ driven by Selenium against the service on 127.0.0.1.
 
 Checks: the page loads with no console error and asks nothing of any host but the service; changing
 the illuminant pair changes the displayed images and the URL, and the URL restores the view; an
-upload with the token appears in the sensor list; a screenshot is saved as an artifact (the test's
-tmp folder, copied to ``bench/out/web-explorer.png``, which git ignores). Skipped, with the reason,
+upload with the token appears in the sensor list; the page opens on a camera, and a link with bad
+values (unknown names, numbers out of range) still draws, with a one-line notice naming what was
+replaced and no console error; screenshots are saved as artifacts (the test's tmp folder, copied to
+``bench/out/web-explorer.png`` and ``web-explorer-bad-link.png``, which git ignores). Skipped, with the reason,
 where Chromium, its driver or Selenium is missing (``bash scripts/install.sh --test`` installs them
 on Debian as root).
 """
@@ -119,6 +121,66 @@ def test_changing_the_illuminants_changes_the_image_and_the_url(browser, url):
     open_page(browser, url, "?" + browser.current_url.split("?", 1)[1])  # a shared link restores the view
     assert Select(browser.find_elements(By.CSS_SELECTOR, "#groups select.ill")[0]).first_selected_option \
         .get_attribute("value") == "FL11"
+
+
+def settle(driver) -> None:
+    """Wait until the page drew a frame or gave up with an error (so a broken page fails fast)."""
+    WebDriverWait(driver, WAIT_S).until(
+        lambda d: ready(d) >= 1 or "error" in d.find_element(By.ID, "status").get_attribute("class"))
+
+
+def controls(driver) -> dict:
+    """What the controls show, read in one script."""
+    return driver.execute_script("""
+        const v = (sel) => Array.from(document.querySelectorAll(sel), (e) => e.value);
+        return {sensor: document.getElementById('sensor').value, ill: v('#groups select.ill'),
+                intensity: v('#groups input.int').map(Number), ev: Number(document.getElementById('ev').value),
+                notice: document.getElementById('notice').hidden ? '' : document.getElementById('notice-text').textContent};""")
+
+
+def test_the_default_sensor_is_a_camera(browser, url):
+    open_page(browser, url, "?illuminants=A,D65")
+    assert controls(browser)["sensor"] == "Nikon 5100 (NPL)"
+    assert "sensor=Nikon+5100+%28NPL%29" in browser.current_url
+    assert controls(browser)["notice"] == ""  # a good link: no notice
+
+
+def test_a_bad_link_still_renders_with_a_notice(browser, url, tmp_path):
+    """Every URL value is checked against the lists and ranges: a bad one is replaced, the page says
+    which in one line, and still draws (no 4xx request, so no console error)."""
+    browser.get_log("browser")
+    browser.get(f"{url}/?scene=nope&sensor=nope&illuminants=D56,blackbody:99&intensities=foo,1e99&ev=9"
+                "&gain=x&gt=y&size=abc&npz=raw,zz")
+    settle(browser)
+    assert ready(browser) >= 1, browser.find_element(By.ID, "status").text
+    errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    assert not errors, errors
+    shown = controls(browser)
+    assert shown["sensor"] == "Nikon 5100 (NPL)" and shown["ill"] == ["A", "blackbody"]
+    assert shown["intensity"] == [1, 4] and shown["ev"] == 4
+    notice = shown["notice"]
+    for part in ("scene 'nope'", "sensor 'nope' unknown", "'D56'", "blackbody:99", "'foo'", "1e99", "ev", "gain", "gt",
+                 "size", "'zz'"):
+        assert part in notice, (part, notice)
+    assert "\n" not in notice.strip()
+    assert "sensor=Nikon" in browser.current_url and "blackbody%3A1500" in browser.current_url
+    assert max(pixels(browser, "c-srgb")) > 0
+    shot = tmp_path / "web-explorer-bad-link.png"
+    assert browser.save_screenshot(str(shot))
+    ARTIFACT.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(shot, ARTIFACT.with_name(shot.name))
+
+
+def test_the_default_sensor_falls_back_on_installs_without_it(browser, url):
+    """js/linkcheck.js run in the page on made-up lists: the first built-in camera, else XYZ."""
+    open_page(browser, url)
+    got = browser.execute_async_script("""
+        const done = arguments[arguments.length - 1];
+        import('/web/js/linkcheck.js').then((m) => done([
+            m.defaultSensor({builtin: ['XYZ', 'Canon EOS 5DS', 'Nikon 5100 (NPL)'], uploaded: []}),
+            m.defaultSensor({builtin: ['XYZ', 'Canon EOS 5DS'], uploaded: ['mine']}),
+            m.defaultSensor({builtin: ['XYZ'], uploaded: []})]));""")
+    assert got == ["Nikon 5100 (NPL)", "Canon EOS 5DS", "XYZ"]
 
 
 def test_an_upload_with_the_token_appears_in_the_sensor_list(browser, url, tmp_path):

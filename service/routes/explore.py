@@ -28,7 +28,7 @@ from retarget.isp import apply_ccm
 from retarget.locus import locus
 from service import arrays_format
 from service.deps import CtxDep
-from service.errors import error_responses, fail
+from service.errors import error_responses, fail, refuses
 from service.models import IlluminantCurve, LocusPoint, Spectra
 from service.routes.samples import HeldResponse
 from service.sampling import build, exposure_for, plan, price
@@ -49,6 +49,7 @@ BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor 
                              "description": "arrays container: raw, gain, illum, mixture (float32), mask (bool), "
                                             "srgb and baseline (uint8 sRGB), meta with meta.baseline"},
                        **error_responses(404, 413, 422, 503)})
+@refuses(*FIXED)
 def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
     single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,

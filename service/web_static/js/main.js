@@ -4,25 +4,20 @@ import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js
 import {
   GROUP_COLOURS, drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
 } from "./images.js";
+import { CCT, DEFAULT_LIGHTS, EV, INTENSITY, stateFromLink } from "./linkcheck.js";
 import { chromaHover, plotChroma, plotSensor, plotSpectra, resizePlots } from "./plots.js";
 
 const $ = (id) => document.getElementById(id);
-const DEFAULT_LIGHTS = ["A", "D65", "FL11", "D50"];
-const CCT = { blackbody: [1500, 15000, 50, 3200], daylight: [4000, 20000, 100, 6500] }; // min, max, step, start
 const lib = { scenes: [], sensors: null, illuminants: null };
 const state = {};
 let frame = null, spectra = null, spectraKey = "", inflight = null, timer = null;
 
-// -- state ↔ URL -------------------------------------------------------------------------------
-function readURL() {
-  const q = new URLSearchParams(location.search);
-  const list = (k) => (q.get(k) ? q.get(k).split(",") : []);
-  Object.assign(state, {
-    scene: q.get("scene"), view: q.get("view"), sensor: q.get("sensor") || "XYZ",
-    illuminants: list("illuminants"), intensities: list("intensities").map(Number),
-    gt: q.get("gt") || "", size: q.get("size") || "", ev: Number(q.get("ev") || 0), gain: q.get("gain") || "br",
-    npz: q.get("npz") ? q.get("npz").split(",") : DEFAULT_NPZ,
-  });
+// -- state ↔ URL (read once the lists are in: js/linkcheck.js checks every value) ----------------
+/** The link values that were replaced: one line above the images (a click shows it all; × clears it). */
+function notice(notes) {
+  $("notice").hidden = !notes.length;
+  $("notice-text").textContent = notes.length ? `Link values replaced: ${notes.join("; ")}` : "";
+  $("notice-text").title = "click to show it all";
 }
 
 /** The /sample parameters of the current view (shared by the frame request and the downloads). */
@@ -90,7 +85,8 @@ function chooseView() {
         <b>${esc(g.name)}</b> <span class="muted">rendered with ${esc(g.emission)} emission</span></div>
       <select class="ill" aria-label="illuminant of ${esc(g.name)}"></select>
       <label class="cct">CCT <input type="range"> <output></output></label>
-      <label>intensity <input class="int" type="range" min="0" max="4" step="0.05"> <output></output></label>`;
+      <label>intensity <input class="int" type="range" min="${INTENSITY[0]}" max="${INTENSITY[1]}" step="${INTENSITY[2]}">
+        <output></output></label>`;
     box.append(div);
     wireGroup(div, k);
   });
@@ -264,12 +260,14 @@ async function refreshLists() {
 }
 
 async function start() {
-  readURL();
   const [scenes, health] = await Promise.all([getJSON("/scenes"), getJSON("/health"), refreshLists()]);
   lib.scenes = scenes.scenes.filter((s) => s.views.length);
   if (!lib.scenes.length) { status("the store holds no rendered views yet: run `illumix render`", true); return; }
-  if (!currentScene()) state.scene = lib.scenes[0].name;
-  if (!currentScene().views.some((v) => v.name === state.view)) state.view = currentScene().views[0].name;
+  const link = stateFromLink(new URLSearchParams(location.search), lib);
+  Object.assign(state, link.state);
+  notice(link.notes);
+  $("notice-close").onclick = () => notice([]);
+  $("notice-text").onclick = () => $("notice").classList.toggle("open");
   const nviews = lib.scenes.reduce((n, s) => n + s.views.length, 0);
   $("summary").textContent = `${lib.scenes.length} scene(s), ${nviews} view(s)`;
   $("token-row").hidden = !health.auth;
@@ -278,6 +276,7 @@ async function start() {
   chooseView();
   $("gt").value = state.gt;
   $("gainch").value = state.gain;
+  Object.assign($("ev"), { min: EV[0], max: EV[1], step: EV[2] });
   $("ev").value = state.ev;
   $("ev-out").textContent = `${state.ev >= 0 ? "+" : ""}${state.ev} EV`;
   for (const fr of document.querySelectorAll(".frame")) {
