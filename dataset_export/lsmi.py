@@ -26,7 +26,8 @@ unchanged::
   none is found) are four corners at ``(-2, -2)``: LSMI's script reads all three for the training
   split and fills each polygon in its mask, and ``(-2, -2) / 2`` lies outside the image, so an
   absent chart masks nothing. ``MCCCount`` says how many are real.
-- Extra keys LSMI's code ignores: ``Illuminants`` (name, CCT, light group per light), ``Scene``,
+- Extra keys LSMI's code ignores: ``Illuminants`` (per light: ``name``, ``cct_K`` (K, a number, or
+  null where the SPD has no CCT), ``duv``, light ``group``), ``Scene``,
   ``View``, ``ExposureGain``, ``GroundTruth``, ``LSMIModelErrorDeg`` (the angle between LSMI's
   illumination model and illumix's ``illum``: 0 for formula ground truth, the bounce light's tint
   for physical).
@@ -59,13 +60,14 @@ def mcc_coords(corners: np.ndarray | None) -> tuple[dict, int]:
     return coords, 1
 
 
-def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, float | None]) -> dict:
-    """The place's ``meta.json`` entry (module docstring)."""
+def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, dict]) -> dict:
+    """The place's ``meta.json`` entry (module docstring); ``cct``: illuminant name → ``{"cct_K": K or
+    None, "duv": Duv}``."""
     k = len(cap.chroma)
     coords, n_charts = mcc_coords(corners)
     entry: dict = {f"Light{i + 1}": [round(v, 8) for v in c] for i, c in enumerate(cap.chroma)}
     entry |= {"NumOfLights": k, "MCCCoord": coords, "MCCCount": n_charts,
-              "Illuminants": [{"light": i + 1, "name": n, "cct_K": cct.get(n), "group": g}
+              "Illuminants": [{"light": i + 1, "name": n, **cct[n], "group": g}
                               for i, (n, g) in enumerate(zip(cap.place.lighting, cap.place.groups))],
               "Scene": cap.place.scene, "View": cap.place.view, "ExposureGain": cap.exposure,
               "GroundTruth": gt, "LSMIModelErrorDeg": {k2: round(v, 6) for k2, v in cap.lsmi_error_deg.items()}}

@@ -17,8 +17,8 @@ from dataset_export.errors import ExportError
 from dataset_export.frames import Capture, Composer
 
 
-def _cct(spd: np.ndarray, grid) -> dict:
-    """CCT (K, Ohno 2013) and Duv of an SPD, from its CIE 1931 XYZ."""
+def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
+    """``{"cct_K": CCT (K, Ohno 2013) or None, "duv": Duv}`` of an SPD, from its CIE 1931 XYZ."""
     import colour
 
     from retarget.sensors import get_sensor
@@ -51,6 +51,7 @@ def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray
 
 def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
     """Write every camera's LSMI folder (module docstring); fills ``summary``."""
+    from imagefiles.dng import color_matrix, template_bytes
     from retarget.errors import SpectralError
 
     levels = _levels(o.noise)
@@ -74,8 +75,6 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     skipped_places: set[str] = set()
     for (sensor_name, (sensor, skey)), cam in zip(sensors.items(), folders):
         ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
-        from imagefiles.dng import color_matrix, template_bytes
-
         matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
         dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
                   "matrix": matrix, "model": sensor_name}
@@ -110,7 +109,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         journal.write_json(f"{cam}/illuminants.json", {
             n: {**ccts[n], "wavelengths_nm": grid.wavelengths.tolist(), "spd": np.round(spds[n][0], 8).tolist()}
             for n in names})
-        journal.write_bytes(f"{cam}.dng", template_bytes(**{k: v for k, v in dng_kw.items()}))
+        journal.write_bytes(f"{cam}.dng", template_bytes(**dng_kw))
         summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": sensor_licence(sensor.source)})
     if not counts["places"]:
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))

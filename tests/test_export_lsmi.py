@@ -118,6 +118,7 @@ def test_light_chromaticities_from_the_spectra(exported):
         for i, ill in enumerate(entry["Illuminants"]):
             rgb = illuminant_spd(ill["name"], DEFAULT_GRID) @ w
             np.testing.assert_allclose(entry[f"Light{i + 1}"], rgb / rgb[1], rtol=1e-6)
+            assert isinstance(ill["cct_K"], float) and isinstance(ill["duv"], float)  # numbers, not a nested dict
         assert entry["NumOfLights"] == 2 and entry["GroundTruth"] == "physical"
     ills = json.loads((out / "Nikon-5100-NPL" / "illuminants.json").read_text())
     assert abs(ills["A"]["cct_K"] - 2856) < 15 and len(ills["A"]["spd"]) == DEFAULT_GRID.n_bands
