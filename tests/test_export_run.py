@@ -70,10 +70,10 @@ def test_resume_after_interruption(store, tmp_path):
     assert len(done) == 4
     (part / done[0]).write_bytes(b"damaged")
     (part / "Nikon-5100-NPL" / "x" ).mkdir()
-    (part / "Nikon-5100-NPL" / "x" / ".y.part.tiff").write_bytes(b"half")
+    (part / "Nikon-5100-NPL" / "x" / ".y.illumix-tmp.tiff").write_bytes(b"half")
     export_dataset(ExportOptions(out=str(part), **opts))
     assert verify_manifest(part) == []
-    assert not list(part.rglob("*.part*"))
+    assert not list(part.rglob("*.illumix-tmp*"))
     whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())["files"]
     again = json.loads((part / "manifest.json").read_text())["files"]
     assert {k: v for k, v in whole.items() if k != "README.md"} == {k: v for k, v in again.items() if k != "README.md"}
@@ -90,7 +90,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
 
     with pytest.raises(OSError):
         j.write("d/f.tiff", half)
-    assert not (tmp_path / "d" / "f.tiff").exists() and not list(tmp_path.rglob("*.part*"))
+    assert not (tmp_path / "d" / "f.tiff").exists() and not list(tmp_path.rglob("*.illumix-tmp*"))
     assert not j.complete("d/f.tiff")
 
 
@@ -136,3 +136,19 @@ def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
     code, _, err = run_cli(capsys, "export", str(tmp_path / "nostore"), str(tmp_path / "out"), "--format", "dng")
     assert code == 2 and "pip install" in err and "pidng" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
+    """Store names may hold '.' (``demo.party``): a rerun deletes only the journal's own leftovers
+    (regular files named ``.<name>.illumix-tmp<ext>``), never a folder or file of the export."""
+    from dataset_export.journal import Journal, temp_path
+
+    j = Journal(tmp_path, {"a": 1})
+    real = j.write_bytes("Cam/demo.party-front/demo.party-front_1.tiff", b"x")
+    j.write_bytes("Cam/demo.part-2.npy", b"y")
+    leftover = temp_path(tmp_path / "Cam" / "demo.party-front" / "demo.party-front_12.tiff")
+    leftover.write_bytes(b"half")
+    (tmp_path / "Cam" / ".d.illumix-tmp.tiff").mkdir()  # not a regular file: left alone
+    Journal(tmp_path, {"a": 1})
+    assert real.read_bytes() == b"x" and (tmp_path / "Cam" / "demo.part-2.npy").is_file()
+    assert not leftover.exists() and (tmp_path / "Cam" / ".d.illumix-tmp.tiff").is_dir()
