@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dataset_export.errors import ExportError
 from dataset_export.plan import Place, derive_seed
 from imagefiles.dng import as_shot_neutral
 
@@ -101,10 +102,16 @@ class Composer:
         return p
 
     def compose(self, params: dict) -> tuple[dict[str, np.ndarray], dict]:
+        """The sample's arrays and metadata; a refusal of the service's (its ``ServiceError``, an HTTP
+        answer there) becomes an :class:`ExportError`, which stops the export with one line."""
+        from service.errors import ServiceError
         from service.sampling import build_sample
         from service.spec import SampleSpec
 
-        return build_sample(SampleSpec(**params), self.ctx)
+        try:
+            return build_sample(SampleSpec(**params), self.ctx)
+        except ServiceError as exc:
+            raise ExportError(f"{params['scene']}/{params['view']}: {exc.detail}") from None
 
     def capture(self, place: Place, sensor: str) -> Capture:
         """Every frame of ``place`` seen by ``sensor`` (module docstring)."""

@@ -85,6 +85,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
             if rec is None:
                 try:
                     cap = composer.capture(place, sensor_name)
+                except ExportError:
+                    raise  # the options, not this place: nothing else would export either
                 except SpectralError as exc:
                     summary["skipped"].append(f"{sensor_name} {place.scene}/{place.view}: {exc}")
                     skipped_places.add(key)

@@ -47,6 +47,20 @@ def _check_out(out: Path) -> None:
         raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); choose a writable folder") from None
 
 
+def _check_size(size: tuple[int, int] | None) -> None:
+    """Frames (and resampled cubes) within the service's limits on an output (its ``Limits``: side and
+    pixels), checked before anything is written."""
+    from service.limits import Limits
+
+    if size is None:
+        return
+    lim = Limits()
+    w, h = size
+    if max(w, h) > lim.max_side or w * h > lim.max_pixels:
+        raise ExportError(f"--size {w}x{h} exceeds the service's limits (side <= {lim.max_side}, pixels <= "
+                          f"{lim.max_pixels}); give a smaller --size, e.g. {min(w, lim.max_side)}x{min(h, lim.max_side)}")
+
+
 def _open_store(url: str):
     from store import CubeStore, StoreError
 
@@ -79,6 +93,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     fmt = EXPORT_FORMATS[o.format]
     for module in fmt.modules:
         require(module, f"--format {fmt.name}")
+    _check_size(o.size)
     out = Path(o.out)
     st = _open_store(o.store)
     views = _views(st)

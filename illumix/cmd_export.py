@@ -46,7 +46,8 @@ def export(
                                                                        "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
     count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
                                                                   "more repeat views with other lightings)."),
-    size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered)."),
+    size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered; "
+                                                   "at most the service's 4096 a side)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of places, lightings, splits and noise."),
     gt: str | None = typer.Option(None, "--gt", help="Ground truth: physical (default where the store has "
                                                      "illumination cubes) or formula."),

@@ -102,6 +102,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--format", "exrr"], "did you mean 'exr'"),
     (["--format", "exr", "--pairs", "A,D65"], "drop --pairs"),
     (["--size", "12x"], "WxH"),
+    (["--size", "5000x10", "--count", "1"], "exceeds the service's limits"),
     (["--split", "0.5,0.5"], "three fractions"),
     (["--gt", "physics"], "physical or formula"),
     (["--noise", "loud"], "noise"),
@@ -109,6 +110,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
 def test_cli_errors(store, tmp_path, capsys, args, says):
     line = assert_one_line_error(*run_cli(capsys, "export", store, str(tmp_path / "o"), *args))
     assert says in line
+    assert not (tmp_path / "o").exists()  # refused before anything is written
 
 
 def test_cli_missing_store_and_unwritable_out(store, tmp_path, capsys):
@@ -152,3 +154,18 @@ def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
     Journal(tmp_path, {"a": 1})
     assert real.read_bytes() == b"x" and (tmp_path / "Cam" / "demo.part-2.npy").is_file()
     assert not leftover.exists() and (tmp_path / "Cam" / ".d.illumix-tmp.tiff").is_dir()
+
+
+def test_service_refusal_is_an_export_error(store):
+    """Anything the service refuses (its ServiceError, an HTTP answer there) stops the export as one
+    ExportError line (the CLI: exit 2), not a traceback."""
+    from dataset_export.errors import ExportError
+    from dataset_export.frames import Composer
+    from dataset_export.plan import Place
+    from retarget.sensor_model import NoiseModel
+    from store import CubeStore
+
+    composer = Composer(CubeStore.open(store, mode="r"), gt=None, size=(5000, 10), noise=None,
+                        levels=NoiseModel(), bayer=None)
+    with pytest.raises(ExportError, match="room_1/v0: output 5000x10 exceeds the limits"):
+        composer.capture(Place("p", "room_1", "v0", ("window", "lamp"), ("A", "D65"), 1), "Nikon 5100 (NPL)")
