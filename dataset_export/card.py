@@ -45,7 +45,7 @@ def dataset_card(s: dict) -> str:
            "## Contents", "", _table([[k, v] for k, v in s["counts"].items()], ["what", "how many"]), "",
            f"- seed: `{s['seed']}` (places, lightings, splits and noise are functions of it and the store)",
            f"- splits by scene (no scene in two splits), fractions train/val/test `{s['split']}`: {splits}",
-           f"- frame size: {s['size'] or 'as rendered'}"]
+           f"- frame size: {s['size'] or 'as rendered'}", *(f"- note: {w}" for w in s.get("warnings", []))]
     if fmt != "exr":
         kind = ("illumination cubes: bounce light included" if s["gt"] == "physical"
                 else "thesis eq. 3.3 mixture of the lights' white points")

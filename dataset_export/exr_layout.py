@@ -19,11 +19,7 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     """Write the spectral EXRs (module docstring); fills ``summary``."""
     from service.extra_outputs import resize_image
 
-    seen, todo = set(), []
-    for p in places:  # a repeated view (count > views) is the same cubes: once
-        if (p.scene, p.view) not in seen:
-            seen.add((p.scene, p.view))
-            todo.append(p)
+    todo = places  # one place per view: the plan never repeats a view under the same (empty) lighting
     jobs = [(p, g, kind) for p in todo for g in p.groups for kind in ("transport", "illumination")
             if kind == "transport" or _has_illumination(st.cube_meta(p.scene, p.view, g))]
     if on_progress:

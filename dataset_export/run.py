@@ -103,6 +103,11 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
         raise ExportError("--format exr writes the store's cubes, which no illuminant changes; drop --pairs/--illuminants")
     lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
     places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
+    warnings = []
+    if o.count is not None and len(places) < o.count:
+        warnings.append(f"--count {o.count}: the store has {len(places)} distinct view × lighting combination(s) "
+                        f"for these illuminants; each is exported once ({len(places)} places, no copies); give "
+                        "more --illuminants/--pairs or render more views for more")
     splits = split_scenes({p.scene for p in places}, o.split, o.seed)
     if fmt.raw_ext:
         _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
@@ -115,7 +120,8 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     summary = {"format": fmt.name, "store": o.store, "seed": o.seed, "split": ",".join(map(str, o.split)),
                "size": f"{o.size[0]}x{o.size[1]}" if o.size else None,
                "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-               "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": []}
+               "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": [],
+               "warnings": warnings}
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split
     if fmt.raw_ext is None:

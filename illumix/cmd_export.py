@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 
 import typer
 from rich.console import Console
@@ -45,7 +46,8 @@ def export(
     illuminants: str | None = typer.Option(None, "--illuminants", help="Like --pairs with 1-3 illuminants per "
                                                                        "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
     count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
-                                                                  "more repeat views with other lightings)."),
+                                                                  "more repeat views with other lightings; at most "
+                                                                  "the distinct view × lighting combinations)."),
     size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered; "
                                                    "at most the service's 4096 a side)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of places, lightings, splits and noise."),
@@ -93,6 +95,8 @@ def export(
                 prog.update(task, advance=n, last=label)
 
         summary = export_dataset(opts, on_progress)
+    for w in summary["warnings"]:
+        print(f"illumix: warning: {w}", file=sys.stderr)
     console.print(f"exported {summary['counts']} into {summary['out']} ({summary['files']} files; "
                   f"{len(summary['skipped'])} skipped)", highlight=False)
     if as_json:

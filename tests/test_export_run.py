@@ -169,3 +169,22 @@ def test_service_refusal_is_an_export_error(store):
                         levels=NoiseModel(), bayer=None)
     with pytest.raises(ExportError, match="room_1/v0: output 5000x10 exceeds the limits"):
         composer.capture(Place("p", "room_1", "v0", ("window", "lamp"), ("A", "D65"), 1), "Nikon 5100 (NPL)")
+
+
+def test_count_capped_at_distinct_places(store, tmp_path, capsys):
+    """--count beyond the distinct view × lighting combinations writes each combination once (a repeat
+    of a view takes a lighting it has not had) and says so in one warning line; no two places alike."""
+    from dataset_export.plan import plan_places
+
+    views = [("s1", "v0", ("a", "b")), ("s2", "v0", ("a", "b"))]
+    lightings = [("A", "D65"), ("FL11", "D50")]
+    places, _ = plan_places(views, lightings, count=30, seed=1)
+    combos = [(p.scene, p.view, p.lighting) for p in places]
+    assert len(combos) == len(set(combos)) == 4
+    three, _ = plan_places(views, lightings, count=3, seed=1)
+    assert len({(p.scene, p.lighting) for p in three}) == 3 and {p.scene for p in three} == {"s1", "s2"}
+    code, stdout, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--count", "30", "--size", "16x12",
+                                "--json")
+    summary = json.loads(stdout)
+    assert code == 0 and summary["counts"]["places"] == 5  # 5 views × the one default lighting
+    assert "--count 30: the store has 5 distinct" in err and summary["warnings"]
