@@ -73,8 +73,8 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
     from colour.io.fichet2021 import PATTERN_FICHET2021
 
-    from imagefiles.spectral_exr import read_spectral_exr
     from dataset_export.run import ExportOptions, export_dataset
+    from imagefiles.spectral_exr import read_spectral_exr
     from store import CubeStore
 
     out = tmp_path / dtype
@@ -88,6 +88,9 @@ def test_exr_round_trip(store, tmp_path, dtype):
         np.testing.assert_array_equal(wl, st.cube_meta(e["scene"], e["view"], e["group"]).spectral_grid.wavelengths)
         np.testing.assert_array_equal(cube, ref.astype(dtype))
         assert header["spectralLayoutVersion"] == "1.0"
+        # honest units: relative band integrals over bands of illumixBandWidthNm, not W.m^-2.sr^-1
+        assert "W.m" not in header["emissiveUnits"] and header["emissiveUnits"].startswith("relative")
+        assert float(header["illumixBandWidthNm"]) == 5.0
     with OpenEXR.File(str(out / rel)) as f:
         names = list(f.channels())
     assert "S0.550,0nm" in names

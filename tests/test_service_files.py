@@ -132,6 +132,7 @@ def test_exr_round_trip_equals_the_npz(client, tmp_path):
     for k in ("scene", "view", "seed", "illuminants", "exposure_gain", "ground_truth", "size"):
         assert sent[k] == meta[k], k
     assert header["spectralLayoutVersion"] == "1.0"
+    assert header["emissiveUnits"].startswith("relative") and float(header["illumixBandWidthNm"]) == 5.0
     path = tmp_path / "sample.exr"
     path.write_bytes(r.content)
     with OpenEXR.File(str(path), separate_channels=True) as f:
