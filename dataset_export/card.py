@@ -50,7 +50,8 @@ def dataset_card(s: dict) -> str:
         kind = ("illumination cubes: bounce light included" if s["gt"] == "physical"
                 else "thesis eq. 3.3 mixture of the lights' white points")
         err = s["lsmi_error_deg"]
-        bayer = f", Bayer {s['bayer']}" if s.get("bayer") else ""
+        bayer = (f", Bayer {s['bayer']}" if s.get("bayer") else
+                 ", LinearRaw DNG (RGB per pixel, no mosaic)" if fmt == "dng" else "")
         out += [(f"- ground truth: `{s['gt']}` ({kind}; LSMI's model Σ mixture·Light differs from illumix's `illum` "
                  f"by {err['mean']:.3f}° mean, {err['max']:.3f}° max)"),
                 (f"- sensor model: black level {s['levels']['black']}, white level {s['levels']['white']}, "

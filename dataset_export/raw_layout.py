@@ -55,7 +55,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     from retarget.errors import SpectralError
 
     levels = _levels(o.noise)
-    composer = Composer(st, gt=o.gt, size=o.size, noise=o.noise, levels=levels, bayer=o.bayer if fmt.bayer else None)
+    bayer = o.bayer if fmt.bayer else None  # dng without a pattern (--bayer none): LinearRaw RGB frames
+    composer = Composer(st, gt=o.gt, size=o.size, noise=o.noise, levels=levels, bayer=bayer)
     lib = composer.ctx.library
     first = places[0]
     grid = st.cube_meta(first.scene, first.view, first.groups[0]).spectral_grid
@@ -117,7 +118,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
     summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in skipped_places for c in folders)})
                          for name, ps in by_split.items()}
-    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": o.bayer if fmt.bayer else None,
+    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": bayer,
                 "levels": {"black": int(levels.black_level), "white": int(levels.white)},
                 "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in errors])),
                                    "max": float(np.max([e["max"] for e in errors]))},
@@ -154,15 +155,17 @@ LAYOUT = {
             "Lights: `_1`, `_12` (two lights), `_1`, `_12`, `_13`, `_123` (three), as LSMI captured them, all at the "
             "exposure of the all-lit frame. Extra: `<camera>/illuminants.json` (names, CCTs, SPDs) and per place "
             "`Illuminants`, `Scene`, `View`, `ExposureGain`, `GroundTruth` in meta.json.",
-    "dng": "The LSMI layout with Bayer DNG raws (`<place>_<lights>.dng`, 16-bit CFA, BlackLevel/WhiteLevel, "
-           "ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = the ground-truth white point) where the "
-           "LSMI release has TIFFs; mixture `.npy` files are per pixel of the DNG.",
+    "dng": "The LSMI layout with DNG raws (`<place>_<lights>.dng`: 16-bit Bayer CFA, or LinearRaw RGB with "
+           "`--bayer none`; BlackLevel/WhiteLevel, ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = "
+           "the ground-truth white point) where the LSMI release has TIFFs; mixture `.npy` files are per pixel "
+           "of the DNG.",
 }
 READING = {
     "lsmi": "LSMI's own scripts run unchanged: copy `2_preprocess_data.py` beside the camera folder, set "
             "`CAMERA = \"<camera>\"`, run it, then train its `SVWB_Unet` on the output. By hand: "
             "`img = cv2.cvtColor(cv2.imread(tiff, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB) - black`; "
             "`illum = mixture @ [Light1, Light2]`; white-balanced `img / illum`.",
-    "dng": "`rawpy.imread(path)`: `raw_image` (CFA), `black_level_per_channel`, `white_level`, "
+    "dng": "`rawpy.imread(path)`: `raw_image` (CFA `(H, W)`; LinearRaw `(H, W, 4)`, RGB in `[..., :3]`), "
+           "`black_level_per_channel`, `white_level`, "
            "`camera_whitebalance` (1 / AsShotNeutral), `postprocess()` for an sRGB preview.",
 }

@@ -33,7 +33,7 @@ class ExportOptions:
     gt: str | None = None
     split: tuple[float, float, float] = (0.7, 0.15, 0.15)
     noise: str | None = None
-    bayer: str = "RGGB"
+    bayer: str | None = "RGGB"  # None: --format dng writes LinearRaw RGB
     exr_dtype: str = "float32"
 
 

@@ -1,6 +1,6 @@
 """``illumix export STORE OUT --format lsmi|dng|exr [--sensors …] [--pairs A,D65;… | --illuminants …]
 [--count N] [--size WxH] [--seed S] [--gt physical|formula] [--split 0.7,0.15,0.15] [--noise …]
-[--bayer RGGB] [--exr-dtype float32|float16] [--json]``.
+[--bayer RGGB|none] [--exr-dtype float32|float16] [--json]``.
 
 Writes a frozen dataset from a cube store (:mod:`dataset_export`): the LSMI release's layout with TIFF
 (``lsmi``) or Bayer DNG (``dng``) raws, or the store's spectral cubes as OpenEXR (``exr``); splits
@@ -56,7 +56,8 @@ def export(
     split: str = typer.Option("0.7,0.15,0.15", "--split", help="Train,val,test fractions of the scenes."),
     noise: str | None = typer.Option(None, "--noise", help="Sensor model: none (default: noise-free, black level 64, "
                                                            "white level 4095), low, phone, high or key:value;… as /sample's noise="),
-    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG."),
+    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG; "
+                                                      "none: LinearRaw DNGs (RGB per pixel, no mosaic)."),
     exr_dtype: str = typer.Option("float32", "--exr-dtype", help="float32 (exact) or float16 (clipped at 65504) "
                                                                  "for --format exr."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
@@ -81,7 +82,8 @@ def export(
         raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
     opts = ExportOptions(store=store, out=out, format=name, sensors=names, pairs=pairs, illuminants=illuminants,
                          count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
-                         split=parse_fractions(split), noise=noise, bayer=BAYER_PATTERNS.canonical(bayer),
+                         split=parse_fractions(split), noise=noise,
+                         bayer=None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer),
                          exr_dtype=exr_dtype)
     quiet = as_json and not console.is_terminal
     with progress_bar(console, disable=quiet) as prog:

@@ -122,6 +122,13 @@ def test_cli_missing_store_and_unwritable_out(store, tmp_path, capsys):
     assert "cannot write into" in line
 
 
+def test_cli_linear_dng(store, tmp_path, capsys):
+    code, stdout, _ = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", "dng", "--bayer", "none",
+                              "--count", "1", "--size", "32x24", "--json")
+    assert code == 0 and json.loads(stdout)["bayer"] is None
+    assert next((tmp_path / "o").rglob("*_12.dng")).is_file()
+
+
 def test_cli_json_and_rerun_with_other_options(store, tmp_path, capsys):
     out = str(tmp_path / "o")
     code, stdout, _ = run_cli(capsys, "export", store, out, "--count", "2", "--json")
