@@ -10,7 +10,10 @@ LSMI release and ``illumix export --format lsmi`` lay out one camera::
 
 read as LSMI's own ``2_preprocess_data.py`` reads it: ``raw = clip(tiff - black, 0, white - black)``,
 the GT illumination map ``Σ_i mix_i · Light_i`` (LSMI ``utils.mix_chroma``), invalid where the mixture
-is -1. Black level ``min(black_level_per_channel)`` and white level as LSMI takes them from the
+is -1 — unless the file has the exact ground truth beside it, ``<place>_<lights>_gt_illum.npy``
+(``illumix export`` writes it: the per-pixel white point ``(H, W, 3)``, physical, -1 where undefined),
+which is then preferred (LSMI's model cannot hold the bounce light's tint); :meth:`LsmiCases.describe`
+says which ground truth was used (``gt``). Black level ``min(black_level_per_channel)`` and white level as LSMI takes them from the
 template DNG (rawpy when installed, else the DNG's BlackLevel/WhiteLevel tags read with tifffile),
 unless given. The CCM used for the ΔE00 rendering is the DNG's colour matrix made white-preserving
 (dcraw's ``cam_xyz_coeff``), identity when the DNG has none.
@@ -33,6 +36,7 @@ from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
 _FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.tiff$")
+GT_ILLUM_SUFFIX = "_gt_illum.npy"  # the exact per-pixel ground truth beside <place>_<lights>.tiff
 # DNG tags (Adobe DNG specification 1.6): BlackLevel, WhiteLevel, ColorMatrix1/2, CalibrationIlluminant1/2
 _BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2 = 50714, 50717, 50721, 50722, 50778, 50779
 _TAGS = (_BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2)
@@ -146,6 +150,10 @@ class Item:
     def name(self) -> str:
         return f"{self.place}_{self.lights}"
 
+    @property
+    def gt_illum(self) -> Path:
+        return self.tiff.with_name(self.name + GT_ILLUM_SUFFIX)
+
 
 class LsmiCases:
     """The cases of an LSMI folder (module docstring); ``len()`` first, then iterate.
@@ -188,6 +196,7 @@ class LsmiCases:
         self.levels = self._levels(black_level, white_level)
         self.ccm = white_preserving_ccm(self.levels.cam_xyz)
         self.split, self.seed, self.pairs = split, seed, pairs
+        self.gt_files = sum(it.gt_illum.is_file() for it in self.items)
 
     def _places(self, split: str | None) -> list[str]:
         splits = _read_json(self.camera_dir / "split.json")
@@ -234,7 +243,17 @@ class LsmiCases:
                 "places": len({i.place for i in self.items}), "split": self.split, "pairs": self.pairs,
                 "seed": self.seed, "black_level": self.levels.black, "white_level": self.levels.white,
                 "levels_from": self.levels.source,
-                "ccm": "DNG colour matrix" if self.levels.cam_xyz is not None else "identity (no colour matrix)"}
+                "ccm": "DNG colour matrix" if self.levels.cam_xyz is not None else "identity (no colour matrix)",
+                "gt": self._gt_used()}
+
+    def _gt_used(self) -> str:
+        model = "LSMI model Σ mixture·Light (meta.json Light<i>)"
+        exact = f"per-pixel <place>_<lights>{GT_ILLUM_SUFFIX} (illumix export's ground truth)"
+        if self.gt_files == len(self.items):
+            return exact
+        if not self.gt_files:
+            return model
+        return f"{exact} for {self.gt_files} of {len(self.items)} images, {model} for the others"
 
     def __iter__(self) -> Iterator[Case]:
         for item in self.items:
@@ -268,12 +287,26 @@ class LsmiCases:
                                     f"camera-RGB values, got {light!r}")
             chroma.append([float(v) for v in light])
         wps = np.array(chroma)
-        illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
-        mask &= np.all(illum > 0, axis=-1)
+        if item.gt_illum.is_file():
+            illum = _load_gt_illum(item.gt_illum, (h, w, 3))
+        else:
+            illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
+        mask &= np.all(np.isfinite(illum), axis=-1) & np.all(illum > 0, axis=-1)
         fill = illum[mask].mean(axis=0) if mask.any() else np.ones(3, np.float32)
         illum[~mask] = fill  # any positive colour: never scored, keeps gains finite
         return Case(name=item.name, pair=item.lights, raw=raw, illum=illum, mask=mask, mixture=mix,
                     white_points=wps, ccm=self.ccm, usable=unsaturated(raw, top))
+
+
+def _load_gt_illum(path: Path, shape: tuple[int, int, int]) -> np.ndarray:
+    """A ``_gt_illum.npy`` file: ``shape`` float32 (non-positive or non-finite pixels are undefined)."""
+    try:
+        gt = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise SpectralError(f"{path}: not a readable .npy ({exc})") from None
+    if gt.shape != shape:
+        raise SpectralError(f"{path}: shape {gt.shape}, expected {shape} (the image's H × W × RGB)")
+    return np.asarray(gt, np.float32)
 
 
 def _read_json(path: Path) -> dict:

@@ -42,7 +42,9 @@ class Frame:
     """A composed frame: ``lights`` (``"12"``), ``params`` (the ``/sample`` parameters), ``dn`` raw in
     digital numbers uint16 ``(H, W, 3)`` RGB or ``(H, W)`` Bayer, ``mixture`` ``(H, W, len(lights))``
     float32 (``ZERO_MASK`` where unlit; ``None`` for one light), ``neutral`` the frame's mean white
-    point (G = 1) and ``meta`` the sample's metadata."""
+    point (G = 1), ``meta`` the sample's metadata and ``gt_illum`` ``(H, W, 3)`` float32 the sample's
+    ``illum``: the ground-truth white point per pixel (camera RGB, G = 1; physical or formula as the
+    sample's ground truth), ``ZERO_MASK`` in all three channels where it is undefined."""
 
     lights: str
     params: dict
@@ -50,6 +52,7 @@ class Frame:
     mixture: np.ndarray | None
     neutral: list[float]
     meta: dict = field(repr=False)
+    gt_illum: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -136,7 +139,9 @@ class Composer:
             mix = None
             if len(idx) > 1:
                 mix = np.where(a["mask"][..., None], a["mixture"][..., idx], np.float32(ZERO_MASK)).astype(np.float32)
-            frames.append(Frame(lights, params, raw.astype(np.uint16), mix, _neutral(mix, [chroma[i] for i in idx]), m))
+            gt_illum = np.where(a["mask"][..., None], a["illum"], np.float32(ZERO_MASK)).astype(np.float32)
+            frames.append(Frame(lights, params, raw.astype(np.uint16), mix, _neutral(mix, [chroma[i] for i in idx]), m,
+                                gt_illum))
         return Capture(place, sensor, frames, chroma, gain,
                        {"mean": float(np.mean(err)), "max": float(np.max(err))})
 

@@ -12,6 +12,7 @@ unchanged::
     OUT/<camera>/<place>/<place>_<lights>.tiff   16-bit RGB raw, BGR order on disk (as cv2 writes),
                                            black level added, clipped at the white level
     OUT/<camera>/<place>/<place>_<lights>.npy    mixture (H, W, len(lights)) float32, multi-light only
+    OUT/<camera>/<place>/<place>_<lights>_gt_illum.npy   extra: the ground truth (H, W, 3) float32
 
 - ``Light<i>``: light ``i``'s white point in camera RGB normalised to G = 1 (LSMI's "green"
   normalisation), the ground truth's ``white_point_rgb``; LSMI's illumination map is
@@ -20,6 +21,13 @@ unchanged::
   output, physical or formula ground truth), summing to 1; ``-1`` (LSMI's ``ZERO_MASK``) where no
   light reaches the pixel or it has no surface (the sample's ``mask``) — never NaN, never another
   negative value (LSMI issues #9, #27).
+- Ground truth (beyond LSMI): ``<place>_<lights>_gt_illum.npy``, every frame, is the sample's
+  ``illum`` — the white point per pixel in camera RGB with G = 1, physical (bounce light included)
+  unless ``--gt formula`` — and ``-1`` (``ZERO_MASK``) in all three channels where it is undefined
+  (the mixture's ``-1`` pixels); never NaN. LSMI's model ``Σ mixture_i · Light_i`` is this only for
+  formula ground truth (``LSMIModelErrorDeg``). LSMI's scripts list ``*.tiff`` and load the mixture
+  by its exact name, so they never read it; the name avoids ``<fname>_illum.npy``, which LSMI's
+  ``2_preprocess_data.py`` writes into its *output* folder.
 - ``MCCCoord``: the ColorChecker's corners (:mod:`dataset_export.chart`), TL, TR, BR, BL, at **twice** the
   TIFF's pixel coordinates (LSMI annotated its full-size raws and ships half-size TIFFs; its scripts
   divide by 2). A scene has at most one chart found; absent charts (``mcc2``, ``mcc3``, or all when
@@ -43,6 +51,7 @@ import numpy as np
 from dataset_export.frames import Capture
 
 ABSENT_CHART = [[-2.0, -2.0]] * 4
+GT_ILLUM_SUFFIX = "_gt_illum.npy"  # <place>_<lights>_gt_illum.npy: the per-pixel ground truth (module docstring)
 CHARTS = ("mcc1", "mcc2", "mcc3")
 
 

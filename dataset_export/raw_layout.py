@@ -70,7 +70,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     if on_progress:
         on_progress(len(sensors) * len(places), None)
     corner_cache: dict = {}
-    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0}
+    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0,
+                          "ground-truth maps": 0}
     summary |= {"cameras": [], "illuminants": {n: ccts[n] for n in names if n != "D65" or
                                                any("D65" in p.lighting for p in places)}}
     skipped_places: set[str] = set()
@@ -103,7 +104,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
             summary["samples"] += rec["samples"]
             counts["places"] += 1
             counts["raw frames"] += len(rec["samples"])
-            counts["mixture maps"] += sum(f.endswith(".npy") for f in rec["files"])
+            counts["ground-truth maps"] += sum(f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
+            counts["mixture maps"] += sum(f.endswith(".npy") and not f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
             if on_progress:
                 on_progress(1, key)
         splits = {name: [p for p in ps if p in entries] for name, ps in by_split.items()}
@@ -141,6 +143,8 @@ def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
         if fr.mixture is not None:
             journal.write(stem + ".npy", lambda p, fr=fr: lsmi.write_npy(p, fr.mixture))
             files.append(stem + ".npy")
+        journal.write(stem + lsmi.GT_ILLUM_SUFFIX, lambda p, fr=fr: lsmi.write_npy(p, fr.gt_illum))
+        files.append(stem + lsmi.GT_ILLUM_SUFFIX)
         samples.append({"file": raw_rel, "params": fr.params, "gt": fr.meta["ground_truth"]["method"],
                         "neutral": [round(v, 8) for v in fr.neutral]})
     return {"files": files, "samples": samples}
@@ -152,6 +156,9 @@ LAYOUT = {
             "`NumOfLights`, `MCCCoord` at 2x pixel coordinates; absent charts at (-2, -2)), `<camera>/split.json`, "
             "`<camera>/<place>/<place>_<lights>.tiff` (16-bit RGB, BGR order on disk, black level added, clipped at "
             "the white level) and `<place>_<lights>.npy` (mixture H×W×n, -1 where no light reaches the pixel). "
+            "Beyond LSMI, per frame `<place>_<lights>_gt_illum.npy`: the ground truth itself (H×W×3 float32, the "
+            "white point per pixel in camera RGB with G = 1 — physical: bounce light included —, -1 in all three "
+            "channels where undefined); LSMI's scripts never read it. "
             "Lights: `_1`, `_12` (two lights), `_1`, `_12`, `_13`, `_123` (three), as LSMI captured them, all at the "
             "exposure of the all-lit frame. Extra: `<camera>/illuminants.json` (names, CCTs, SPDs) and per place "
             "`Illuminants`, `Scene`, `View`, `ExposureGain`, `GroundTruth` in meta.json.",
@@ -164,7 +171,9 @@ READING = {
     "lsmi": "LSMI's own scripts run unchanged: copy `2_preprocess_data.py` beside the camera folder, set "
             "`CAMERA = \"<camera>\"`, run it, then train its `SVWB_Unet` on the output. By hand: "
             "`img = cv2.cvtColor(cv2.imread(tiff, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB) - black`; "
-            "`illum = mixture @ [Light1, Light2]`; white-balanced `img / illum`.",
+            "`illum = np.load('<place>_<lights>_gt_illum.npy')` (the exact ground truth; valid where "
+            "`illum[..., 1] > 0`) or LSMI's model `mixture @ [Light1, Light2]`; white-balanced `img / illum`. "
+            "`illumix evaluate OUT` scores against the `_gt_illum.npy` files.",
     "dng": "`rawpy.imread(path)`: `raw_image` (CFA `(H, W)`; LinearRaw `(H, W, 4)`, RGB in `[..., :3]`), "
            "`black_level_per_channel`, `white_level`, "
            "`camera_whitebalance` (1 / AsShotNeutral), `postprocess()` for an sRGB preview.",

@@ -132,3 +132,29 @@ def test_lsmi_levels_and_errors(lsmi, tmp_path):
         LsmiCases(lsmi, split="dev")
     with pytest.raises(SpectralError, match="no <place>_<lights>.tiff"):
         LsmiCases(lsmi, pairs="13")
+
+
+def test_lsmi_prefers_the_physical_gt_file(tmp_path):
+    """Where ``<place>_<lights>_gt_illum.npy`` exists (``illumix export`` writes it) its per-pixel
+    white point is the ground truth, -1 marking undefined pixels; elsewhere LSMI's model. The
+    results say which."""
+    root = make_lsmi(tmp_path)
+    assert LsmiCases(root).describe()["gt"].startswith("LSMI model")
+    tint = np.array([1.08, 1.0, 0.93], np.float32)
+    _, mix, _ = lsmi_image("12", np.random.default_rng(1))
+    chroma = np.array([LIGHTS["Light1"], LIGHTS["Light2"]], np.float32)
+    gt = (mix @ chroma) * tint
+    gt /= gt[..., 1:2]
+    gt[-3:] = -1
+    gt[0, 0] = -1  # undefined where the mixture is not: not scored
+    np.save(root / "cam/p1/p1_12_gt_illum.npy", gt.astype(np.float32))
+    src = LsmiCases(root)
+    assert "1 of 4" in src.describe()["gt"] and "_gt_illum.npy" in src.describe()["gt"]
+    case = next(c for c in src if c.name == "p1_12")
+    np.testing.assert_array_equal(case.illum[case.mask], gt[case.mask])
+    assert not case.mask[0, 0] and not case.mask[-3:].any() and case.mask[1:-3].all()
+    res = evaluate(iter([case]), resolve(["GT"]))
+    assert res.images[0]["methods"]["Ground Truth"]["angular_max"] < ZERO
+    (root / "cam/p1/p1_12_gt_illum.npy").write_bytes(b"not npy")
+    with pytest.raises(SpectralError, match="p1_12_gt_illum.npy"):
+        LsmiCases(root).load(next(i for i in LsmiCases(root).items if i.name == "p1_12"))
