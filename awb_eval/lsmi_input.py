@@ -6,6 +6,8 @@ LSMI release and ``illumix export --format lsmi`` lay out one camera::
     ROOT/<camera>/meta.json                place → {"Light1".."Light3": camera-RGB chromaticity, "MCCCoord"}
     ROOT/<camera>/split.json               {"<…>_train"|"…_val"|"…_test": [place, …]}
     ROOT/<camera>/<place>/<place>_<lights>.tiff   16-bit RGB raw with black level (BGR on disk, OpenCV order)
+                                           (or ``.dng``: read as LSMI's ``0_cvt2tiff.py`` converts its
+                                           cameras' raws, :mod:`awb_eval.dng_frames`)
     ROOT/<camera>/<place>/<place>_<lights>.npy    mixture H×W×len(lights), -1 where black (not for one light)
 
 read as LSMI's own ``2_preprocess_data.py`` reads it: ``raw = clip(tiff - black, 0, white - black)``,
@@ -32,10 +34,11 @@ import cv2
 import numpy as np
 
 from awb_eval.case import Case, unsaturated
+from awb_eval.dng_frames import half_size, read_dng_rgb
 from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
-_FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.tiff$")
+_FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.(?P<ext>tiff|dng)$")
 GT_ILLUM_SUFFIX = "_gt_illum.npy"  # the exact per-pixel ground truth beside <place>_<lights>.tiff
 # DNG tags (Adobe DNG specification 1.6): BlackLevel, WhiteLevel, ColorMatrix1/2, CalibrationIlluminant1/2
 _BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2 = 50714, 50717, 50721, 50722, 50778, 50779
@@ -144,7 +147,7 @@ def white_preserving_ccm(cam_xyz: np.ndarray | None) -> np.ndarray:
 class Item:
     place: str
     lights: str
-    tiff: Path
+    raw: Path  # the .tiff, or the .dng of a DNG export
 
     @property
     def name(self) -> str:
@@ -152,7 +155,7 @@ class Item:
 
     @property
     def gt_illum(self) -> Path:
-        return self.tiff.with_name(self.name + GT_ILLUM_SUFFIX)
+        return self.raw.with_name(self.name + GT_ILLUM_SUFFIX)
 
 
 class LsmiCases:
@@ -191,12 +194,13 @@ class LsmiCases:
         self.items = [it for pl in places for it in self._files(pl) if keep is None or it.lights in keep]
         if not self.items:
             what = f" with lights {sorted(keep)}" if keep else ""
-            raise SpectralError(f"{camera_dir}: no <place>_<lights>.tiff{what} in the chosen places "
+            raise SpectralError(f"{camera_dir}: no <place>_<lights>.tiff (or .dng){what} in the chosen places "
                                 f"({len(places)}); LSMI light sets are digits, e.g. --pairs \"12;13\"")
         self.levels = self._levels(black_level, white_level)
         self.ccm = white_preserving_ccm(self.levels.cam_xyz)
         self.split, self.seed, self.pairs = split, seed, pairs
         self.gt_files = sum(it.gt_illum.is_file() for it in self.items)
+        self.dng_files = sum(it.raw.suffix == ".dng" for it in self.items)
 
     def _places(self, split: str | None) -> list[str]:
         splits = _read_json(self.camera_dir / "split.json")
@@ -212,12 +216,12 @@ class LsmiCases:
             raise SpectralError(f"{folder}: listed in split.json but missing")
         if place not in self.meta:
             raise SpectralError(f"{self.camera_dir / 'meta.json'} has no entry for place {place!r}")
-        out = []
-        for f in sorted(folder.glob(f"{place}_*.tiff")):
+        found: dict[str, Path] = {}
+        for f in sorted(folder.glob(f"{place}_*")):
             m = _FILE.match(f.name)
-            if m and m["place"] == place:
-                out.append(Item(place, m["lights"], f))
-        return out
+            if m and m["place"] == place and (m["lights"] not in found or m["ext"] == "tiff"):  # a TIFF first
+                found[m["lights"]] = f
+        return [Item(place, lights, f) for lights, f in sorted(found.items())]
 
     def _levels(self, black: float | None, white: float | None) -> CameraLevels:
         dng = self.root / f"{self.camera}.dng"
@@ -244,7 +248,13 @@ class LsmiCases:
                 "seed": self.seed, "black_level": self.levels.black, "white_level": self.levels.white,
                 "levels_from": self.levels.source,
                 "ccm": "DNG colour matrix" if self.levels.cam_xyz is not None else "identity (no colour matrix)",
-                "gt": self._gt_used()}
+                "gt": self._gt_used(), "raw": self._raw_read()}
+
+    def _raw_read(self) -> str:
+        tiff = "16-bit RGB TIFFs (cv2)"
+        dng = ("DNG raws via libraw: Bayer → half-size RGB as LSMI's 0_cvt2tiff.py (dcraw -h -D), maps averaged "
+               "over 2×2 blocks; LinearRaw as is")
+        return dng if self.dng_files == len(self.items) else tiff if not self.dng_files else f"{tiff} and {dng}"
 
     def _gt_used(self) -> str:
         model = "LSMI model Σ mixture·Light (meta.json Light<i>)"
@@ -261,22 +271,26 @@ class LsmiCases:
 
     def load(self, item: Item) -> Case:
         """One file → :class:`Case` (LSMI's reading; module docstring)."""
-        img = cv2.imread(str(item.tiff), cv2.IMREAD_UNCHANGED)
-        if img is None or img.ndim != 3 or img.shape[2] != 3:
-            raise SpectralError(f"{item.tiff}: not a 3-channel image OpenCV can read")
+        if item.raw.suffix == ".dng":
+            dn, (h, w) = read_dng_rgb(item.raw)  # the maps are per pixel of the file: a Bayer DNG's, 2× its RGB
+        else:
+            img = cv2.imread(str(item.raw), cv2.IMREAD_UNCHANGED)
+            if img is None or img.ndim != 3 or img.shape[2] != 3:
+                raise SpectralError(f"{item.raw}: not a 3-channel image OpenCV can read")
+            dn = cv2.cvtColor(img, cv2.COLOR_BGR2RGB).astype(np.float32)
+            h, w = dn.shape[:2]
         top = self.levels.white - self.levels.black
-        raw = np.clip(cv2.cvtColor(img, cv2.COLOR_BGR2RGB).astype(np.float32) - np.float32(self.levels.black), 0, top)
-        h, w = raw.shape[:2]
+        raw = np.clip(dn - np.float32(self.levels.black), 0, top)
         n = len(item.lights)
         if n == 1:
             mix = np.ones((h, w, 1), np.float32)
         else:
-            npy = item.tiff.with_suffix(".npy")
+            npy = item.raw.with_suffix(".npy")
             if not npy.is_file():
                 raise SpectralError(f"{npy}: missing (the mixture of a {n}-light image)")
             mix = np.load(npy).astype(np.float32)
             if mix.shape != (h, w, n):
-                raise SpectralError(f"{npy}: shape {mix.shape}, expected {(h, w, n)} for {item.tiff.name}")
+                raise SpectralError(f"{npy}: shape {mix.shape}, expected {(h, w, n)} for {item.raw.name}")
         mask = np.all(np.isfinite(mix), axis=-1) & (mix[..., 0] != ZERO_MASK) & np.all(mix >= 0, axis=-1)
         mix = np.where(mask[..., None], mix, np.float32(0))
         chroma = []
@@ -292,6 +306,8 @@ class LsmiCases:
         else:
             illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
         mask &= np.all(np.isfinite(illum), axis=-1) & np.all(illum > 0, axis=-1)
+        if raw.shape[:2] != (h, w):  # a Bayer DNG read at half size
+            mask, mix, illum = half_size(mask), half_size(mix), half_size(illum)
         fill = illum[mask].mean(axis=0) if mask.any() else np.ones(3, np.float32)
         illum[~mask] = fill  # any positive colour: never scored, keeps gains finite
         return Case(name=item.name, pair=item.lights, raw=raw, illum=illum, mask=mask, mixture=mix,
