@@ -6,11 +6,16 @@ LSMI release and ``illumix export --format lsmi`` lay out one camera::
     ROOT/<camera>/meta.json                place → {"Light1".."Light3": camera-RGB chromaticity, "MCCCoord"}
     ROOT/<camera>/split.json               {"<…>_train"|"…_val"|"…_test": [place, …]}
     ROOT/<camera>/<place>/<place>_<lights>.tiff   16-bit RGB raw with black level (BGR on disk, OpenCV order)
+                                           (or ``.dng``: read as LSMI's ``0_cvt2tiff.py`` converts its
+                                           cameras' raws, :mod:`awb_eval.dng_frames`)
     ROOT/<camera>/<place>/<place>_<lights>.npy    mixture H×W×len(lights), -1 where black (not for one light)
 
 read as LSMI's own ``2_preprocess_data.py`` reads it: ``raw = clip(tiff - black, 0, white - black)``,
 the GT illumination map ``Σ_i mix_i · Light_i`` (LSMI ``utils.mix_chroma``), invalid where the mixture
-is -1. Black level ``min(black_level_per_channel)`` and white level as LSMI takes them from the
+is -1 — unless the file has the exact ground truth beside it, ``<place>_<lights>_gt_illum.npy``
+(``illumix export`` writes it: the per-pixel white point ``(H, W, 3)``, physical, -1 where undefined),
+which is then preferred (LSMI's model cannot hold the bounce light's tint); :meth:`LsmiCases.describe`
+says which ground truth was used (``gt``). Black level ``min(black_level_per_channel)`` and white level as LSMI takes them from the
 template DNG (rawpy when installed, else the DNG's BlackLevel/WhiteLevel tags read with tifffile),
 unless given. The CCM used for the ΔE00 rendering is the DNG's colour matrix made white-preserving
 (dcraw's ``cam_xyz_coeff``), identity when the DNG has none.
@@ -29,10 +34,12 @@ import cv2
 import numpy as np
 
 from awb_eval.case import Case, unsaturated
+from awb_eval.dng_frames import half_size, read_dng_rgb
 from retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
-_FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.tiff$")
+_FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.(?P<ext>tiff|dng)$")
+GT_ILLUM_SUFFIX = "_gt_illum.npy"  # the exact per-pixel ground truth beside <place>_<lights>.tiff
 # DNG tags (Adobe DNG specification 1.6): BlackLevel, WhiteLevel, ColorMatrix1/2, CalibrationIlluminant1/2
 _BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2 = 50714, 50717, 50721, 50722, 50778, 50779
 _TAGS = (_BLACK, _WHITE, _CM1, _CM2, _CAL1, _CAL2)
@@ -140,11 +147,15 @@ def white_preserving_ccm(cam_xyz: np.ndarray | None) -> np.ndarray:
 class Item:
     place: str
     lights: str
-    tiff: Path
+    raw: Path  # the .tiff, or the .dng of a DNG export
 
     @property
     def name(self) -> str:
         return f"{self.place}_{self.lights}"
+
+    @property
+    def gt_illum(self) -> Path:
+        return self.raw.with_name(self.name + GT_ILLUM_SUFFIX)
 
 
 class LsmiCases:
@@ -183,11 +194,13 @@ class LsmiCases:
         self.items = [it for pl in places for it in self._files(pl) if keep is None or it.lights in keep]
         if not self.items:
             what = f" with lights {sorted(keep)}" if keep else ""
-            raise SpectralError(f"{camera_dir}: no <place>_<lights>.tiff{what} in the chosen places "
+            raise SpectralError(f"{camera_dir}: no <place>_<lights>.tiff (or .dng){what} in the chosen places "
                                 f"({len(places)}); LSMI light sets are digits, e.g. --pairs \"12;13\"")
         self.levels = self._levels(black_level, white_level)
         self.ccm = white_preserving_ccm(self.levels.cam_xyz)
         self.split, self.seed, self.pairs = split, seed, pairs
+        self.gt_files = sum(it.gt_illum.is_file() for it in self.items)
+        self.dng_files = sum(it.raw.suffix == ".dng" for it in self.items)
 
     def _places(self, split: str | None) -> list[str]:
         splits = _read_json(self.camera_dir / "split.json")
@@ -203,12 +216,12 @@ class LsmiCases:
             raise SpectralError(f"{folder}: listed in split.json but missing")
         if place not in self.meta:
             raise SpectralError(f"{self.camera_dir / 'meta.json'} has no entry for place {place!r}")
-        out = []
-        for f in sorted(folder.glob(f"{place}_*.tiff")):
+        found: dict[str, Path] = {}
+        for f in sorted(folder.glob(f"{place}_*")):
             m = _FILE.match(f.name)
-            if m and m["place"] == place:
-                out.append(Item(place, m["lights"], f))
-        return out
+            if m and m["place"] == place and (m["lights"] not in found or m["ext"] == "tiff"):  # a TIFF first
+                found[m["lights"]] = f
+        return [Item(place, lights, f) for lights, f in sorted(found.items())]
 
     def _levels(self, black: float | None, white: float | None) -> CameraLevels:
         dng = self.root / f"{self.camera}.dng"
@@ -234,7 +247,23 @@ class LsmiCases:
                 "places": len({i.place for i in self.items}), "split": self.split, "pairs": self.pairs,
                 "seed": self.seed, "black_level": self.levels.black, "white_level": self.levels.white,
                 "levels_from": self.levels.source,
-                "ccm": "DNG colour matrix" if self.levels.cam_xyz is not None else "identity (no colour matrix)"}
+                "ccm": "DNG colour matrix" if self.levels.cam_xyz is not None else "identity (no colour matrix)",
+                "gt": self._gt_used(), "raw": self._raw_read()}
+
+    def _raw_read(self) -> str:
+        tiff = "16-bit RGB TIFFs (cv2)"
+        dng = ("DNG raws via libraw: Bayer → half-size RGB as LSMI's 0_cvt2tiff.py (dcraw -h -D), maps averaged "
+               "over 2×2 blocks; LinearRaw as is")
+        return dng if self.dng_files == len(self.items) else tiff if not self.dng_files else f"{tiff} and {dng}"
+
+    def _gt_used(self) -> str:
+        model = "LSMI model Σ mixture·Light (meta.json Light<i>)"
+        exact = f"per-pixel <place>_<lights>{GT_ILLUM_SUFFIX} (illumix export's ground truth)"
+        if self.gt_files == len(self.items):
+            return exact
+        if not self.gt_files:
+            return model
+        return f"{exact} for {self.gt_files} of {len(self.items)} images, {model} for the others"
 
     def __iter__(self) -> Iterator[Case]:
         for item in self.items:
@@ -242,22 +271,26 @@ class LsmiCases:
 
     def load(self, item: Item) -> Case:
         """One file → :class:`Case` (LSMI's reading; module docstring)."""
-        img = cv2.imread(str(item.tiff), cv2.IMREAD_UNCHANGED)
-        if img is None or img.ndim != 3 or img.shape[2] != 3:
-            raise SpectralError(f"{item.tiff}: not a 3-channel image OpenCV can read")
+        if item.raw.suffix == ".dng":
+            dn, (h, w) = read_dng_rgb(item.raw)  # the maps are per pixel of the file: a Bayer DNG's, 2× its RGB
+        else:
+            img = cv2.imread(str(item.raw), cv2.IMREAD_UNCHANGED)
+            if img is None or img.ndim != 3 or img.shape[2] != 3:
+                raise SpectralError(f"{item.raw}: not a 3-channel image OpenCV can read")
+            dn = cv2.cvtColor(img, cv2.COLOR_BGR2RGB).astype(np.float32)
+            h, w = dn.shape[:2]
         top = self.levels.white - self.levels.black
-        raw = np.clip(cv2.cvtColor(img, cv2.COLOR_BGR2RGB).astype(np.float32) - np.float32(self.levels.black), 0, top)
-        h, w = raw.shape[:2]
+        raw = np.clip(dn - np.float32(self.levels.black), 0, top)
         n = len(item.lights)
         if n == 1:
             mix = np.ones((h, w, 1), np.float32)
         else:
-            npy = item.tiff.with_suffix(".npy")
+            npy = item.raw.with_suffix(".npy")
             if not npy.is_file():
                 raise SpectralError(f"{npy}: missing (the mixture of a {n}-light image)")
             mix = np.load(npy).astype(np.float32)
             if mix.shape != (h, w, n):
-                raise SpectralError(f"{npy}: shape {mix.shape}, expected {(h, w, n)} for {item.tiff.name}")
+                raise SpectralError(f"{npy}: shape {mix.shape}, expected {(h, w, n)} for {item.raw.name}")
         mask = np.all(np.isfinite(mix), axis=-1) & (mix[..., 0] != ZERO_MASK) & np.all(mix >= 0, axis=-1)
         mix = np.where(mask[..., None], mix, np.float32(0))
         chroma = []
@@ -268,12 +301,28 @@ class LsmiCases:
                                     f"camera-RGB values, got {light!r}")
             chroma.append([float(v) for v in light])
         wps = np.array(chroma)
-        illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
-        mask &= np.all(illum > 0, axis=-1)
+        if item.gt_illum.is_file():
+            illum = _load_gt_illum(item.gt_illum, (h, w, 3))
+        else:
+            illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
+        mask &= np.all(np.isfinite(illum), axis=-1) & np.all(illum > 0, axis=-1)
+        if raw.shape[:2] != (h, w):  # a Bayer DNG read at half size
+            mask, mix, illum = half_size(mask), half_size(mix), half_size(illum)
         fill = illum[mask].mean(axis=0) if mask.any() else np.ones(3, np.float32)
         illum[~mask] = fill  # any positive colour: never scored, keeps gains finite
         return Case(name=item.name, pair=item.lights, raw=raw, illum=illum, mask=mask, mixture=mix,
                     white_points=wps, ccm=self.ccm, usable=unsaturated(raw, top))
+
+
+def _load_gt_illum(path: Path, shape: tuple[int, int, int]) -> np.ndarray:
+    """A ``_gt_illum.npy`` file: ``shape`` float32 (non-positive or non-finite pixels are undefined)."""
+    try:
+        gt = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise SpectralError(f"{path}: not a readable .npy ({exc})") from None
+    if gt.shape != shape:
+        raise SpectralError(f"{path}: shape {gt.shape}, expected {shape} (the image's H × W × RGB)")
+    return np.asarray(gt, np.float32)
 
 
 def _read_json(path: Path) -> dict:

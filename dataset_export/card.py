@@ -45,14 +45,16 @@ def dataset_card(s: dict) -> str:
            "## Contents", "", _table([[k, v] for k, v in s["counts"].items()], ["what", "how many"]), "",
            f"- seed: `{s['seed']}` (places, lightings, splits and noise are functions of it and the store)",
            f"- splits by scene (no scene in two splits), fractions train/val/test `{s['split']}`: {splits}",
-           f"- frame size: {s['size'] or 'as rendered'}"]
+           f"- frame size: {s['size'] or 'as rendered'}", *(f"- note: {w}" for w in s.get("warnings", []))]
     if fmt != "exr":
         kind = ("illumination cubes: bounce light included" if s["gt"] == "physical"
                 else "thesis eq. 3.3 mixture of the lights' white points")
         err = s["lsmi_error_deg"]
-        bayer = f", Bayer {s['bayer']}" if s.get("bayer") else ""
-        out += [(f"- ground truth: `{s['gt']}` ({kind}; LSMI's model Σ mixture·Light differs from illumix's `illum` "
-                 f"by {err['mean']:.3f}° mean, {err['max']:.3f}° max)"),
+        bayer = (f", Bayer {s['bayer']}" if s.get("bayer") else
+                 ", LinearRaw DNG (RGB per pixel, no mosaic)" if fmt == "dng" else "")
+        out += [(f"- ground truth: `{s['gt']}` ({kind}), per frame in `<place>_<lights>_gt_illum.npy` (white point "
+                 f"per pixel, camera RGB, G = 1; -1 where undefined); LSMI's model Σ mixture·Light differs from it "
+                 f"by {err['mean']:.3f}° mean, {err['max']:.3f}° max"),
                 (f"- sensor model: black level {s['levels']['black']}, white level {s['levels']['white']}, "
                  f"noise {s['noise'] or 'none'}{bayer}"), "",
                 "## Cameras", "", _table([[c["sensor"], f"`{c['folder']}/`", c["licence"]] for c in s["cameras"]],

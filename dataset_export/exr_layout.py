@@ -19,11 +19,7 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     """Write the spectral EXRs (module docstring); fills ``summary``."""
     from service.extra_outputs import resize_image
 
-    seen, todo = set(), []
-    for p in places:  # a repeated view (count > views) is the same cubes: once
-        if (p.scene, p.view) not in seen:
-            seen.add((p.scene, p.view))
-            todo.append(p)
+    todo = places  # one place per view: the plan never repeats a view under the same (empty) lighting
     jobs = [(p, g, kind) for p in todo for g in p.groups for kind in ("transport", "illumination")
             if kind == "transport" or _has_illumination(st.cube_meta(p.scene, p.view, g))]
     if on_progress:
@@ -56,7 +52,10 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     summary |= {"splits": splits, "counts": {"views": len(todo), "spectral EXR files": len(jobs),
                                              "bands": len(wl), "values clipped to float16": clipped},
                 "layout": (f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
-                           f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`."),
+                           f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`. "
+                           f"Units: relative radiance per unit of the group's recorded emission, each channel the "
+                           f"integral over its {meta.spectral_grid.step:g} nm band (`illumixBandWidthNm`; `emissiveUnits` says "
+                           "relative): divide by the band width for a spectral density per nm."),
                 "reading": ("`from imagefiles.spectral_exr import read_spectral_exr; wavelengths, cube, header = read_spectral_exr(path)`"
                             " or any reader of Fichet et al.'s layout (colour-science's `read_spectral_image_Fichet2021`)."),
                 "licences": [LICENCES["scenes"]],

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dataset_export.errors import ExportError
 from dataset_export.plan import Place, derive_seed
 from imagefiles.dng import as_shot_neutral
 
@@ -41,7 +42,9 @@ class Frame:
     """A composed frame: ``lights`` (``"12"``), ``params`` (the ``/sample`` parameters), ``dn`` raw in
     digital numbers uint16 ``(H, W, 3)`` RGB or ``(H, W)`` Bayer, ``mixture`` ``(H, W, len(lights))``
     float32 (``ZERO_MASK`` where unlit; ``None`` for one light), ``neutral`` the frame's mean white
-    point (G = 1) and ``meta`` the sample's metadata."""
+    point (G = 1), ``meta`` the sample's metadata and ``gt_illum`` ``(H, W, 3)`` float32 the sample's
+    ``illum``: the ground-truth white point per pixel (camera RGB, G = 1; physical or formula as the
+    sample's ground truth), ``ZERO_MASK`` in all three channels where it is undefined."""
 
     lights: str
     params: dict
@@ -49,6 +52,7 @@ class Frame:
     mixture: np.ndarray | None
     neutral: list[float]
     meta: dict = field(repr=False)
+    gt_illum: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -101,10 +105,16 @@ class Composer:
         return p
 
     def compose(self, params: dict) -> tuple[dict[str, np.ndarray], dict]:
+        """The sample's arrays and metadata; a refusal of the service's (its ``ServiceError``, an HTTP
+        answer there) becomes an :class:`ExportError`, which stops the export with one line."""
+        from service.errors import ServiceError
         from service.sampling import build_sample
         from service.spec import SampleSpec
 
-        return build_sample(SampleSpec(**params), self.ctx)
+        try:
+            return build_sample(SampleSpec(**params), self.ctx)
+        except ServiceError as exc:
+            raise ExportError(f"{params['scene']}/{params['view']}: {exc.detail}") from None
 
     def capture(self, place: Place, sensor: str) -> Capture:
         """Every frame of ``place`` seen by ``sensor`` (module docstring)."""
@@ -129,7 +139,9 @@ class Composer:
             mix = None
             if len(idx) > 1:
                 mix = np.where(a["mask"][..., None], a["mixture"][..., idx], np.float32(ZERO_MASK)).astype(np.float32)
-            frames.append(Frame(lights, params, raw.astype(np.uint16), mix, _neutral(mix, [chroma[i] for i in idx]), m))
+            gt_illum = np.where(a["mask"][..., None], a["illum"], np.float32(ZERO_MASK)).astype(np.float32)
+            frames.append(Frame(lights, params, raw.astype(np.uint16), mix, _neutral(mix, [chroma[i] for i in idx]), m,
+                                gt_illum))
         return Capture(place, sensor, frames, chroma, gain,
                        {"mean": float(np.mean(err)), "max": float(np.max(err))})
 

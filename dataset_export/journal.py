@@ -2,7 +2,9 @@
 
 Every file is written under a temporary name in its folder and renamed into place
 (``os.replace``), so a file under its final name is always complete; an interrupted run leaves at
-most a ``.part`` file, which the next run removes. After each rename the file's SHA-256 and size are
+most a temporary ``.<stem>.illumix-tmp<ext>`` (:func:`temp_path`), which the next run removes. No
+exported name can look like one: place and camera names never start with ``.``, and only regular
+files matching that pattern exactly are removed (store names may hold ``.``, e.g. ``demo.party``). After each rename the file's SHA-256 and size are
 appended to ``.export-journal.jsonl`` (one JSON object per line, flushed), with the run's parameters
 on the first line. A rerun with the same parameters skips every file whose bytes still match the
 journal (a damaged or foreign file is written again); other parameters are refused, so one folder
@@ -14,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,7 +24,19 @@ from dataset_export.errors import ExportError
 
 JOURNAL = ".export-journal.jsonl"
 MANIFEST = "manifest.json"
-PART = ".part"
+TEMP_TAG = ".illumix-tmp"
+_TEMP_NAME = re.compile(r"^\..+" + re.escape(TEMP_TAG) + r"(\.[A-Za-z0-9]+)?$")
+
+
+def temp_path(dst: Path) -> Path:
+    """The temporary name ``dst`` is written under: ``.<stem>.illumix-tmp<ext>`` in its folder (same
+    extension, so libraries that pick the format by it still do)."""
+    return dst.with_name(f".{dst.stem}{TEMP_TAG}{dst.suffix}")
+
+
+def is_temp(path: Path) -> bool:
+    """A leftover of an interrupted :meth:`Journal.write`: a regular file named as :func:`temp_path` names."""
+    return bool(_TEMP_NAME.match(path.name)) and path.is_file() and not path.is_symlink()
 
 
 def sha256(path: Path) -> str:
@@ -46,8 +61,9 @@ class Journal:
         else:
             self.root.mkdir(parents=True, exist_ok=True)
             self._append({"parameters": parameters})
-        for part in self.root.rglob(f"*{PART}*"):  # leftovers of an interrupted write
-            part.unlink(missing_ok=True)
+        for path in self.root.rglob(f".*{TEMP_TAG}*"):  # leftovers of an interrupted write
+            if is_temp(path):
+                path.unlink(missing_ok=True)
 
     def _load(self, path: Path) -> None:
         lines = path.read_text().splitlines()
@@ -85,7 +101,7 @@ class Journal:
         (same extension, so libraries that pick the format by it still do), then it is renamed."""
         dst = self.root / rel
         dst.parent.mkdir(parents=True, exist_ok=True)
-        tmp = dst.with_name(f".{dst.stem}{PART}{dst.suffix}")
+        tmp = temp_path(dst)
         try:
             writer(tmp)
             with open(tmp, "rb+") as f:

@@ -12,6 +12,7 @@ unchanged::
     OUT/<camera>/<place>/<place>_<lights>.tiff   16-bit RGB raw, BGR order on disk (as cv2 writes),
                                            black level added, clipped at the white level
     OUT/<camera>/<place>/<place>_<lights>.npy    mixture (H, W, len(lights)) float32, multi-light only
+    OUT/<camera>/<place>/<place>_<lights>_gt_illum.npy   extra: the ground truth (H, W, 3) float32
 
 - ``Light<i>``: light ``i``'s white point in camera RGB normalised to G = 1 (LSMI's "green"
   normalisation), the ground truth's ``white_point_rgb``; LSMI's illumination map is
@@ -20,13 +21,21 @@ unchanged::
   output, physical or formula ground truth), summing to 1; ``-1`` (LSMI's ``ZERO_MASK``) where no
   light reaches the pixel or it has no surface (the sample's ``mask``) — never NaN, never another
   negative value (LSMI issues #9, #27).
+- Ground truth (beyond LSMI): ``<place>_<lights>_gt_illum.npy``, every frame, is the sample's
+  ``illum`` — the white point per pixel in camera RGB with G = 1, physical (bounce light included)
+  unless ``--gt formula`` — and ``-1`` (``ZERO_MASK``) in all three channels where it is undefined
+  (the mixture's ``-1`` pixels); never NaN. LSMI's model ``Σ mixture_i · Light_i`` is this only for
+  formula ground truth (``LSMIModelErrorDeg``). LSMI's scripts list ``*.tiff`` and load the mixture
+  by its exact name, so they never read it; the name avoids ``<fname>_illum.npy``, which LSMI's
+  ``2_preprocess_data.py`` writes into its *output* folder.
 - ``MCCCoord``: the ColorChecker's corners (:mod:`dataset_export.chart`), TL, TR, BR, BL, at **twice** the
   TIFF's pixel coordinates (LSMI annotated its full-size raws and ships half-size TIFFs; its scripts
   divide by 2). A scene has at most one chart found; absent charts (``mcc2``, ``mcc3``, or all when
   none is found) are four corners at ``(-2, -2)``: LSMI's script reads all three for the training
   split and fills each polygon in its mask, and ``(-2, -2) / 2`` lies outside the image, so an
   absent chart masks nothing. ``MCCCount`` says how many are real.
-- Extra keys LSMI's code ignores: ``Illuminants`` (name, CCT, light group per light), ``Scene``,
+- Extra keys LSMI's code ignores: ``Illuminants`` (per light: ``name``, ``cct_K`` (K, a number, or
+  null where the SPD has no CCT), ``duv``, light ``group``), ``Scene``,
   ``View``, ``ExposureGain``, ``GroundTruth``, ``LSMIModelErrorDeg`` (the angle between LSMI's
   illumination model and illumix's ``illum``: 0 for formula ground truth, the bounce light's tint
   for physical).
@@ -42,6 +51,7 @@ import numpy as np
 from dataset_export.frames import Capture
 
 ABSENT_CHART = [[-2.0, -2.0]] * 4
+GT_ILLUM_SUFFIX = "_gt_illum.npy"  # <place>_<lights>_gt_illum.npy: the per-pixel ground truth (module docstring)
 CHARTS = ("mcc1", "mcc2", "mcc3")
 
 
@@ -59,13 +69,14 @@ def mcc_coords(corners: np.ndarray | None) -> tuple[dict, int]:
     return coords, 1
 
 
-def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, float | None]) -> dict:
-    """The place's ``meta.json`` entry (module docstring)."""
+def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, dict]) -> dict:
+    """The place's ``meta.json`` entry (module docstring); ``cct``: illuminant name → ``{"cct_K": K or
+    None, "duv": Duv}``."""
     k = len(cap.chroma)
     coords, n_charts = mcc_coords(corners)
     entry: dict = {f"Light{i + 1}": [round(v, 8) for v in c] for i, c in enumerate(cap.chroma)}
     entry |= {"NumOfLights": k, "MCCCoord": coords, "MCCCount": n_charts,
-              "Illuminants": [{"light": i + 1, "name": n, "cct_K": cct.get(n), "group": g}
+              "Illuminants": [{"light": i + 1, "name": n, **cct[n], "group": g}
                               for i, (n, g) in enumerate(zip(cap.place.lighting, cap.place.groups))],
               "Scene": cap.place.scene, "View": cap.place.view, "ExposureGain": cap.exposure,
               "GroundTruth": gt, "LSMIModelErrorDeg": {k2: round(v, 6) for k2, v in cap.lsmi_error_deg.items()}}

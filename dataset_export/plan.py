@@ -3,10 +3,13 @@
 A *place* is LSMI's unit (one scene as one camera saw it, under 1–3 lights): here a view of a scene
 whose first ``k`` light groups are lit by ``k`` illuminants (a ``--pairs`` entry: ``k = 2``; an
 ``--illuminants`` entry: 1–3; LSMI has at most three lights). Views with fewer light groups than
-the lighting needs are skipped, with the reason recorded. Without ``count`` every usable view is one
-place; with it, ``count`` places are drawn: the views in a seeded order, repeated with fresh
-lightings when ``count`` exceeds them (``<scene>-<view>-<n>``). Each place draws its lighting from the
-list with the export's seed, so the plan is a function of the store's views, the options and the seed.
+the lighting needs are skipped, with the reason recorded. Each view takes the lightings that fit it in
+a seeded order (no lighting twice). Without ``count`` every usable view is one place, lit by its
+first; with it, ``count`` places are drawn: the views in a seeded order, round after round, each
+round giving every view its next lighting (``<scene>-<view>-<n>`` for the ``n``-th repeat), so a
+repeat is never a copy of a place already written. ``count`` beyond the distinct view × lighting
+combinations yields each combination once (the export warns). The plan is a function of the
+store's views, the options and the seed.
 """
 
 from __future__ import annotations
@@ -82,15 +85,23 @@ def plan_places(views: list[tuple[str, str, tuple[str, ...]]], lightings: list[t
     order = list(usable)
     if count is not None:
         rng.shuffle(order)
-    n = len(order) if count is None else count
+    unique = list(dict.fromkeys(lightings))  # the same lighting listed twice is one place, not two
+    queues = []  # per view, its fitting lightings in a seeded order, taken one per round
+    for _, _, groups in order:
+        fitting = [lt for lt in unique if len(lt) <= len(groups)]
+        rng.shuffle(fitting)
+        queues.append(fitting)
+    n = len(order) if count is None else min(count, sum(map(len, queues)))
     places, names = [], set()
-    for k in range(n):
-        scene, view, groups = order[k % len(order)]
-        fitting = [lt for lt in lightings if len(lt) <= len(groups)]
-        lighting = fitting[rng.randrange(len(fitting))]
-        name = place_name(scene, view, k // len(order))
-        while name in names:  # two views whose names differ only in characters a file name cannot hold
-            name += "x"
-        names.add(name)
-        places.append(Place(name, scene, view, tuple(groups), lighting, derive_seed(seed, name)))
+    rep = 0
+    while len(places) < n:
+        for (scene, view, groups), queue in zip(order, queues):
+            if len(places) == n or len(queue) <= rep:
+                continue
+            name = place_name(scene, view, rep)
+            while name in names:  # two views whose names differ only in characters a file name cannot hold
+                name += "x"
+            names.add(name)
+            places.append(Place(name, scene, view, tuple(groups), queue[rep], derive_seed(seed, name)))
+        rep += 1
     return places, skipped

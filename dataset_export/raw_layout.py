@@ -17,8 +17,8 @@ from dataset_export.errors import ExportError
 from dataset_export.frames import Capture, Composer
 
 
-def _cct(spd: np.ndarray, grid) -> dict:
-    """CCT (K, Ohno 2013) and Duv of an SPD, from its CIE 1931 XYZ."""
+def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
+    """``{"cct_K": CCT (K, Ohno 2013) or None, "duv": Duv}`` of an SPD, from its CIE 1931 XYZ."""
     import colour
 
     from retarget.sensors import get_sensor
@@ -51,10 +51,12 @@ def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray
 
 def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
     """Write every camera's LSMI folder (module docstring); fills ``summary``."""
+    from imagefiles.dng import color_matrix, template_bytes
     from retarget.errors import SpectralError
 
     levels = _levels(o.noise)
-    composer = Composer(st, gt=o.gt, size=o.size, noise=o.noise, levels=levels, bayer=o.bayer if fmt.bayer else None)
+    bayer = o.bayer if fmt.bayer else None  # dng without a pattern (--bayer none): LinearRaw RGB frames
+    composer = Composer(st, gt=o.gt, size=o.size, noise=o.noise, levels=levels, bayer=bayer)
     lib = composer.ctx.library
     first = places[0]
     grid = st.cube_meta(first.scene, first.view, first.groups[0]).spectral_grid
@@ -68,14 +70,13 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     if on_progress:
         on_progress(len(sensors) * len(places), None)
     corner_cache: dict = {}
-    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0}
+    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0,
+                          "ground-truth maps": 0}
     summary |= {"cameras": [], "illuminants": {n: ccts[n] for n in names if n != "D65" or
                                                any("D65" in p.lighting for p in places)}}
     skipped_places: set[str] = set()
     for (sensor_name, (sensor, skey)), cam in zip(sensors.items(), folders):
         ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
-        from imagefiles.dng import color_matrix, template_bytes
-
         matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
         dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
                   "matrix": matrix, "model": sensor_name}
@@ -86,6 +87,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
             if rec is None:
                 try:
                     cap = composer.capture(place, sensor_name)
+                except ExportError:
+                    raise  # the options, not this place: nothing else would export either
                 except SpectralError as exc:
                     summary["skipped"].append(f"{sensor_name} {place.scene}/{place.view}: {exc}")
                     skipped_places.add(key)
@@ -101,7 +104,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
             summary["samples"] += rec["samples"]
             counts["places"] += 1
             counts["raw frames"] += len(rec["samples"])
-            counts["mixture maps"] += sum(f.endswith(".npy") for f in rec["files"])
+            counts["ground-truth maps"] += sum(f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
+            counts["mixture maps"] += sum(f.endswith(".npy") and not f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
             if on_progress:
                 on_progress(1, key)
         splits = {name: [p for p in ps if p in entries] for name, ps in by_split.items()}
@@ -110,13 +114,13 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         journal.write_json(f"{cam}/illuminants.json", {
             n: {**ccts[n], "wavelengths_nm": grid.wavelengths.tolist(), "spd": np.round(spds[n][0], 8).tolist()}
             for n in names})
-        journal.write_bytes(f"{cam}.dng", template_bytes(**{k: v for k, v in dng_kw.items()}))
+        journal.write_bytes(f"{cam}.dng", template_bytes(**dng_kw))
         summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": sensor_licence(sensor.source)})
     if not counts["places"]:
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
     summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in skipped_places for c in folders)})
                          for name, ps in by_split.items()}
-    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": o.bayer if fmt.bayer else None,
+    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": bayer,
                 "levels": {"black": int(levels.black_level), "white": int(levels.white)},
                 "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in errors])),
                                    "max": float(np.max([e["max"] for e in errors]))},
@@ -139,6 +143,8 @@ def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
         if fr.mixture is not None:
             journal.write(stem + ".npy", lambda p, fr=fr: lsmi.write_npy(p, fr.mixture))
             files.append(stem + ".npy")
+        journal.write(stem + lsmi.GT_ILLUM_SUFFIX, lambda p, fr=fr: lsmi.write_npy(p, fr.gt_illum))
+        files.append(stem + lsmi.GT_ILLUM_SUFFIX)
         samples.append({"file": raw_rel, "params": fr.params, "gt": fr.meta["ground_truth"]["method"],
                         "neutral": [round(v, 8) for v in fr.neutral]})
     return {"files": files, "samples": samples}
@@ -150,18 +156,25 @@ LAYOUT = {
             "`NumOfLights`, `MCCCoord` at 2x pixel coordinates; absent charts at (-2, -2)), `<camera>/split.json`, "
             "`<camera>/<place>/<place>_<lights>.tiff` (16-bit RGB, BGR order on disk, black level added, clipped at "
             "the white level) and `<place>_<lights>.npy` (mixture H×W×n, -1 where no light reaches the pixel). "
+            "Beyond LSMI, per frame `<place>_<lights>_gt_illum.npy`: the ground truth itself (H×W×3 float32, the "
+            "white point per pixel in camera RGB with G = 1 — physical: bounce light included —, -1 in all three "
+            "channels where undefined); LSMI's scripts never read it. "
             "Lights: `_1`, `_12` (two lights), `_1`, `_12`, `_13`, `_123` (three), as LSMI captured them, all at the "
             "exposure of the all-lit frame. Extra: `<camera>/illuminants.json` (names, CCTs, SPDs) and per place "
             "`Illuminants`, `Scene`, `View`, `ExposureGain`, `GroundTruth` in meta.json.",
-    "dng": "The LSMI layout with Bayer DNG raws (`<place>_<lights>.dng`, 16-bit CFA, BlackLevel/WhiteLevel, "
-           "ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = the ground-truth white point) where the "
-           "LSMI release has TIFFs; mixture `.npy` files are per pixel of the DNG.",
+    "dng": "The LSMI layout with DNG raws (`<place>_<lights>.dng`: 16-bit Bayer CFA, or LinearRaw RGB with "
+           "`--bayer none`; BlackLevel/WhiteLevel, ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = "
+           "the ground-truth white point) where the LSMI release has TIFFs; mixture `.npy` files are per pixel "
+           "of the DNG.",
 }
 READING = {
     "lsmi": "LSMI's own scripts run unchanged: copy `2_preprocess_data.py` beside the camera folder, set "
             "`CAMERA = \"<camera>\"`, run it, then train its `SVWB_Unet` on the output. By hand: "
             "`img = cv2.cvtColor(cv2.imread(tiff, cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB) - black`; "
-            "`illum = mixture @ [Light1, Light2]`; white-balanced `img / illum`.",
-    "dng": "`rawpy.imread(path)`: `raw_image` (CFA), `black_level_per_channel`, `white_level`, "
+            "`illum = np.load('<place>_<lights>_gt_illum.npy')` (the exact ground truth; valid where "
+            "`illum[..., 1] > 0`) or LSMI's model `mixture @ [Light1, Light2]`; white-balanced `img / illum`. "
+            "`illumix evaluate OUT` scores against the `_gt_illum.npy` files.",
+    "dng": "`rawpy.imread(path)`: `raw_image` (CFA `(H, W)`; LinearRaw `(H, W, 4)`, RGB in `[..., :3]`), "
+           "`black_level_per_channel`, `white_level`, "
            "`camera_whitebalance` (1 / AsShotNeutral), `postprocess()` for an sRGB preview.",
 }

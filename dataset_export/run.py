@@ -33,7 +33,7 @@ class ExportOptions:
     gt: str | None = None
     split: tuple[float, float, float] = (0.7, 0.15, 0.15)
     noise: str | None = None
-    bayer: str = "RGGB"
+    bayer: str | None = "RGGB"  # None: --format dng writes LinearRaw RGB
     exr_dtype: str = "float32"
 
 
@@ -45,6 +45,20 @@ def _check_out(out: Path) -> None:
         probe.unlink()
     except OSError as exc:
         raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); choose a writable folder") from None
+
+
+def _check_size(size: tuple[int, int] | None) -> None:
+    """Frames (and resampled cubes) within the service's limits on an output (its ``Limits``: side and
+    pixels), checked before anything is written."""
+    from service.limits import Limits
+
+    if size is None:
+        return
+    lim = Limits()
+    w, h = size
+    if max(w, h) > lim.max_side or w * h > lim.max_pixels:
+        raise ExportError(f"--size {w}x{h} exceeds the service's limits (side <= {lim.max_side}, pixels <= "
+                          f"{lim.max_pixels}); give a smaller --size, e.g. {min(w, lim.max_side)}x{min(h, lim.max_side)}")
 
 
 def _open_store(url: str):
@@ -79,6 +93,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     fmt = EXPORT_FORMATS[o.format]
     for module in fmt.modules:
         require(module, f"--format {fmt.name}")
+    _check_size(o.size)
     out = Path(o.out)
     st = _open_store(o.store)
     views = _views(st)
@@ -88,6 +103,11 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
         raise ExportError("--format exr writes the store's cubes, which no illuminant changes; drop --pairs/--illuminants")
     lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
     places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
+    warnings = []
+    if o.count is not None and len(places) < o.count:
+        warnings.append(f"--count {o.count}: the store has {len(places)} distinct view × lighting combination(s) "
+                        f"for these illuminants; each is exported once ({len(places)} places, no copies); give "
+                        "more --illuminants/--pairs or render more views for more")
     splits = split_scenes({p.scene for p in places}, o.split, o.seed)
     if fmt.raw_ext:
         _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
@@ -100,7 +120,8 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     summary = {"format": fmt.name, "store": o.store, "seed": o.seed, "split": ",".join(map(str, o.split)),
                "size": f"{o.size[0]}x{o.size[1]}" if o.size else None,
                "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-               "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": []}
+               "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": [],
+               "warnings": warnings}
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split
     if fmt.raw_ext is None:

@@ -1,6 +1,6 @@
 """``illumix export STORE OUT --format lsmi|dng|exr [--sensors …] [--pairs A,D65;… | --illuminants …]
 [--count N] [--size WxH] [--seed S] [--gt physical|formula] [--split 0.7,0.15,0.15] [--noise …]
-[--bayer RGGB] [--exr-dtype float32|float16] [--json]``.
+[--bayer RGGB|none] [--exr-dtype float32|float16] [--json]``.
 
 Writes a frozen dataset from a cube store (:mod:`dataset_export`): the LSMI release's layout with TIFF
 (``lsmi``) or Bayer DNG (``dng``) raws, or the store's spectral cubes as OpenEXR (``exr``); splits
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 
 import typer
 from rich.console import Console
@@ -45,15 +46,18 @@ def export(
     illuminants: str | None = typer.Option(None, "--illuminants", help="Like --pairs with 1-3 illuminants per "
                                                                        "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
     count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
-                                                                  "more repeat views with other lightings)."),
-    size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered)."),
+                                                                  "more repeat views with other lightings; at most "
+                                                                  "the distinct view × lighting combinations)."),
+    size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered; "
+                                                   "at most the service's 4096 a side)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of places, lightings, splits and noise."),
     gt: str | None = typer.Option(None, "--gt", help="Ground truth: physical (default where the store has "
                                                      "illumination cubes) or formula."),
     split: str = typer.Option("0.7,0.15,0.15", "--split", help="Train,val,test fractions of the scenes."),
     noise: str | None = typer.Option(None, "--noise", help="Sensor model: none (default: noise-free, black level 64, "
                                                            "white level 4095), low, phone, high or key:value;… as /sample's noise="),
-    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG."),
+    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG; "
+                                                      "none: LinearRaw DNGs (RGB per pixel, no mosaic)."),
     exr_dtype: str = typer.Option("float32", "--exr-dtype", help="float32 (exact) or float16 (clipped at 65504) "
                                                                  "for --format exr."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
@@ -78,7 +82,8 @@ def export(
         raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
     opts = ExportOptions(store=store, out=out, format=name, sensors=names, pairs=pairs, illuminants=illuminants,
                          count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
-                         split=parse_fractions(split), noise=noise, bayer=BAYER_PATTERNS.canonical(bayer),
+                         split=parse_fractions(split), noise=noise,
+                         bayer=None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer),
                          exr_dtype=exr_dtype)
     quiet = as_json and not console.is_terminal
     with progress_bar(console, disable=quiet) as prog:
@@ -92,6 +97,8 @@ def export(
                 prog.update(task, advance=n, last=label)
 
         summary = export_dataset(opts, on_progress)
+    for w in summary["warnings"]:
+        print(f"illumix: warning: {w}", file=sys.stderr)
     console.print(f"exported {summary['counts']} into {summary['out']} ({summary['files']} files; "
                   f"{len(summary['skipped'])} skipped)", highlight=False)
     if as_json:

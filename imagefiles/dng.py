@@ -1,8 +1,11 @@
 """DNG raw files (Adobe DNG 1.4) written with pidng, read by libraw (``rawpy``).
 
-A frame is stored as the sensor recorded it: a Bayer colour-filter-array mosaic (``CFAPattern``
-RGGB/BGGR/GRBG/GBRG), 16 bits per sample, with ``BlackLevel`` / ``WhiteLevel`` of the export's
-sensor model, and the camera's colour as DNG expects it:
+A frame is stored as the sensor recorded it — a Bayer colour-filter-array mosaic (``CFAPattern``
+RGGB/BGGR/GRBG/GBRG; ``(H, W)``) — or, without a pattern, as a linear raw (``PhotometricInterpretation``
+34892 LinearRaw, three samples R, G, B per pixel, interleaved; ``(H, W, 3)``: the camera RGB before
+any demosaicing, which libraw opens as a ``Stack`` raw whose ``raw_image[..., :3]`` is the frame).
+16 bits per sample, with ``BlackLevel`` / ``WhiteLevel`` of the export's sensor model, and the
+camera's colour as DNG expects it:
 
 - ``ColorMatrix1`` (``CalibrationIlluminant1`` = D65): XYZ → camera RGB under D65. From the sensor's
   spectral sensitivities: illumix's D65 CCM ``M`` (white-balanced camera → linear sRGB, white
@@ -68,9 +71,10 @@ def _rationals(values) -> list[list[int]]:
     return [[round(float(v) * DENOMINATOR), DENOMINATOR] for v in np.ravel(values)]
 
 
-def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matrix: np.ndarray,
+def dng_bytes(image: np.ndarray, *, black: int, white: int, pattern: str | None, matrix: np.ndarray,
               neutral, model: str, description: str = "") -> bytes:
-    """A DNG of ``mosaic`` ``(H, W)`` uint16 (module docstring); ``pattern`` e.g. ``"RGGB"``."""
+    """A DNG of ``image`` uint16 (module docstring): a Bayer mosaic ``(H, W)`` with ``pattern`` (e.g.
+    ``"RGGB"``), or a LinearRaw ``(H, W, 3)`` RGB frame with ``pattern=None``."""
     from pidng.core import RAW2DNG
     from pidng.defs import (
         CalibrationIlluminant,
@@ -80,12 +84,19 @@ def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matri
     )
     from pidng.dng import DNGTags, Tag
 
-    h, w = mosaic.shape
+    linear = pattern is None
+    if image.ndim != (3 if linear else 2) or (linear and image.shape[2] != 3):
+        want = "(H, W, 3) RGB for a linear DNG" if linear else f"(H, W) mosaic for CFA {pattern}"
+        raise ValueError(f"DNG image of shape {image.shape}: expected {want}")
+    h, w = image.shape[:2]
+    layout = ((Tag.SamplesPerPixel, 3), (Tag.BitsPerSample, [16, 16, 16]), (Tag.PlanarConfiguration, 1),
+              (Tag.PhotometricInterpretation, PhotometricInterpretation.Linear_Raw)) if linear else (
+              (Tag.SamplesPerPixel, 1), (Tag.BitsPerSample, 16),
+              (Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array),
+              (Tag.CFARepeatPatternDim, [2, 2]), (Tag.CFAPattern, getattr(CFAPattern, pattern.upper())))
     t = DNGTags()
     for tag, value in ((Tag.ImageWidth, w), (Tag.ImageLength, h), (Tag.TileWidth, w), (Tag.TileLength, h),
-                       (Tag.Orientation, 1), (Tag.SamplesPerPixel, 1), (Tag.BitsPerSample, 16),
-                       (Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array),
-                       (Tag.CFARepeatPatternDim, [2, 2]), (Tag.CFAPattern, getattr(CFAPattern, pattern.upper())),
+                       (Tag.Orientation, 1), *layout,
                        (Tag.BlackLevel, int(black)), (Tag.WhiteLevel, int(white)),
                        (Tag.ColorMatrix1, _rationals(matrix)),
                        (Tag.CalibrationIlluminant1, CalibrationIlluminant.D65),
@@ -97,16 +108,17 @@ def dng_bytes(mosaic: np.ndarray, *, black: int, white: int, pattern: str, matri
         t.set(Tag.ImageDescription, description)
     writer = RAW2DNG()
     writer.options(t, path="", compress=False)
-    return bytes(writer.convert(np.ascontiguousarray(mosaic, dtype=np.uint16)))
+    return bytes(writer.convert(np.ascontiguousarray(image, dtype=np.uint16)))
 
 
-def template_bytes(*, black: int, white: int, pattern: str, matrix: np.ndarray, model: str) -> bytes:
+def template_bytes(*, black: int, white: int, pattern: str | None, matrix: np.ndarray, model: str) -> bytes:
     """LSMI's per-camera template DNG (``<camera>.dng``: its scripts read ``black_level_per_channel``,
     ``white_level`` and ``raw_pattern`` from it): a 32 × 32 frame at the black level (libraw refuses
-    frames under 22 pixels)."""
-    return dng_bytes(np.full((32, 32), black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
+    frames under 22 pixels), a mosaic with ``pattern`` or linear without."""
+    shape = (32, 32) if pattern else (32, 32, 3)
+    return dng_bytes(np.full(shape, black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
                      neutral=[1.0, 1.0, 1.0], model=model, description="illumix export: camera template (levels)")
 
 
-def write_dng(path: Path, mosaic: np.ndarray, **kw) -> None:
-    Path(path).write_bytes(dng_bytes(mosaic, **kw))
+def write_dng(path: Path, image: np.ndarray, **kw) -> None:
+    Path(path).write_bytes(dng_bytes(image, **kw))

@@ -24,7 +24,8 @@ output                                        shape                channels
 Other arrays get ``<name>.0``, ``<name>.1``, … along their last axis. The spectra follow
 :mod:`imagefiles.spectral_exr`, so readers of Fichet et al.'s layout (colour-science's
 ``read_spectral_image_Fichet2021``) find them; the header then carries ``spectralLayoutVersion``
-(and ``emissiveUnits`` with ``S0``). The header's ``illumixLayers`` (JSON ``{output: {"channels":
+(and, with ``S0``, ``emissiveUnits`` and ``illumixBandWidthNm``: relative band integrals, see
+:mod:`imagefiles.spectral_exr` "Units"). The header's ``illumixLayers`` (JSON ``{output: {"channels":
 […], "shape": […], "dtype": …}}``) says which channels make which array in which order, so
 :func:`read_layered_exr` rebuilds every array exactly (float32 is written as it is; bool as 1.0/0.0;
 integers as float32, exact below 2²⁴); ``illumixMeta`` holds the sample's metadata JSON when given.
@@ -107,7 +108,7 @@ def layered_exr_bytes(arrays: dict[str, np.ndarray], *, groups=(), wavelengths=(
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
               LAYERS_ATTRIBUTE: json.dumps(layers), **(attributes or {})}
     if components & set(SPECTRAL.values()):
-        header.update(layout_attributes(components))
+        header.update(layout_attributes(components, wavelengths))
     if meta is not None:
         header[META_ATTRIBUTE] = meta
     with tempfile.TemporaryDirectory(prefix="illumix-exr-") as tmp:

@@ -11,9 +11,17 @@ with its pattern (``colour.io.fichet2021.PATTERN_FICHET2021``), so any reader of
 them. The header carries the paper's ``spectralLayoutVersion`` (``"1.0"``) and, for emissive
 channels, ``emissiveUnits``; illumix's own attributes (``illumix*``) say what the values are.
 
-``illumix export --format exr`` writes the store's cubes this way (:mod:`dataset_export.exr_layout`): band
-integrals over 5 nm, relative radiometric units (a group's cube is its radiance for its recorded
-emission, see ``illumixEmission``), in ``float32`` or ``float16``. float32 round-trips exactly.
+Units. illumix's spectra are **relative** and **band integrals**: a channel holds the radiance over
+its band ``[λ − Δλ/2, λ + Δλ/2]`` (Δλ = ``illumixBandWidthNm``, 5 nm on the default grid), for the
+group's recorded emission (``illumixEmission``), in no absolute unit. ``emissiveUnits`` says so
+(:data:`EMISSIVE_UNITS`) rather than claiming the paper's absolute ``W.m^-2.sr^-1``. The values are
+written as illumix holds them, so they read back exactly; a reader that takes ``S0`` as a spectral
+density and integrates ``Σ S(λ) Δλ`` gets Δλ × the relative radiance — the same factor for every
+pixel, band and file of a grid, so relative scales hold; divide by ``illumixBandWidthNm`` for a
+density per nm (and for comparisons across grids of different band widths).
+
+``illumix export --format exr`` writes the store's cubes this way (:mod:`dataset_export.exr_layout`),
+in ``float32`` or ``float16``. float32 round-trips exactly.
 float16 holds values up to 65504: larger ones (directly seen emitters) are clipped to it and counted
 in ``illumixClippedToHalf`` — never written as inf. ``GET /sample?format=exr`` puts a sample's
 ``illumination`` (``S0``) and ``reflectance`` (``T``) spectra in its file the same way
@@ -31,7 +39,8 @@ HALF_MAX = 65504.0
 EXR_DTYPES = {"float32": np.float32, "float16": np.float16}
 EMISSIVE, REFLECTIVE = "S0", "T"  # Fichet et al.'s component names: radiance, reflectance
 LAYOUT_VERSION = "1.0"
-EMISSIVE_UNITS = "W.m^-2.sr^-1"
+EMISSIVE_UNITS = "relative (band integrals over illumixBandWidthNm; no absolute unit)"
+BAND_WIDTH_ATTRIBUTE = "illumixBandWidthNm"
 
 
 def channel_name(wavelength_nm: float, component: str = EMISSIVE) -> str:
@@ -54,10 +63,15 @@ def spectral_channels(cube: np.ndarray, wavelengths, component: str = EMISSIVE, 
             for i, w in enumerate(wavelengths)}
 
 
-def layout_attributes(components) -> dict[str, str]:
-    """The paper's header attributes for a file holding ``components`` (``S0`` needs its units)."""
-    return {"spectralLayoutVersion": LAYOUT_VERSION,
-            **({"emissiveUnits": EMISSIVE_UNITS} if EMISSIVE in components else {})}
+def layout_attributes(components, wavelengths=()) -> dict[str, str]:
+    """The paper's header attributes for a file holding ``components`` (``S0`` needs its units, and
+    illumix adds the band width its units refer to: the grid's step, from ``wavelengths`` in nm)."""
+    attrs = {"spectralLayoutVersion": LAYOUT_VERSION}
+    if EMISSIVE in components:
+        attrs["emissiveUnits"] = EMISSIVE_UNITS
+        if len(wavelengths) > 1:
+            attrs[BAND_WIDTH_ATTRIBUTE] = repr(float(np.median(np.diff(np.asarray(wavelengths, np.float64)))))
+    return attrs
 
 
 def write_spectral_exr(path: Path, cube: np.ndarray, wavelengths, *, dtype: str = "float32",
@@ -74,7 +88,7 @@ def write_spectral_exr(path: Path, cube: np.ndarray, wavelengths, *, dtype: str 
         cube = np.clip(cube, -HALF_MAX, HALF_MAX) if clipped else cube
     channels = spectral_channels(cube, wavelengths, EMISSIVE, EXR_DTYPES[dtype])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
-              **layout_attributes([EMISSIVE]), "illumixClippedToHalf": str(clipped), **(attributes or {})}
+              **layout_attributes([EMISSIVE], wavelengths), "illumixClippedToHalf": str(clipped), **(attributes or {})}
     with OpenEXR.File(header, channels) as f:
         f.write(str(path))
     return clipped

@@ -1,6 +1,7 @@
 """``GET /sample?format=dng|exr``: the sample as a camera raw file or as one OpenEXR image.
 
-- ``dng``: one Bayer DNG of ``raw`` (:mod:`imagefiles.dng`; CFA ``bayer=``, RGGB when not given),
+- ``dng``: one Bayer DNG of ``raw`` (:mod:`imagefiles.dng`; CFA ``bayer=``, RGGB when not given;
+  ``bayer=none``: a LinearRaw DNG of the RGB raw, three samples per pixel),
   exposed as the PNG of raw is (auto exposure, thesis eq. 4.2, unless ``exposure=`` is given: 1.0 is
   the white level, highlights clip) and quantised to digital numbers like ``illumix export``'s
   frames: with ``noise=``, the sensor model's digital numbers, black and white level; without, the
@@ -48,13 +49,15 @@ def require(fmt: str) -> None:
 
 
 def compose_spec(spec: SampleSpec) -> SampleSpec:
-    """What to compose for ``spec``: a DNG needs the Bayer raw, the mixture, the mask and the metadata.
-    A 501 when the package writing the format is not installed (:func:`require`)."""
+    """What to compose for ``spec``: a DNG needs the raw (the ``bayer=`` mosaic, RGGB when not given; RGB
+    for ``bayer=none``, which the spec holds as ``None`` among its given fields), the mixture, the mask
+    and the metadata. A 501 when the package writing the format is not installed (:func:`require`)."""
     if spec.format in FILE_FORMATS:
         require(spec.format)
     if spec.format != "dng":
         return spec
-    return spec.model_copy(update={"outputs": list(DNG_OUTPUTS), "bayer": spec.bayer or "RGGB"})
+    bayer = spec.bayer if "bayer" in spec.model_fields_set else "RGGB"
+    return spec.model_copy(update={"outputs": list(DNG_OUTPUTS), "bayer": bayer})
 
 
 def check(p) -> None:

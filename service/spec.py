@@ -161,7 +161,7 @@ class SampleSpec(BaseModel):
     format: Literal["npz", "arrays", "png", "tiff", "dng", "exr"] = Field(
         "npz", description="npz (all outputs), arrays (all outputs, the flat illumix container: faster; "
                            "application/x-illumix-arrays), png/tiff (one image output), dng (outputs=raw: a "
-                           "Bayer DNG, bayer= or RGGB) or exr (all outputs, one float32 OpenEXR, a layer each)")
+                           "Bayer DNG, bayer= or RGGB; bayer=none: a LinearRaw DNG) or exr (all outputs, one float32 OpenEXR, a layer each)")
     dtype: Literal["float32", "float16"] = Field(
         "float32", description="float outputs as float32, or as float16 with a power-of-two scale per output "
                                "(value = stored × scale; meta.encoding.scales); npz and arrays only")
@@ -169,8 +169,9 @@ class SampleSpec(BaseModel):
                                  pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
     noise: str | None = Field(None, max_length=512, description="low, phone, high or key:value;… "
                                                                 "(full_well, read_noise, black_level, white_level, bit_depth)")
-    bayer: str | None = Field(None, description="RGGB, BGGR, GRBG or GBRG (any case)",
-                              pattern=r"^([Rr][Gg][Gg][Bb]|[Bb][Gg][Gg][Rr]|[Gg][Rr][Bb][Gg]|[Gg][Bb][Rr][Gg])$")
+    bayer: str | None = Field(None, description="RGGB, BGGR, GRBG or GBRG (any case): the raw as that mosaic; "
+                                                "none: no mosaic (as omitted; format=dng: a LinearRaw RGB DNG)",
+                              pattern=r"^([Rr][Gg][Gg][Bb]|[Bb][Gg][Gg][Rr]|[Gg][Rr][Bb][Gg]|[Gg][Bb][Rr][Gg]|[Nn][Oo][Nn][Ee])$")
 
     @field_validator("outputs")
     @classmethod
@@ -205,7 +206,7 @@ class SampleSpec(BaseModel):
     @field_validator("bayer")
     @classmethod
     def _bayer(cls, v: str | None) -> str | None:
-        return None if v is None else _known(BAYER_PATTERNS, v)
+        return None if v is None or v.lower() == "none" else _known(BAYER_PATTERNS, v)
 
     @field_validator("exposure")
     @classmethod

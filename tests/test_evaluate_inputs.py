@@ -132,3 +132,70 @@ def test_lsmi_levels_and_errors(lsmi, tmp_path):
         LsmiCases(lsmi, split="dev")
     with pytest.raises(SpectralError, match="no <place>_<lights>.tiff"):
         LsmiCases(lsmi, pairs="13")
+
+
+def test_lsmi_prefers_the_physical_gt_file(tmp_path):
+    """Where ``<place>_<lights>_gt_illum.npy`` exists (``illumix export`` writes it) its per-pixel
+    white point is the ground truth, -1 marking undefined pixels; elsewhere LSMI's model. The
+    results say which."""
+    root = make_lsmi(tmp_path)
+    assert LsmiCases(root).describe()["gt"].startswith("LSMI model")
+    tint = np.array([1.08, 1.0, 0.93], np.float32)
+    _, mix, _ = lsmi_image("12", np.random.default_rng(1))
+    chroma = np.array([LIGHTS["Light1"], LIGHTS["Light2"]], np.float32)
+    gt = (mix @ chroma) * tint
+    gt /= gt[..., 1:2]
+    gt[-3:] = -1
+    gt[0, 0] = -1  # undefined where the mixture is not: not scored
+    np.save(root / "cam/p1/p1_12_gt_illum.npy", gt.astype(np.float32))
+    src = LsmiCases(root)
+    assert "1 of 4" in src.describe()["gt"] and "_gt_illum.npy" in src.describe()["gt"]
+    case = next(c for c in src if c.name == "p1_12")
+    np.testing.assert_array_equal(case.illum[case.mask], gt[case.mask])
+    assert not case.mask[0, 0] and not case.mask[-3:].any() and case.mask[1:-3].all()
+    res = evaluate(iter([case]), resolve(["GT"]))
+    assert res.images[0]["methods"]["Ground Truth"]["angular_max"] < ZERO
+    (root / "cam/p1/p1_12_gt_illum.npy").write_bytes(b"not npy")
+    with pytest.raises(SpectralError, match="p1_12_gt_illum.npy"):
+        LsmiCases(root).load(next(i for i in LsmiCases(root).items if i.name == "p1_12"))
+
+
+def test_lsmi_reads_dng_exports(tmp_path):
+    """An export with DNG raws evaluates like one with TIFFs: a Bayer DNG becomes the half-size RGB
+    LSMI's ``0_cvt2tiff.py`` makes with ``dcraw -h -D`` (R, ⌊(G₁ + G₂)/2⌋, B per 2×2 block; black level
+    kept), computed here from the TIFF export of the same frames, with the mixture and ground truth
+    averaged over each block; a LinearRaw DNG is the TIFF itself. The ground truth scores 0 on both."""
+    pytest.importorskip("rawpy")
+    pytest.importorskip("pidng")
+    import cv2
+    from export_testutil import build_export_store
+
+    from dataset_export.run import ExportOptions, export_dataset
+
+    store = build_export_store(tmp_path / "store")
+    opts = dict(store=store, count=1, seed=2, size=(32, 24))
+    outs = {}
+    for fmt, bayer in (("lsmi", "RGGB"), ("dng", "RGGB"), ("dng", None)):
+        outs[fmt, bayer] = tmp_path / f"{fmt}-{bayer}"
+        export_dataset(ExportOptions(out=str(outs[fmt, bayer]), format=fmt, bayer=bayer, **opts))
+    tiffs = {c.name: c for c in LsmiCases(outs["lsmi", "RGGB"])}
+    bayer_src, linear_src = LsmiCases(outs["dng", "RGGB"]), LsmiCases(outs["dng", None])
+    assert "dcraw -h" in bayer_src.describe()["raw"] and "_gt_illum" in bayer_src.describe()["gt"]
+    for case in linear_src:
+        ref = tiffs[case.name]
+        for k in ("raw", "illum", "mask", "mixture"):
+            np.testing.assert_array_equal(getattr(case, k), getattr(ref, k), err_msg=k)
+    for item in bayer_src.items:
+        case = bayer_src.load(item)
+        tiff_path = next(i.raw for i in LsmiCases(outs["lsmi", "RGGB"]).items if i.name == item.name)
+        t = cv2.cvtColor(cv2.imread(str(tiff_path), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGR2RGB).astype(np.int64)
+        half = np.stack([t[0::2, 0::2, 0], (t[0::2, 1::2, 1] + t[1::2, 0::2, 1]) // 2, t[1::2, 1::2, 2]], axis=-1)
+        black = bayer_src.levels.black
+        np.testing.assert_array_equal(case.raw, np.clip(half - black, 0, bayer_src.levels.white - black))
+        ref = tiffs[item.name]
+        blocks = ref.mask.reshape(12, 2, 16, 2).all(axis=(1, 3))
+        np.testing.assert_array_equal(case.mask, blocks)
+        mean_illum = ref.illum.reshape(12, 2, 16, 2, 3).mean(axis=(1, 3))
+        np.testing.assert_allclose(case.illum[blocks], mean_illum[blocks], rtol=1e-6)
+    res = evaluate(bayer_src, resolve(["GT"]))
+    assert len(res.images) == 2 and all(im["methods"]["Ground Truth"]["angular_max"] < ZERO for im in res.images)

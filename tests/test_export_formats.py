@@ -66,6 +66,36 @@ def test_dng_single_illuminant(store, tmp_path):
                                   arrays["raw"])
 
 
+def test_dng_linear(store, tmp_path):
+    """``--format dng --bayer none``: LinearRaw DNGs (3 samples per pixel) that libraw opens — the RGB
+    digital numbers as composed, the levels, and its camera white balance = 1 / the recorded neutral;
+    the camera's template is linear too."""
+    from dataset_export.run import ExportOptions, export_dataset
+    from retarget.sensor_model import NoiseModel, simulate_raw
+    from service.context import make_context
+    from service.sampling import build_sample
+    from service.spec import SampleSpec
+    from store import CubeStore
+
+    out = tmp_path / "linear"
+    s = export_dataset(ExportOptions(store=store, out=str(out), format="dng", bayer=None, count=2, seed=1,
+                                     size=(32, 24)))
+    assert s["bayer"] is None and "LinearRaw" in (out / "README.md").read_text()
+    man = json.loads((out / "manifest.json").read_text())
+    ctx = make_context(CubeStore.open(store, mode="r"))
+    for sample in man["samples"]:
+        assert "bayer" not in sample["params"]
+        arrays, _ = build_sample(SampleSpec(**sample["params"]), ctx)
+        with rawpy.imread(str(out / sample["file"])) as d:
+            assert d.raw_type == rawpy.RawType.Stack and d.raw_image.shape == (24, 32, 4)
+            np.testing.assert_array_equal(d.raw_image[..., :3], simulate_raw(arrays["raw"], NoiseModel(), noise=False))
+            assert min(d.black_level_per_channel) == 64 and d.white_level == 4095
+            wb = np.array(d.camera_whitebalance[:3])
+            np.testing.assert_allclose(wb / wb[1], 1 / np.array(sample["neutral"]), rtol=1e-5)
+    with rawpy.imread(str(out / "Nikon-5100-NPL.dng")) as t:
+        assert t.raw_type == rawpy.RawType.Stack and min(t.black_level_per_channel) == 64
+
+
 @pytest.mark.parametrize("dtype", ["float32", "float16"])
 def test_exr_round_trip(store, tmp_path, dtype):
     """Every cube and illumination cube read back equal to the store's (float16: to its float16)."""
@@ -73,8 +103,8 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
     from colour.io.fichet2021 import PATTERN_FICHET2021
 
-    from imagefiles.spectral_exr import read_spectral_exr
     from dataset_export.run import ExportOptions, export_dataset
+    from imagefiles.spectral_exr import read_spectral_exr
     from store import CubeStore
 
     out = tmp_path / dtype
@@ -88,6 +118,9 @@ def test_exr_round_trip(store, tmp_path, dtype):
         np.testing.assert_array_equal(wl, st.cube_meta(e["scene"], e["view"], e["group"]).spectral_grid.wavelengths)
         np.testing.assert_array_equal(cube, ref.astype(dtype))
         assert header["spectralLayoutVersion"] == "1.0"
+        # honest units: relative band integrals over bands of illumixBandWidthNm, not W.m^-2.sr^-1
+        assert "W.m" not in header["emissiveUnits"] and header["emissiveUnits"].startswith("relative")
+        assert float(header["illumixBandWidthNm"]) == 5.0
     with OpenEXR.File(str(out / rel)) as f:
         names = list(f.channels())
     assert "S0.550,0nm" in names

@@ -104,6 +104,40 @@ def test_frames_are_the_samples_served(exported):
     assert np.abs((tiff - one) - only2).max() <= 1  # two roundings
 
 
+def test_physical_ground_truth_file(exported):
+    """Every frame carries ``<place>_<lights>_gt_illum.npy``: the sample's ``illum`` (the physical
+    white point per pixel, G = 1, composed again here from the recorded parameters) where the ground
+    truth is defined, -1 elsewhere; LSMI's model Σ mixture·Light differs from it (the bounce light),
+    by the angles meta.json records."""
+    from retarget.metrics import angular_error
+    from service.context import make_context
+    from service.sampling import build_sample
+    from service.spec import SampleSpec
+    from store import CubeStore
+
+    store, out, _ = exported
+    man = json.loads((out / "manifest.json").read_text())
+    meta = json.loads((out / "Nikon-5100-NPL" / "meta.json").read_text())
+    ctx = make_context(CubeStore.open(store, mode="r"))
+    assert len(man["samples"]) == 10
+    for sample in man["samples"]:
+        gt_file = sample["file"].replace(".tiff", "_gt_illum.npy")
+        assert gt_file in man["files"]
+        gt = np.load(out / gt_file)
+        arrays, m = build_sample(SampleSpec(**sample["params"]), ctx)
+        lit = arrays["mask"]
+        assert gt.dtype == np.float32 and gt.shape == arrays["illum"].shape and m["ground_truth"]["method"] == "physical"
+        np.testing.assert_array_equal(gt[lit], arrays["illum"][lit])
+        assert np.all(gt[~lit] == -1) and np.all(gt[lit][:, 1] == 1) and np.all(gt[lit] > 0)
+        if sample["file"].endswith("_12.tiff"):
+            place = sample["file"].split("/")[1]
+            mix = np.load(out / sample["file"].replace(".tiff", ".npy"))
+            model = np.einsum("hwk,kc->hwc", mix, np.array([meta[place]["Light1"], meta[place]["Light2"]]))
+            err = angular_error(model[lit], gt[lit])
+            np.testing.assert_allclose([err.mean(), err.max()], [meta[place]["LSMIModelErrorDeg"][k]
+                                                                 for k in ("mean", "max")], atol=1e-4)
+
+
 def test_light_chromaticities_from_the_spectra(exported):
     """Light_i = Σ C(λ) Φ_i(λ) / its green, from the sensor and illuminant spectra directly; names and
     CCTs written (A ≈ 2856 K)."""
@@ -118,6 +152,7 @@ def test_light_chromaticities_from_the_spectra(exported):
         for i, ill in enumerate(entry["Illuminants"]):
             rgb = illuminant_spd(ill["name"], DEFAULT_GRID) @ w
             np.testing.assert_allclose(entry[f"Light{i + 1}"], rgb / rgb[1], rtol=1e-6)
+            assert isinstance(ill["cct_K"], float) and isinstance(ill["duv"], float)  # numbers, not a nested dict
         assert entry["NumOfLights"] == 2 and entry["GroundTruth"] == "physical"
     ills = json.loads((out / "Nikon-5100-NPL" / "illuminants.json").read_text())
     assert abs(ills["A"]["cct_K"] - 2856) < 15 and len(ills["A"]["spd"]) == DEFAULT_GRID.n_bands

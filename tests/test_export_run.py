@@ -70,10 +70,10 @@ def test_resume_after_interruption(store, tmp_path):
     assert len(done) == 4
     (part / done[0]).write_bytes(b"damaged")
     (part / "Nikon-5100-NPL" / "x" ).mkdir()
-    (part / "Nikon-5100-NPL" / "x" / ".y.part.tiff").write_bytes(b"half")
+    (part / "Nikon-5100-NPL" / "x" / ".y.illumix-tmp.tiff").write_bytes(b"half")
     export_dataset(ExportOptions(out=str(part), **opts))
     assert verify_manifest(part) == []
-    assert not list(part.rglob("*.part*"))
+    assert not list(part.rglob("*.illumix-tmp*"))
     whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())["files"]
     again = json.loads((part / "manifest.json").read_text())["files"]
     assert {k: v for k, v in whole.items() if k != "README.md"} == {k: v for k, v in again.items() if k != "README.md"}
@@ -90,7 +90,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
 
     with pytest.raises(OSError):
         j.write("d/f.tiff", half)
-    assert not (tmp_path / "d" / "f.tiff").exists() and not list(tmp_path.rglob("*.part*"))
+    assert not (tmp_path / "d" / "f.tiff").exists() and not list(tmp_path.rglob("*.illumix-tmp*"))
     assert not j.complete("d/f.tiff")
 
 
@@ -102,6 +102,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--format", "exrr"], "did you mean 'exr'"),
     (["--format", "exr", "--pairs", "A,D65"], "drop --pairs"),
     (["--size", "12x"], "WxH"),
+    (["--size", "5000x10", "--count", "1"], "exceeds the service's limits"),
     (["--split", "0.5,0.5"], "three fractions"),
     (["--gt", "physics"], "physical or formula"),
     (["--noise", "loud"], "noise"),
@@ -109,6 +110,7 @@ def test_interrupted_write_leaves_no_file(tmp_path):
 def test_cli_errors(store, tmp_path, capsys, args, says):
     line = assert_one_line_error(*run_cli(capsys, "export", store, str(tmp_path / "o"), *args))
     assert says in line
+    assert not (tmp_path / "o").exists()  # refused before anything is written
 
 
 def test_cli_missing_store_and_unwritable_out(store, tmp_path, capsys):
@@ -118,6 +120,13 @@ def test_cli_missing_store_and_unwritable_out(store, tmp_path, capsys):
     blocker.write_text("")
     line = assert_one_line_error(*run_cli(capsys, "export", store, str(blocker / "o")))
     assert "cannot write into" in line
+
+
+def test_cli_linear_dng(store, tmp_path, capsys):
+    code, stdout, _ = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", "dng", "--bayer", "none",
+                              "--count", "1", "--size", "32x24", "--json")
+    assert code == 0 and json.loads(stdout)["bayer"] is None
+    assert next((tmp_path / "o").rglob("*_12.dng")).is_file()
 
 
 def test_cli_json_and_rerun_with_other_options(store, tmp_path, capsys):
@@ -136,3 +145,53 @@ def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
     code, _, err = run_cli(capsys, "export", str(tmp_path / "nostore"), str(tmp_path / "out"), "--format", "dng")
     assert code == 2 and "pip install" in err and "pidng" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
+    """Store names may hold '.' (``demo.party``): a rerun deletes only the journal's own leftovers
+    (regular files named ``.<name>.illumix-tmp<ext>``), never a folder or file of the export."""
+    from dataset_export.journal import Journal, temp_path
+
+    j = Journal(tmp_path, {"a": 1})
+    real = j.write_bytes("Cam/demo.party-front/demo.party-front_1.tiff", b"x")
+    j.write_bytes("Cam/demo.part-2.npy", b"y")
+    leftover = temp_path(tmp_path / "Cam" / "demo.party-front" / "demo.party-front_12.tiff")
+    leftover.write_bytes(b"half")
+    (tmp_path / "Cam" / ".d.illumix-tmp.tiff").mkdir()  # not a regular file: left alone
+    Journal(tmp_path, {"a": 1})
+    assert real.read_bytes() == b"x" and (tmp_path / "Cam" / "demo.part-2.npy").is_file()
+    assert not leftover.exists() and (tmp_path / "Cam" / ".d.illumix-tmp.tiff").is_dir()
+
+
+def test_service_refusal_is_an_export_error(store):
+    """Anything the service refuses (its ServiceError, an HTTP answer there) stops the export as one
+    ExportError line (the CLI: exit 2), not a traceback."""
+    from dataset_export.errors import ExportError
+    from dataset_export.frames import Composer
+    from dataset_export.plan import Place
+    from retarget.sensor_model import NoiseModel
+    from store import CubeStore
+
+    composer = Composer(CubeStore.open(store, mode="r"), gt=None, size=(5000, 10), noise=None,
+                        levels=NoiseModel(), bayer=None)
+    with pytest.raises(ExportError, match="room_1/v0: output 5000x10 exceeds the limits"):
+        composer.capture(Place("p", "room_1", "v0", ("window", "lamp"), ("A", "D65"), 1), "Nikon 5100 (NPL)")
+
+
+def test_count_capped_at_distinct_places(store, tmp_path, capsys):
+    """--count beyond the distinct view × lighting combinations writes each combination once (a repeat
+    of a view takes a lighting it has not had) and says so in one warning line; no two places alike."""
+    from dataset_export.plan import plan_places
+
+    views = [("s1", "v0", ("a", "b")), ("s2", "v0", ("a", "b"))]
+    lightings = [("A", "D65"), ("FL11", "D50")]
+    places, _ = plan_places(views, lightings, count=30, seed=1)
+    combos = [(p.scene, p.view, p.lighting) for p in places]
+    assert len(combos) == len(set(combos)) == 4
+    three, _ = plan_places(views, lightings, count=3, seed=1)
+    assert len({(p.scene, p.lighting) for p in three}) == 3 and {p.scene for p in three} == {"s1", "s2"}
+    code, stdout, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--count", "30", "--size", "16x12",
+                                "--json")
+    summary = json.loads(stdout)
+    assert code == 0 and summary["counts"]["places"] == 5  # 5 views × the one default lighting
+    assert "--count 30: the store has 5 distinct" in err and summary["warnings"]

@@ -99,6 +99,23 @@ def test_dng_mixed_light_neutral_is_the_mean_white_point(client):
     assert json.loads(r.headers["x-illumix-meta"])["encoding"]["cfa"] == "RGGB"
 
 
+def test_dng_linear_with_bayer_none(client):
+    """``bayer=none``: a LinearRaw DNG (3 samples per pixel, no mosaic) of the RGB raw, which libraw
+    opens with the same digital numbers, levels and as-shot neutral as the Bayer one's."""
+    q = {"view": "solo", "illuminants": "A"}
+    r = get(client, format="dng", bayer="none", **q)
+    raw, _ = npz(client, outputs="raw", exposure="auto", **q)
+    dn = np.clip(np.round(BLACK + raw["raw"].astype(np.float64) * (WHITE - BLACK)), 0, WHITE).astype(np.uint16)
+    assert raw["raw"].ndim == 3 and json.loads(r.headers["x-illumix-meta"])["encoding"]["cfa"] is None
+    with open_dng(r.content) as d, open_dng(get(client, format="dng", **q).content) as bayer:
+        assert d.raw_type == rawpy.RawType.Stack
+        np.testing.assert_array_equal(d.raw_image[..., :3], dn)
+        assert list(d.black_level_per_channel) == [BLACK] * 4 and d.white_level == WHITE
+        np.testing.assert_allclose(d.camera_whitebalance[:3], bayer.camera_whitebalance[:3], rtol=1e-6)
+    assert get(client, format="npz", bayer="NONE", outputs="raw", **q).content == get(
+        client, format="npz", outputs="raw", **q).content  # elsewhere none is no mosaic, as omitted
+
+
 def test_dng_with_noise_holds_the_sensor_models_numbers(client):
     """``noise=``: the noisy digital numbers as ``/sample`` composes them, the model's levels."""
     q = {"view": "v0", "illuminants": "A,D65", "noise": "full_well:5000;black_level:128;bit_depth:14", "bayer": "BGGR"}
@@ -132,6 +149,7 @@ def test_exr_round_trip_equals_the_npz(client, tmp_path):
     for k in ("scene", "view", "seed", "illuminants", "exposure_gain", "ground_truth", "size"):
         assert sent[k] == meta[k], k
     assert header["spectralLayoutVersion"] == "1.0"
+    assert header["emissiveUnits"].startswith("relative") and float(header["illumixBandWidthNm"]) == 5.0
     path = tmp_path / "sample.exr"
     path.write_bytes(r.content)
     with OpenEXR.File(str(path), separate_channels=True) as f:
