@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.global_wb import frame_shares, global_white_point
+from retarget.global_wb import frame_white_point
 
 DENOMINATOR = 1_000_000
 
@@ -63,8 +63,7 @@ def as_shot_neutral(white_points, mixture: np.ndarray | None = None, valid: np.n
     c = np.asarray(white_points, np.float64)
     if mixture is None:
         return c[0].tolist()
-    shares = frame_shares(mixture, valid) if valid.any() else np.full(len(c), 1 / len(c))
-    return global_white_point(shares, c).tolist()
+    return frame_white_point(mixture, valid, c).tolist()
 
 
 def _rationals(values) -> list[list[int]]:
