@@ -27,7 +27,7 @@ def _packages() -> set[str]:
 @pytest.mark.parametrize("dockerfile", ["Dockerfile.service", "Dockerfile.render"])
 def test_every_package_is_copied_into_the_image(dockerfile):
     text = (ROOT / "docker" / dockerfile).read_text()
-    copied = set(re.findall(r"^COPY (\w+) /build/src/\1$", text, re.M))
+    copied = set(re.findall(r"^COPY (\w+) /build/src/\1$", text, re.MULTILINE))
     missing = _packages() - copied
     assert not missing, f"docker/{dockerfile} does not COPY {sorted(missing)} into /build/src"
 
@@ -35,6 +35,6 @@ def test_every_package_is_copied_into_the_image(dockerfile):
 def test_every_package_is_in_the_build_context():
     """``.dockerignore`` leaves out everything but what it lists: a package COPY'd but not listed is
     not in the build context, and the build fails."""
-    allowed = set(re.findall(r"^!(\w+)/$", (ROOT / ".dockerignore").read_text(), re.M))
+    allowed = set(re.findall(r"^!(\w+)/$", (ROOT / ".dockerignore").read_text(), re.MULTILINE))
     missing = _packages() - allowed
     assert not missing, f".dockerignore does not let {sorted(missing)} into the build context"
