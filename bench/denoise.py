@@ -108,6 +108,15 @@ What is reported (JSON keys)
     AOV's RMS deviation from the clean one per R, G, B.
 11. Plots: ``bench/out/denoise_maps.png`` (reference / undenoised / denoised raw, and their error
     maps beside the reference's floor map) and ``bench/out/denoise_curve.png`` (error against spp).
+12. ``targeted_paths``: the test renders are boosted as the renderer's default is (``--boost-factor``,
+    ``--boost-reach``; :mod:`renderer_jobs.boost_paths`: pixels whose reach, from the AOVs and the
+    group's direct-light guide alone, exceeds the threshold get factor × ``--spp``). Part 1 measures
+    the boosted renders (desk, for the ablation only, stays plain); the error curve's ``--spp`` point and
+    the references are plain. Here: the default method on the plain renders, on the boosted ones and
+    on plain uniform renders at the two spp (seed 7) that bracket the boost's total paths and that the
+    sampler renders exactly (multijitter rounds e.g. 21 per set up to 24), with ``per_group`` pixel
+    fractions and extra-path fractions; ``uniform_equal_paths_estimate`` scales the plain errors by
+    ``(1 + extra)^-½``.
 
 Usage::
 
@@ -189,11 +198,11 @@ def render_all(args, scene, cache: Path | None) -> dict:
                       else {g: render(g, spp, curve_seed(args, spp)) for g in groups})
     uniform = None
     if args.boost_factor > 1:
-        extra = np.mean([test[g]["targeted_paths"]["extra_paths_fraction"] for g in groups])
-        spp_eq = 4 * max(1, round(args.spp * (1 + extra) / 4))  # 4 band sets share the spp
-        log(f"equal-path uniform baseline: {spp_eq} spp (+{100 * extra:.1f} % paths), seed {UNIFORM_SEED}")
-        uniform = {"spp": spp_eq, "extra_paths_fraction": float(extra),
-                   "renders": {g: render(g, spp_eq, UNIFORM_SEED) for g in groups}}
+        extra = float(np.mean([test[g]["targeted_paths"]["extra_paths_fraction"] for g in groups]))
+        lo, hi = dl.exact_spp_bracket(args.spp * (1 + extra), sets=4)
+        log(f"equal-path uniform baselines: {lo} and {hi} spp (the boost: +{100 * extra:.1f} % paths), seed {UNIFORM_SEED}")
+        uniform = {"extra_paths_fraction": extra,
+                   "renders": {spp: {g: render(g, spp, UNIFORM_SEED) for g in groups} for spp in (lo, hi)}}
     mixed_spp = args.thesis_factor * args.spp
     log(f"thesis protocol: both groups in one render at {mixed_spp} spp, seed {MIXED_SEED}")
     mixed = render(groups, mixed_spp, MIXED_SEED)
@@ -207,9 +216,10 @@ def render_all(args, scene, cache: Path | None) -> dict:
 
 def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dict, method: str) -> dict:
     """Part 12: the default method on the plain test renders, on the boosted ones (the renderer's
-    default) and on uniform renders with the same total of paths (``--spp`` × (1 + the boost's
-    extra fraction), rounded to the 4 band sets), against the reference; plus the equal-path
-    estimate of a noise-limited tail, ``plain × √(spp / (spp·(1 + extra)))``."""
+    default) and on uniform renders at the two spp that bracket the same total of paths (``--spp`` ×
+    (1 + the boost's extra fraction); spp the sampler renders exactly, :func:`denoise_lib.exact_spp_bracket`),
+    against the reference; plus the equal-path estimate of a noise-limited tail,
+    ``plain × √(spp / (spp·(1 + extra)))``."""
     groups = [g for g, _ in PAIR]
     if R["uniform"] is None:
         return {"boost_factor": args.boost_factor, "applied": False}
@@ -227,13 +237,14 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
     out = {"boost_factor": args.boost_factor, "boost_reach": args.boost_reach, "applied": True, "method": method,
            "per_group": {g: R["test"][g]["targeted_paths"] for g in groups},
            "extra_paths_fraction": round(extra, 5), "plain": measure(R["plain"]), "boosted": measure(R["test"]),
-           "uniform_equal_paths": {"spp": R["uniform"]["spp"], "seed": UNIFORM_SEED,
-                                   **measure(R["uniform"]["renders"])}}
+           "uniform_equal_paths": [{"spp": spp, "extra_paths_fraction": round(spp / args.spp - 1, 4),
+                                    "seed": UNIFORM_SEED, **measure(r)} for spp, r in R["uniform"]["renders"].items()]}
     scale = (1 + extra) ** -0.5
     out["uniform_equal_paths_estimate"] = {k: round(out["plain"][k] * scale, 4)
                                            for k in ("median_rel_pct", "p99_3_rel_pct")}
-    for k in ("plain", "boosted", "uniform_equal_paths"):
-        log(f"  {k:20s} median {out[k]['median_rel_pct']:.3f} %  p99.3 {out[k]['p99_3_rel_pct']:.3f} %")
+    for k, row in [("plain", out["plain"]), ("boosted", out["boosted"]),
+                   *((f"uniform {u['spp']} spp", u) for u in out["uniform_equal_paths"])]:
+        log(f"  {k:20s} median {row['median_rel_pct']:.3f} %  p99.3 {row['p99_3_rel_pct']:.3f} %")
     return out
 
 
@@ -731,7 +742,7 @@ def main(argv: list[str] | None = None) -> dict:
 def _all_renders(R: dict) -> list[dict]:
     """Every distinct render record (the curve's test-spp point is the test render itself)."""
     seen, out = set(), []
-    uniform = R["uniform"]["renders"].values() if R["uniform"] else []
+    uniform = [r for rs in R["uniform"]["renders"].values() for r in rs.values()] if R["uniform"] else []
     for r in [*R["test"].values(), *R["plain"].values(), *uniform, *(c for cs in R["curve"].values() for c in cs.values()), R["mixed"],
               *(c for refs in R["refs"] for c in refs.values())]:
         if id(r) not in seen:

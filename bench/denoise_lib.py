@@ -72,6 +72,28 @@ def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed:
     return out
 
 
+def multijitter_count(n: int) -> int:
+    """The samples per pixel Mitsuba's ``multijitter`` sampler renders when asked for ``n``: an
+    ``r × ⌈n/r⌉`` grid with ``r = ⌊√n⌋`` (checked against Mitsuba for n = 1…299; e.g. 21–23 → 24,
+    32 → 35)."""
+    r = int(np.sqrt(n))
+    while r * r > n:
+        r -= 1
+    return r * -(-n // r)
+
+
+def exact_spp_bracket(target: float, sets: int = 4) -> tuple[int, int]:
+    """The largest spp ≤ ``target`` and the smallest ≥ it that split into ``sets`` band sets the
+    renderer's default sampler (multijitter) renders exactly."""
+    from renderer_jobs.render_settings import RenderSettings
+
+    assert RenderSettings().sampler == "multijitter", "exact_spp_bracket knows multijitter's rule only"
+    ok = [n for n in range(1, int(target / sets) + 64) if multijitter_count(n) == n]
+    lo = max([n for n in ok if n * sets <= target], default=ok[0])
+    hi = min(n for n in ok if n * sets >= target)
+    return lo * sets, hi * sets
+
+
 def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int, cache: Path | None,
                 log: Callable[[str], None]) -> dict:
     """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached."""
