@@ -62,22 +62,21 @@ def extra_path_sums(ms, sensor, integrator, pix: np.ndarray, paths: int, seed: i
     mi, dr = import_mitsuba()
     w, h = (int(x) for x in sensor.film().crop_size())
     n_aov = len(integrator.aov_names())
-    sums = np.zeros(len(pix) * n_aov, np.float64)
+    sums = np.zeros((len(pix), n_aov), np.float64)
     all_pix = np.repeat(np.arange(len(pix), dtype=np.int64), paths)
     sampler = mi.load_dict({"type": "independent"})
     lam = np.asarray(wavelengths, np.float32)
-    for c, a in enumerate(range(0, len(all_pix), max(1, max_lanes))):
+    for k, a in enumerate(range(0, len(all_pix), max(1, max_lanes))):
         rows = all_pix[a:a + max_lanes]
-        key = mix_seed(seed, BOOST_SALT, c)
+        key = mix_seed(seed, BOOST_SALT, k)
         jitter = np.random.default_rng([key & 0xFFFFFFFF, 0x717]).random((len(rows), 2), dtype=np.float32)
         sampler.seed(dr.opaque(mi.UInt32, key & 0xFFFFFFFF), len(rows))
         ray = camera_rays(mi, sensor, w, h, pix[rows], jitter, np.tile(lam, (len(rows), 1)), differential=True)
         _, _, aovs = integrator.sample(ms, sampler, ray, None, mi.Bool(True))
         dr.eval(aovs)
-        vals = np.stack([np.asarray(v, np.float64) for v in aovs], axis=1)
-        idx = (rows[:, None] * n_aov + np.arange(n_aov)[None, :]).ravel()
-        sums += np.bincount(idx, weights=vals.ravel(), minlength=sums.size)
-    return sums.reshape(len(pix), n_aov)
+        for c, v in enumerate(aovs):  # one AOV at a time: memory of one lane block per column
+            sums[:, c] += np.bincount(rows, weights=np.asarray(v, np.float64), minlength=len(pix))
+    return sums
 
 
 __all__ = ["BOOST_SALT", "REACH_CHANNELS", "boost_mask", "extra_path_sums", "reach"]
