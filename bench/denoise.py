@@ -108,6 +108,15 @@ What is reported (JSON keys)
     AOV's RMS deviation from the clean one per R, G, B.
 11. Plots: ``bench/out/denoise_maps.png`` (reference / undenoised / denoised raw, and their error
     maps beside the reference's floor map) and ``bench/out/denoise_curve.png`` (error against spp).
+12. ``targeted_paths``: the test renders are boosted as the renderer's default is (``--boost-factor``,
+    ``--boost-reach``; :mod:`renderer_jobs.boost_paths`: pixels whose reach, from the AOVs and the
+    group's direct-light guide alone, exceeds the threshold get factor × ``--spp``). Part 1 measures
+    the boosted renders (desk, for the ablation only, stays plain); the error curve's ``--spp`` point and
+    the references are plain. Here: the default method on the plain renders, on the boosted ones and
+    on plain uniform renders at the two spp (seed 7) that bracket the boost's total paths and that the
+    sampler renders exactly (multijitter rounds e.g. 21 per set up to 24), with ``per_group`` pixel
+    fractions and extra-path fractions; ``uniform_equal_paths_estimate`` scales the plain errors by
+    ``(1 + extra)^-½``.
 
 Usage::
 
@@ -135,7 +144,7 @@ from render_lib import flat_mask, machine  # noqa: E402
 
 OUT = ROOT / "bench" / "out"
 PAIR = (("daylight", "A"), ("ceiling", "D65"))  # group → illuminant of the main composition (desk off)
-TEST_SEED, REF_SEED0, MIXED_SEED, AOV_SEED = 0, 100, 5, 0
+TEST_SEED, REF_SEED0, MIXED_SEED, AOV_SEED, UNIFORM_SEED = 0, 100, 5, 0, 7
 THESIS = {"undenoised": {"median_rel_pct": 1.8, "p99_3_rel_pct": 9.43},
           "denoised": {"median_rel_pct": 0.9, "p99_3_rel_pct": 4.89}}
 GOALS = {"median_rel_pct": 0.5, "p99_3_rel_pct": 2.5}
@@ -160,6 +169,9 @@ def render_all(args, scene, cache: Path | None) -> dict:
     """Every render the benchmark uses (through the cache): AOVs, the test cubes of all the view's
     groups at ``--spp`` (desk only feeds the ablation's shading), the error curve, the thesis
     protocol's mixed render and the K reference seeds."""
+    from renderer_jobs.boost_paths import boost_mask
+    from retarget.denoise import DEFAULT_METHOD, Guides
+
     groups = [g for g, _ in PAIR]
 
     def render(grp, spp, seed):
@@ -168,14 +180,29 @@ def render_all(args, scene, cache: Path | None) -> dict:
     log(f"AOVs ({args.aov_spp} and {args.clean_aov_spp} rays per pixel)")
     aovs = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.aov_spp, cache, log)
     clean = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.clean_aov_spp, cache, log)
-    log(f"test renders at {args.spp} spp, seed {TEST_SEED}")
-    test = {g: render(g, args.spp, TEST_SEED) for g in scene.group_names}
     direct = {g: dl.cached_direct(scene, args.view, g, args.res, TEST_SEED, cache, log) for g in groups}
+    log(f"test renders at {args.spp} spp, seed {TEST_SEED}" + (f", boosted x{args.boost_factor} where reach > "
+                                                               f"{args.boost_reach}" if args.boost_factor > 1 else ""))
+    plain = {g: render(g, args.spp, TEST_SEED) for g in scene.group_names}
+    test = dict(plain)
+    if args.boost_factor > 1:  # the renderer's default: targeted extra paths from the guides alone
+        for g in groups:
+            mask = boost_mask(Guides.from_aovs(aovs).with_direct(direct[g]["direct"]), DEFAULT_METHOD,
+                              args.boost_reach)
+            test[g] = dl.cached_render(scene, args.view, g, args.spp, TEST_SEED, args.res, cache, log,
+                                       boost=(mask, args.boost_factor, args.boost_reach))
     curve = {}
     for spp in args.curve_spp:
         log(f"error curve: {spp} spp, seed {curve_seed(args, spp)}")
-        curve[spp] = ({g: test[g] for g in groups} if spp == args.spp
+        curve[spp] = ({g: plain[g] for g in groups} if spp == args.spp  # undenoised, plain: never boosted
                       else {g: render(g, spp, curve_seed(args, spp)) for g in groups})
+    uniform = None
+    if args.boost_factor > 1:
+        extra = float(np.mean([test[g]["targeted_paths"]["extra_paths_fraction"] for g in groups]))
+        lo, hi = dl.exact_spp_bracket(args.spp * (1 + extra), sets=4)
+        log(f"equal-path uniform baselines: {lo} and {hi} spp (the boost: +{100 * extra:.1f} % paths), seed {UNIFORM_SEED}")
+        uniform = {"extra_paths_fraction": extra,
+                   "renders": {spp: {g: render(g, spp, UNIFORM_SEED) for g in groups} for spp in (lo, hi)}}
     mixed_spp = args.thesis_factor * args.spp
     log(f"thesis protocol: both groups in one render at {mixed_spp} spp, seed {MIXED_SEED}")
     mixed = render(groups, mixed_spp, MIXED_SEED)
@@ -183,8 +210,42 @@ def render_all(args, scene, cache: Path | None) -> dict:
     for k in range(args.ref_seeds):
         log(f"reference seed {k + 1}/{args.ref_seeds} ({args.ref_spp} spp, seed {REF_SEED0 + k})")
         refs.append({g: render(g, args.ref_spp, REF_SEED0 + k) for g in groups})
-    return {"aovs": aovs, "clean_aovs": clean, "test": test, "curve": curve, "mixed": mixed, "refs": refs,
-            "mixed_spp": mixed_spp, "direct": direct}
+    return {"aovs": aovs, "clean_aovs": clean, "test": test, "plain": plain, "uniform": uniform, "curve": curve,
+            "mixed": mixed, "refs": refs, "mixed_spp": mixed_spp, "direct": direct}
+
+
+def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dict, method: str) -> dict:
+    """Part 12: the default method on the plain test renders, on the boosted ones (the renderer's
+    default) and on uniform renders at the two spp that bracket the same total of paths (``--spp`` ×
+    (1 + the boost's extra fraction); spp the sampler renders exactly, :func:`denoise_lib.exact_spp_bracket`),
+    against the reference; plus the equal-path estimate of a noise-limited tail,
+    ``plain × √(spp / (spp·(1 + extra)))``."""
+    groups = [g for g, _ in PAIR]
+    if R["uniform"] is None:
+        return {"boost_factor": args.boost_factor, "applied": False}
+
+    def measure(renders: dict) -> dict:
+        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g]["direct"])
+                          for g in groups], M)
+        und = dl.compose([renders[g]["cube"] for g in groups], M)
+        s = dl.err_summary(dl.rel_chroma_err(raw, ref["raw"]), classes["all"])
+        u = dl.err_summary(dl.rel_chroma_err(und, ref["raw"]), classes["all"])
+        return {"median_rel_pct": s["median_rel_pct"], "p99_3_rel_pct": s["p99_3_rel_pct"],
+                "undenoised_median_rel_pct": u["median_rel_pct"], "undenoised_p99_3_rel_pct": u["p99_3_rel_pct"]}
+
+    extra = R["uniform"]["extra_paths_fraction"]
+    out = {"boost_factor": args.boost_factor, "boost_reach": args.boost_reach, "applied": True, "method": method,
+           "per_group": {g: R["test"][g]["targeted_paths"] for g in groups},
+           "extra_paths_fraction": round(extra, 5), "plain": measure(R["plain"]), "boosted": measure(R["test"]),
+           "uniform_equal_paths": [{"spp": spp, "extra_paths_fraction": round(spp / args.spp - 1, 4),
+                                    "seed": UNIFORM_SEED, **measure(r)} for spp, r in R["uniform"]["renders"].items()]}
+    scale = (1 + extra) ** -0.5
+    out["uniform_equal_paths_estimate"] = {k: round(out["plain"][k] * scale, 4)
+                                           for k in ("median_rel_pct", "p99_3_rel_pct")}
+    for k, row in [("plain", out["plain"]), ("boosted", out["boosted"]),
+                   *((f"uniform {u['spp']} spp", u) for u in out["uniform_equal_paths"])]:
+        log(f"  {k:20s} median {row['median_rel_pct']:.3f} %  p99.3 {row['p99_3_rel_pct']:.3f} %")
+    return out
 
 
 def den(R: dict, g: str, guides, name: str, kind: str = "transport") -> np.ndarray:
@@ -537,6 +598,9 @@ def parse(argv):
     ap.add_argument("--clean-aov-spp", type=int, default=1024, help="rays per pixel of the AOVs for pixel classes")
     ap.add_argument("--cost-size", default="960x720", help="large size of the cost measurement")
     ap.add_argument("--cost-repeats", type=int, default=3)
+    ap.add_argument("--boost-factor", type=int, default=None,
+                    help="targeted extra paths of the test renders (default: the renderer's, 8; 1 = off)")
+    ap.add_argument("--boost-reach", type=float, default=None, help="their reach threshold (default: the renderer's)")
     ap.add_argument("--no-cache", action="store_true", help="render everything again (and cache nothing)")
     ap.add_argument("--quick", action="store_true",
                     help="smoke test: 64x48, reference 2 x 256 spp, curve 64/128, thesis factor 4")
@@ -547,6 +611,13 @@ def parse(argv):
         args.thesis_factor, args.clean_aov_spp, args.cost_size, args.cost_repeats = 4, 256, "320x240", 1
     if args.ref_seeds < 2 or args.ref_seeds % 2:
         ap.error("--ref-seeds must be even and >= 2 (the floor compares the two halves)")
+    from renderer_jobs.render_settings import RenderSettings
+
+    d = RenderSettings()
+    args.boost_factor = d.boost_factor if args.boost_factor is None else args.boost_factor
+    args.boost_reach = d.boost_reach if args.boost_reach is None else args.boost_reach
+    if args.boost_factor < 1 or not 0 < args.boost_reach <= 1:
+        ap.error("--boost-factor must be >= 1 and --boost-reach in (0, 1]")
     args.res = tuple(int(v) for v in args.resolution.lower().split("x"))
     args.cost_size = tuple(int(v) for v in args.cost_size.lower().split("x"))
     args.curve_spp = sorted({int(s) for s in args.curve_spp.split(",")} | {args.spp})
@@ -563,7 +634,8 @@ def main(argv: list[str] | None = None) -> dict:
     doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(),
                  "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": "demo-room-0", "view": args.view,
                  "resolution": list(args.res), "sensor": args.sensor,
-                 "composition": {g: i for g, i in PAIR}, "spp": args.spp, "quick": args.quick}
+                 "composition": {g: i for g, i in PAIR}, "spp": args.spp, "quick": args.quick,
+                 "boost_factor": args.boost_factor, "boost_reach": args.boost_reach}
     scene = demo_room(0, args.res)
     cache = None if args.no_cache else OUT / "denoise-cache"
     R = render_all(args, scene, cache)
@@ -614,6 +686,8 @@ def main(argv: list[str] | None = None) -> dict:
 
     log("thesis protocol")
     doc["thesis_protocol"] = thesis_protocol(args, R, guides, args.sensor, ref, DEFAULT_METHOD)
+    log("targeted extra paths against plain and equal-path uniform renders")
+    doc["targeted_paths"] = targeted_paths(args, R, guides, M, ref, classes, DEFAULT_METHOD)
     doc["bias"] = bias(R, rows, maps, ref)
     doc["gain_angle_deg"] = {c: {"undenoised": rows["none"]["gain_angle_deg"][c],
                                  "denoised": rows[DEFAULT_METHOD]["gain_angle_deg"][c]} for c in ("edges", "flat")}
@@ -668,7 +742,8 @@ def main(argv: list[str] | None = None) -> dict:
 def _all_renders(R: dict) -> list[dict]:
     """Every distinct render record (the curve's test-spp point is the test render itself)."""
     seen, out = set(), []
-    for r in [*R["test"].values(), *(c for cs in R["curve"].values() for c in cs.values()), R["mixed"],
+    uniform = [r for rs in R["uniform"]["renders"].values() for r in rs.values()] if R["uniform"] else []
+    for r in [*R["test"].values(), *R["plain"].values(), *uniform, *(c for cs in R["curve"].values() for c in cs.values()), R["mixed"],
               *(c for refs in R["refs"] for c in refs.values())]:
         if id(r) not in seen:
             seen.add(id(r))

@@ -20,44 +20,78 @@ ERR_CAP_PCT = 1e4
 # Renders through an .npz cache
 
 
-def _cache_name(view: str, res: tuple[int, int], spp: int, seed: int, groups: Sequence[str]) -> str:
+def _cache_name(view: str, res: tuple[int, int], spp: int, seed: int, groups: Sequence[str],
+                boost: tuple | None = None) -> str:
     """The cache file of a render; named by the renderer's default method too, so a change of
-    default (issue 17: all-bands paths) never reads another renderer's cubes."""
+    default (issue 17: all-bands paths) never reads another renderer's cubes, and by the targeted
+    extra paths' factor and reach when boosted (``boost``: ``(mask, factor, reach)``)."""
     from renderer_jobs.render_settings import RenderSettings
 
     d = RenderSettings()
     method = f"{d.wavelengths}-{d.sampler}-b{d.bands_per_path}" if d.wavelengths == "all-bands" else d.wavelengths
-    return f"{view}_{res[0]}x{res[1]}_{spp}spp_seed{seed}_{'+'.join(groups)}_{method}.npz"
+    tag = f"_boost{boost[1]}r{boost[2]:g}" if boost is not None else ""
+    return f"{view}_{res[0]}x{res[1]}_{spp}spp_seed{seed}_{'+'.join(groups)}_{method}{tag}.npz"
 
 
 def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed: int, res: tuple[int, int],
-                  cache: Path | None, log: Callable[[str], None]) -> dict:
+                  cache: Path | None, log: Callable[[str], None], boost: tuple | None = None) -> dict:
     """Transport cube, illumination cube and emission of ``groups`` (one group, or several rendered
     together) at ``spp``/``seed`` with the renderer's default settings otherwise; read from
     ``cache`` when present (``cache=None``: always render, and overwrite nothing).
 
     Returns ``{"cube", "illumination", "emission", "cpu_s", "wall_s", "cached"}``; ``cpu_s`` is the
-    process CPU time of the render when it was made (also for a cached one)."""
+    process CPU time of the render when it was made (also for a cached one). ``boost``:
+    ``(mask (H, W), factor, reach)`` targeted extra paths (:mod:`renderer_jobs.boost_paths`); None:
+    plain (no pixel gets more than ``spp``). With a boost the record has ``"targeted_paths"`` too."""
     from renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     gl = [groups] if isinstance(groups, str) else list(groups)
-    path = cache / _cache_name(view, res, spp, seed, gl) if cache is not None else None
+    path = cache / _cache_name(view, res, spp, seed, gl, boost) if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as z:
             return {"cube": z["cube"], "illumination": z["illumination"], "emission": z["emission"],
-                    "cpu_s": float(z["cpu_s"]), "wall_s": float(z["wall_s"]), "cached": True}
+                    "cpu_s": float(z["cpu_s"]), "wall_s": float(z["wall_s"]), "cached": True,
+                    **({"targeted_paths": json.loads(str(z["targeted_paths"]))} if "targeted_paths" in z.files else {})}
     w0, c0 = time.perf_counter(), time.process_time()
-    r = render_cube(scene, view, gl[0] if len(gl) == 1 else gl, RenderSettings(spp=spp, seed=seed))
+    settings = RenderSettings(spp=spp, seed=seed, **({"boost_factor": boost[1], "boost_reach": boost[2]}
+                                                      if boost is not None else {"boost_factor": 1}))
+    r = render_cube(scene, view, gl[0] if len(gl) == 1 else gl, settings,
+                    boost_mask=boost[0] if boost is not None else None)
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-    log(f"  rendered {'+'.join(gl)} {spp} spp seed {seed}: {cpu:.1f} s CPU, {wall:.1f} s wall")
+    log(f"  rendered {'+'.join(gl)} {spp} spp seed {seed}{' boosted' if boost else ''}: {cpu:.1f} s CPU, "
+        f"{wall:.1f} s wall")
     out = {"cube": r.cube, "illumination": r.illumination, "emission": np.asarray(r.emission, np.float64),
            "cpu_s": cpu, "wall_s": wall, "cached": False}
+    if "targeted_paths" in r.stats:
+        out["targeted_paths"] = r.stats["targeted_paths"]
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **{k: v for k, v in out.items() if k != "cached"})
+        np.savez(tmp, **{k: (json.dumps(v) if k == "targeted_paths" else v) for k, v in out.items() if k != "cached"})
         tmp.replace(path)
     return out
+
+
+def multijitter_count(n: int) -> int:
+    """The samples per pixel Mitsuba's ``multijitter`` sampler renders when asked for ``n``: an
+    ``r × ⌈n/r⌉`` grid with ``r = ⌊√n⌋`` (checked against Mitsuba for n = 1…299; e.g. 21–23 → 24,
+    32 → 35)."""
+    r = int(np.sqrt(n))
+    while r * r > n:
+        r -= 1
+    return r * -(-n // r)
+
+
+def exact_spp_bracket(target: float, sets: int = 4) -> tuple[int, int]:
+    """The largest spp ≤ ``target`` and the smallest ≥ it that split into ``sets`` band sets the
+    renderer's default sampler (multijitter) renders exactly."""
+    from renderer_jobs.render_settings import RenderSettings
+
+    assert RenderSettings().sampler == "multijitter", "exact_spp_bracket knows multijitter's rule only"
+    ok = [n for n in range(1, int(target / sets) + 64) if multijitter_count(n) == n]
+    lo = max([n for n in ok if n * sets <= target], default=ok[0])
+    hi = min(n for n in ok if n * sets >= target)
+    return lo * sets, hi * sets
 
 
 def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int, cache: Path | None,

@@ -58,7 +58,7 @@ def dataset(
         opts = dict(spp=r.spp, seed=r.seed, wavelengths=r.wavelengths, sampler=r.sampler,  # noqa: C408
                     bands_per_path=r.bands_per_path, skip_dark=r.skip_dark, adaptive=r.adaptive,
                     noise_target=r.noise_target, illumination=r.illumination, denoise=r.denoise,
-                    backend=r.backend, flag=config_flag)
+                    backend=r.backend, boost_factor=r.boost_factor, boost_reach=r.boost_reach, flag=config_flag)
         render_settings(**opts)  # check before generating anything
     except SceneError as exc:
         raise UserError(f"{config}: render: {exc}") from None

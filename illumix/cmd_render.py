@@ -94,6 +94,15 @@ def render(
                                  "Also store a denoised copy of every cube and illumination cube, made with this "
                                  f"guide-only linear filter (relighting stays exact) — {described(DENOISE_CHOICES)}. "
                                  "The raw cubes stay; /sample?denoise= picks.", default=DEFAULT_METHOD),
+    boost_factor: int | None = typer.Option(
+        None, "--boost-factor",
+        help="Targeted extra paths: pixels the dt-irradiance denoiser cannot average (see --boost-reach) get this "
+             "many times --spp; 1 = off; default 8 with --denoise dt-irradiance and all-bands, else 1 "
+             "(bench/DENOISE.md)."),
+    boost_reach: float | None = typer.Option(
+        None, "--boost-reach",
+        help="Boost pixels where the denoiser keeps more than this share of white noise, (0, 1] (default 0.6), "
+             "computed from the guides alone before rendering."),
     backend: str = choice_option(BACKENDS, "--backend",
                                  f"Renderer — {described(BACKENDS)}. Cycles needs Blender: bash scripts/install.sh "
                                  "--blender; it uses --spp (per pass), --seed, --resolution, --illumination and "
@@ -125,7 +134,8 @@ def render(
         settings = render_settings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
                                    bands_per_path=bands_per_path, skip_dark=skip_dark, adaptive=adaptive,
                                    noise_target=noise_target, illumination=illumination, denoise=denoise,
-                                   backend=backend, scenes=scenes)
+                                   backend=backend, scenes=scenes, boost_factor=boost_factor,
+                                   boost_reach=boost_reach)
         adaptive = settings.adaptive
         if settings.backend == "cycles" and not dry_run:
             from renderer_jobs.cycles_env import find_blender_python
@@ -149,7 +159,8 @@ def render(
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "spp": spp, "seed": seed, "wavelengths": wavelengths, "sampler": sampler, "bands_per_path": bands_per_path, "skip_dark": skip_dark,
                "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
-               "denoise": denoise, "executor": executor, "backend": settings.backend}
+               "denoise": denoise, "executor": executor, "backend": settings.backend,
+               "boost_factor": settings.boost_factor, "boost_reach": settings.boost_reach}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")

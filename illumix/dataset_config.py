@@ -72,6 +72,8 @@ class RenderSection(BaseModel):
     illumination: bool = True
     denoise: str = DEFAULT_METHOD
     backend: str = "mitsuba"
+    boost_factor: int | None = None  # targeted extra paths (None: the renderer's default)
+    boost_reach: float | None = None
 
     @field_validator("resolution", mode="before")
     @classmethod

@@ -35,7 +35,8 @@ def check_executor(executor: str, address: str | None, flag: Callable[[str], str
 def render_settings(*, spp: int, seed: int, wavelengths: str, sampler: str, bands_per_path: int,
                     skip_dark: bool, adaptive: bool, noise_target: float | None, illumination: bool,
                     denoise: str | None, backend: str, scenes: Iterable = (),
-                    flag: Callable[[str], str] = cli_flag):
+                    flag: Callable[[str], str] = cli_flag, boost_factor: int | None = None,
+                    boost_reach: float | None = None):
     """The :class:`RenderSettings` of these options, after the checks that need the scenes (a
     stratified render needs ``4 * spp`` ≥ the bands). A noise target implies adaptive spp.
     Raises :class:`UserError` (or :class:`~renderer_jobs.scene_schema.SceneError` from the settings'
@@ -53,4 +54,5 @@ def render_settings(*, spp: int, seed: int, wavelengths: str, sampler: str, band
     return RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
                           bands_per_path=bands_per_path, skip_dark=skip_dark,
                           adaptive=adaptive, noise_target=noise_target, illumination=illumination,
-                          denoise=denoise, backend=backend)
+                          denoise=denoise, backend=backend, boost_factor=boost_factor,
+                          **({} if boost_reach is None else {"boost_reach": boost_reach}))

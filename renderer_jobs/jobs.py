@@ -258,9 +258,17 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
             st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
             return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube", "empty": True,
                     "probe_s": probe.seconds, "cpu_s": time.process_time() - c0}
-    result = mr.render_cube(scene, job.view, job.group, settings)
+    prepared = mask = None
+    if settings.boost_factor > 1:
+        # The denoiser's guides (the group's direct light) first: the boost mask comes from them
+        # alone, and the denoiser reuses them (traced once).
+        from renderer_jobs.boost_paths import boost_mask
+
+        prepared = denoise_guides(st, scene, job, settings)
+        mask = boost_mask(prepared[0], settings.denoise, settings.boost_reach)
+    result = mr.render_cube(scene, job.view, job.group, settings, boost_mask=mask)
     empty = store_result(st, scene, job, result, settings, overwrite,
-                         {"probe": probe.to_dict()} if probe is not None else {})
+                         {"probe": probe.to_dict()} if probe is not None else {}, prepared=prepared)
     return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
             "empty": empty, "trace_s": result.stats.get("trace_s"), "cpu_s": time.process_time() - c0}
 
@@ -276,9 +284,11 @@ def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, re
                     **({"generator": dict(scene.generator)} if scene.generator else {}))
 
 
-def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, extra_stats: dict) -> bool:
+def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, extra_stats: dict,
+                 prepared: tuple | None = None) -> bool:
     """Write a rendered cube (with its illumination cube and denoised copies) into the store, or
-    record it as empty when it is all zero. Returns True for empty."""
+    record it as empty when it is all zero. Returns True for empty. ``prepared``: the
+    :func:`denoise_guides` of this job, when already traced."""
     from renderer_jobs.mitsuba_render import ILLUMINATION_METHOD
     from store.schema import IlluminationInfo
 
@@ -290,28 +300,22 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
         # Nothing of this group reaches the view (e.g. a lamp behind the camera lighting nothing seen).
         st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
         return True
-    denoised = _denoise(st, scene, job, result, settings, meta)
+    denoised = _denoise(st, scene, job, result, settings, meta, prepared)
     st.write_cube(scene.name, job.view, job.group, result.cube, meta, overwrite=overwrite,
                   illumination=result.illumination, denoised=denoised)
     return False
 
 
-def _denoise(st, scene, job, result, settings, meta) -> dict | None:
-    """Denoised copies of a rendered cube (and its illumination cube) with the view's stored AOVs as
-    guides (:mod:`retarget.denoise`), plus what only the renderer can make
-    (:mod:`renderer_jobs.denoise_guides`): the group's direct-light guide, and the per-band albedo
-    of a view stored without it (e.g. by Cycles, or before it existed), traced once and added to the
-    view. Records the method in ``meta.denoised``. ``None`` when off."""
-    method = settings.denoise
-    if method is None:
-        return None
+def denoise_guides(st, scene, job, settings) -> tuple:
+    """``(Guides, guide_passes)`` of ``settings.denoise`` for a cube job: the view's stored AOVs, plus
+    what only the renderer can make (:mod:`renderer_jobs.denoise_guides`): the group's direct-light
+    guide, and the per-band albedo of a view stored without it (e.g. by Cycles, or before it
+    existed), traced once and added to the view. ``guide_passes`` records what was traced."""
     from renderer_jobs import denoise_guides as dg
     from renderer_jobs.mitsuba_trace import Tracer
-    from retarget.denoise import Guides, denoise, describe
-    from store.schema import DenoisedInfo
+    from retarget.denoise import Guides
 
-    t = time.perf_counter()
-    wanted = dg.guides_needed(method)
+    wanted = dg.guides_needed(settings.denoise)
     view_meta = st.view_meta(scene.name, job.view)
     names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter")
     aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in view_meta.aovs}
@@ -324,6 +328,20 @@ def _denoise(st, scene, job, result, settings, meta) -> dict | None:
     if "direct" in wanted:
         guides = guides.with_direct(dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed))
         extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed}
+    return guides, extra
+
+
+def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = None) -> dict | None:
+    """Denoised copies of a rendered cube (and its illumination cube) with :func:`denoise_guides`
+    (``prepared``: already traced). Records the method in ``meta.denoised``. ``None`` when off."""
+    method = settings.denoise
+    if method is None:
+        return None
+    from retarget.denoise import denoise, describe
+    from store.schema import DenoisedInfo
+
+    t = time.perf_counter()
+    guides, extra = prepared if prepared is not None else denoise_guides(st, scene, job, settings)
     out = {"transport": denoise(result.cube, guides, method)}
     if result.illumination is not None:
         out["illumination"] = denoise(result.illumination, guides, method, kind="illumination")

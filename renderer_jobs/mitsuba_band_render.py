@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from renderer_jobs.band_schedule import live_bands, mix_seed
+from renderer_jobs.boost_paths import extra_path_sums
 from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
 from renderer_jobs.mitsuba_scene import load_mitsuba_scene
 from renderer_jobs.mitsuba_variant import import_mitsuba
@@ -68,14 +69,16 @@ def band_sets(live: np.ndarray, max_quads: int) -> list[np.ndarray]:
 
 
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
-                     emission: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, dict]:
+                     emission: np.ndarray, boost: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None, dict]:
     """``(cube (H, W, n_bands), illumination cube or None, stats)`` float32 of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba_render.emitter_passes`), with ``settings``
     (a :class:`renderer_jobs.mitsuba_render.RenderSettings`).
 
     The live bands render in interleaved sets (:func:`band_sets`) of at most ``settings.bands_per_path``
     bands; the pixel's ``settings.spp`` paths are shared equally among the sets (:func:`set_spp`), so
-    every band's value averages ``spp / sets`` paths. Fewer bands per path make a path cheaper (raw
+    every band's value averages ``spp / sets`` paths. ``boost``: flat pixel indices that get
+    ``settings.boost_factor`` × the paths (:mod:`renderer_jobs.boost_paths`: the film's estimate and
+    the extra paths' combined by path counts; every other pixel exactly as without it). Fewer bands per path make a path cheaper (raw
     noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
@@ -93,6 +96,10 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     kinds = np.zeros(3)  # samples whose first hit's illumination was demodulated / in-path / traced
     t_load = t_render = 0.0
     n_quads = 0
+    boosting = boost is not None
+    boost = np.asarray([] if boost is None else boost, np.int64)
+    extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
+    t_boost = 0.0
     for k, portals in enumerate(passes):
         t1 = time.perf_counter()
         ms, sensor = load_mitsuba_scene(scene, view, groups, settings.resolution, portals=portals, flat_emission=flat,
@@ -112,14 +119,23 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=spp, seed=seed))
             t_render += time.perf_counter() - t2
             aov = out[..., out.shape[-1] - n_aov:]
+            if illum is not None:  # every set sees the same first hits: count them once (the film's paths)
+                part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
+                kinds += part * spp / len(sets)
+            bad += float(aov[..., -1].sum(dtype=np.float64)) * spp
+            if extra:
+                t3 = time.perf_counter()
+                sums = extra_path_sums(ms, sensor, integrator, boost, extra, mix_seed(settings.seed, k, j),
+                                       settings.max_lanes, np.asarray(quads[0], np.float32))
+                bad += float(sums[:, -1].sum())
+                aov = aov.reshape(-1, n_aov).astype(np.float64)  # exact: the others add as before
+                aov[boost] = (spp * aov[boost] + sums) / (spp + extra)
+                aov = aov.reshape(h, w, n_aov)
+                t_boost += time.perf_counter() - t3
             on = lanes >= 0
             cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
             if illum is not None:
                 illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
-                # every set sees the same first hits: count them once
-                part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
-                kinds += part * spp / len(sets)
-            bad += float(aov[..., -1].sum(dtype=np.float64)) * spp
     if flat:
         cube *= emission
         if illum is not None:
@@ -129,6 +145,11 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
              "band_sets": len(sets), "quadruples": n_quads // max(1, len(passes)),
              "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": settings.sampler,
              "flat_emission_scaled": flat}
+    if boosting:
+        stats["targeted_paths"] = {"pixels": int(boost.size), "pixel_fraction": round(boost.size / (h * w), 5),
+                                   "paths_per_pixel": (spp + extra) * len(sets),
+                                   "extra_paths_fraction": round(boost.size * extra / (h * w * spp), 5),
+                                   "trace_s": round(t_boost, 4)}
     if illum is not None:
         stats["illumination"] = {"samples": int(round(kinds.sum())), "demodulated": int(round(kinds[0])),
                                  "in_path": int(round(kinds[1])), "traced": int(round(kinds[2]))}

@@ -273,7 +273,7 @@ def _finite(a: np.ndarray, blocks: _PathBlocks) -> np.ndarray:
 
 
 def render_cube(scene: Scene, view: str, group: str | list[str] | None,
-                settings: RenderSettings = RenderSettings()) -> CubeResult:
+                settings: RenderSettings = RenderSettings(), boost_mask: np.ndarray | None = None) -> CubeResult:
     """Render the transport cube of ``view`` lit by ``group`` (see module docstring).
 
     ``group`` may be a list of groups (rendered together, all with their own emission) or ``None``
@@ -281,12 +281,16 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     averages ``(H, W, n_bands)`` of radiance per unit emission spectrum. With ``settings.adaptive``
     (and spp ≥ twice the pilot) the same total of paths (up to rounding) is spread by
     :mod:`renderer_jobs.adaptive_spp`; with ``settings.noise_target`` each pixel gets what its noise needs.
+    ``boost_mask`` ``(H, W)`` bool (``"all-bands"`` only, from the guides alone:
+    :func:`renderer_jobs.boost_paths.boost_mask`): those pixels get ``settings.boost_factor`` × spp.
     """
     groups = group_list(scene, group)
     t0 = time.perf_counter()
     passes = emitter_passes(scene, groups)
     if settings.wavelengths == "all-bands":
-        return _render_all_bands(scene, view, groups, passes, settings)
+        return _render_all_bands(scene, view, groups, passes, settings, boost_mask)
+    if boost_mask is not None and settings.boost_factor > 1:
+        raise SceneError("targeted extra paths (boost) need wavelengths 'all-bands'")
     tracers = [Tracer(scene, view, groups, settings.resolution, portals=p) for p in passes]
     t_load = time.perf_counter() - t0
     nb = tracers[0].grid.n_bands
@@ -375,12 +379,20 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
 
 
 def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
-                      settings: RenderSettings) -> CubeResult:
+                      settings: RenderSettings, boost_mask: np.ndarray | None = None) -> CubeResult:
     from renderer_jobs.mitsuba_band_render import render_all_bands  # noqa: PLC0415
 
     nb = scene.spectral_grid.n_bands
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
-    cube, illum, stats = render_all_bands(scene, view, groups, passes, settings, np.asarray(emission, np.float64))
+    boost = None
+    if boost_mask is not None and settings.boost_factor > 1:
+        boost = np.flatnonzero(np.asarray(boost_mask, bool).ravel())
+    cube, illum, stats = render_all_bands(scene, view, groups, passes, settings, np.asarray(emission, np.float64),
+                                          boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})
+    info = renderer_info(scene, settings, passes)
+    info["settings"]["targeted_paths"] = ({"spp_factor": settings.boost_factor, "reach": settings.boost_reach,
+                                           "mask": "dt-irradiance reach of unit white noise > reach (guides only)"}
+                                          if boost is not None else None)
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
-                      renderer=renderer_info(scene, settings, passes), stats=stats, illumination=illum)
+                      renderer=info, stats=stats, illumination=illum)

@@ -41,6 +41,19 @@ def _aligned(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def camera_rays(mi, sensor, width: int, height: int, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray,
+                differential: bool):
+    """Camera rays of ``sensor`` through film position ``pixel + jitter`` (``pix``: flat row-major
+    indices of a ``width``×``height`` film, ``jitter (n, 2)`` in pixels) carrying the 4 given wavelengths."""
+    px = (pix % width).astype(np.float32) + jitter[:, 0]
+    py = (pix // width).astype(np.float32) + jitter[:, 1]
+    pos = mi.Point2f(mi.Float(_aligned(px / width)), mi.Float(_aligned(py / height)))
+    sample = sensor.sample_ray_differential if differential else sensor.sample_ray
+    ray, _ = sample(0.0, mi.Float(0.5), pos, mi.Point2f(0.5, 0.5))
+    ray.wavelengths = type(ray.wavelengths)(*[mi.Float(_aligned(wavelengths[:, i])) for i in range(4)])
+    return ray
+
+
 class Tracer:
     """Mitsuba scene + sensor + integrator for one (view, set of groups), reused across passes."""
 
@@ -160,15 +173,7 @@ class Tracer:
         return self._cont
 
     def _camera_rays(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, differential: bool):
-        """Camera rays through film position ``pixel + jitter`` carrying the 4 given wavelengths."""
-        mi = self.mi
-        px = (pix % self.width).astype(np.float32) + jitter[:, 0]
-        py = (pix // self.width).astype(np.float32) + jitter[:, 1]
-        pos = mi.Point2f(mi.Float(_aligned(px / self.width)), mi.Float(_aligned(py / self.height)))
-        sample = self.sensor.sample_ray_differential if differential else self.sensor.sample_ray
-        ray, _ = sample(0.0, mi.Float(0.5), pos, mi.Point2f(0.5, 0.5))
-        ray.wavelengths = type(ray.wavelengths)(*[mi.Float(_aligned(wavelengths[:, i])) for i in range(4)])
-        return ray
+        return camera_rays(self.mi, self.sensor, self.width, self.height, pix, jitter, wavelengths, differential)
 
     def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> dict[str, np.ndarray]:
         """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit

@@ -70,6 +70,10 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
             # the default stores denoised copies (issue 15), made from the view's AOVs
             assert meta.denoised.method == "dt-irradiance" and meta.denoised.cost_ms >= 0
             assert meta.denoised.model_extra["guide_passes"]["direct"]["samples_per_pixel"] > 0
+            # targeted extra paths (default x8 where the denoiser cannot reach), recorded
+            tp = meta.render_stats["targeted_paths"]
+            assert 0 <= tp["pixels"] <= 24 * 16 and tp["paths_per_pixel"] == 8 * 16
+            assert meta.renderer.settings["targeted_paths"]["spp_factor"] == 8
             for kind in ("transport", "illumination"):
                 dn = st.read_cube(scene, view, g, kind=kind, denoised=True)
                 assert dn.shape == cube.shape and np.all(np.isfinite(dn))
@@ -133,6 +137,9 @@ def test_changed_description_is_a_conflict(tmp_path, capsys):
     (["render", "--demo", "--executor", "slurm"], "executor"),
     (["render", "--demo", "--noise-target", "5"], "--noise-target 5.0 must lie in (0, 1)"),
     (["render", "--demo", "--denoise", "dt-guide"], "did you mean 'dt-guides'"),
+    (["render", "--demo", "--boost-factor", "0"], "boost factor 0 must be a whole number >= 1"),
+    (["render", "--demo", "--boost-factor", "4", "--denoise", "none"], "use --boost-factor 1"),
+    (["render", "--demo", "--boost-reach", "1.5"], "boost reach 1.5 must lie in (0, 1]"),
     (["render"], "either a scene file"),
 ])
 def test_bad_arguments_exit_2_and_write_nothing(tmp_path, capsys, argv, needle):
@@ -217,7 +224,8 @@ def test_ray_executor_on_local_instance(tmp_path):
              runtime_env={"env_vars": {"PYTHONPATH": str(__import__("pathlib").Path(__file__).parents[1])}})
     try:
         p = jobs.plan([scene], store)
-        res = jobs.execute(p, store, RenderSettings(spp=16, seed=5), executor="ray")
+        # (boost_factor=1: the in-process render below has no guides to choose targeted extra paths from)
+        res = jobs.execute(p, store, RenderSettings(spp=16, seed=5, boost_factor=1), executor="ray")
         assert len(res) == 6
     finally:
         ray.shutdown()
