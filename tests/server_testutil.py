@@ -38,10 +38,11 @@ class ThreadServer:
         self.thread.join(timeout=10)
 
 
-def synthetic_service_fixtures(prefix: str, token: str):
+def synthetic_service_fixtures(prefix: str, token: str | None = None, **build):
     """Module-scoped pytest fixtures ``(store_path, client)``: a synthetic store
-    (:mod:`synthetic_store`) in a fresh temporary folder, and a ``TestClient`` of the service on it
-    (token ``token``, 64 MiB cache). In a test module: ``store_path, client = synthetic_service_fixtures(...)``."""
+    (:mod:`synthetic_store`, ``build`` passed to its ``build``, e.g. ``illumination=True``) in a fresh
+    temporary folder, and a ``TestClient`` of the service on it (token ``token``, 64 MiB cache). In a
+    test module: ``store_path, client = synthetic_service_fixtures(...)``."""
     import pytest
 
     @pytest.fixture(scope="module")
@@ -49,7 +50,7 @@ def synthetic_service_fixtures(prefix: str, token: str):
         import synthetic_store
 
         path = tmp_path_factory.mktemp(prefix) / "store"
-        synthetic_store.build(path)
+        synthetic_store.build(path, **build)
         return path
 
     @pytest.fixture(scope="module")

@@ -12,22 +12,15 @@ import colour
 import numpy as np
 import pytest
 import synthetic_store as synth
-from fastapi.testclient import TestClient
+from server_testutil import synthetic_service_fixtures
 
-from service.app import create_app
 from service.arrays_format import MAGIC
 from service.routes.web import STATIC
-from store import CubeStore
 
 TOKEN = "explore-token"
 
 
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    path = tmp_path_factory.mktemp("explore") / "store"
-    synth.build(path, illumination=True)
-    with TestClient(create_app(CubeStore.open(str(path), mode="a"), token=TOKEN, cache_mb=64)) as c:
-        yield c
+store_path, client = synthetic_service_fixtures("explore", TOKEN, illumination=True)
 
 
 def decode(body: bytes) -> tuple[dict[str, np.ndarray], dict]:

@@ -13,25 +13,17 @@ import pytest
 rawpy = pytest.importorskip("rawpy", reason="the export extra installs rawpy (pip install -e '.[export]')")
 pytest.importorskip("pidng", reason="the export extra installs pidng")
 pytest.importorskip("OpenEXR", reason="the export extra installs OpenEXR")
-import synthetic_store as synth
-from fastapi.testclient import TestClient
+from server_testutil import synthetic_service_fixtures
 
 from retarget.grid import DEFAULT_GRID
 from retarget.illuminants import illuminant_spd
 from retarget.sensors import get_sensor
-from service.app import create_app
-from store import CubeStore
 
 SENSOR = "Nikon 5100 (NPL)"
 BLACK, WHITE = 64, 4095  # the DNG's levels without noise= (the export's default sensor levels)
 
 
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    path = tmp_path_factory.mktemp("files") / "store"
-    synth.build(path, illumination=True)
-    with TestClient(create_app(CubeStore.open(str(path), mode="a"), cache_mb=64)) as c:
-        yield c
+store_path, client = synthetic_service_fixtures("files", illumination=True)
 
 
 def get(client, **params):
