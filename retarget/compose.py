@@ -95,12 +95,7 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
         raise SpectralError("compose: CCMs are needed for the ccm and srgb outputs")
     illuminants = np.atleast_2d(illuminants)
     intensities = np.asarray(intensities, dtype=np.float64).reshape(-1)
-    # A switched-off group gets no weight anywhere, so its white point is never used: don't let an
-    # illuminant the sensor cannot see refuse a request that does not light it.
-    lit = intensities > 0
-    wps = np.ones((len(illuminants), 3))
-    if lit.any():
-        wps[lit] = gt.white_points(sensor.weights(), illuminants[lit])
+    wps = gt.lit_white_points(sensor.weights(), illuminants, intensities)
     scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
     group_raw = project_groups_any(cubes, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
     if resize is not None:

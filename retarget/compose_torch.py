@@ -18,6 +18,7 @@ only by this module.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -27,6 +28,7 @@ from retarget.errors import SpectralError
 from retarget.groundtruth import DEFAULT_REL_EPS, MIN_CHANNEL_RATIO
 
 TORCH_OUTPUTS = frozenset({"raw", "gain", "mask", "weights", "illum", "mixture"})
+_PRECISION_LOCK = threading.Lock()  # torch.set_float32_matmul_precision is process-wide
 
 
 def _weights(green: torch.Tensor, prior: torch.Tensor, rel_eps: float) -> tuple[torch.Tensor, torch.Tensor]:
@@ -78,16 +80,19 @@ def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[n
     def project(windows) -> torch.Tensor:
         out = torch.zeros((len(windows), h, w, 3), dtype=torch.float32, device=dev)
         # full float32 products whatever the caller's torch.set_float32_matmul_precision (TF32 would
-        # cost ~1e-3 relative); restored after, as the setting is process-wide
-        precision = torch.get_float32_matmul_precision()
-        torch.set_float32_matmul_precision("highest")
-        try:
-            for g, (c, m) in enumerate(zip(windows, unit_weights)):
-                if c is not None and m is not None and float(a[g]) > 0:
-                    mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
-                    out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
-        finally:
-            torch.set_float32_matmul_precision(precision)
+        # cost ~1e-3 relative); restored after. The setting is process-wide and the service composes
+        # in several threads: one lock around set, products and restore, or a thread could restore
+        # another's setting mid-product (the products share one device anyway)
+        with _PRECISION_LOCK:
+            precision = torch.get_float32_matmul_precision()
+            torch.set_float32_matmul_precision("highest")
+            try:
+                for g, (c, m) in enumerate(zip(windows, unit_weights)):
+                    if c is not None and m is not None and float(a[g]) > 0:
+                        mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
+                        out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
+            finally:
+                torch.set_float32_matmul_precision(precision)
         if not bool(torch.isfinite(out).all()):
             raise SpectralError("project: a cube contains NaN or inf (or overflowed float32)")
         return out

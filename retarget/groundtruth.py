@@ -53,6 +53,18 @@ def white_points(sensor_weights: np.ndarray, spds: np.ndarray) -> np.ndarray:
     return np.stack([white_point(sensor_weights, s, what=f"illuminant #{g}") for g, s in enumerate(spds)])
 
 
+def lit_white_points(sensor_weights: np.ndarray, spds: np.ndarray, intensities) -> np.ndarray:
+    """``(G, 3)`` :func:`white_points` of the lit groups (intensity > 0) and ones for the others: a
+    switched-off group gets no weight anywhere, so its white point is never used, and an illuminant
+    the sensor cannot see must not refuse a request that does not light it."""
+    spds = np.atleast_2d(spds)
+    lit = np.asarray(intensities, dtype=np.float64).reshape(-1) > 0
+    wps = np.ones((len(spds), 3))
+    if lit.any():
+        wps[lit] = white_points(sensor_weights, spds[lit])
+    return wps
+
+
 def illuminant_weights(group_green: np.ndarray, rel_eps: float = DEFAULT_REL_EPS,
                        prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Illuminant weights ω (eq. 3.3) and validity mask from per-group green raw.

@@ -28,16 +28,14 @@ def _spds(kind: str, kelvins: tuple[float, ...], grid: SpectralGrid) -> np.ndarr
     return np.stack([ill.illuminant_spd(f"{kind}:{k:g}", grid) for k in kelvins])
 
 
-def locus(sensor_weights: np.ndarray, grid: SpectralGrid, kind: str = "blackbody",
-          kelvins: tuple[float, ...] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def locus(sensor_weights: np.ndarray, grid: SpectralGrid, kind: str = "blackbody") -> tuple[np.ndarray, np.ndarray]:
     """``(kelvins (n,), white points (n, 3))`` with G = 1 of ``kind`` (``"blackbody"`` or
     ``"daylight"``) illuminants on a sensor with ``sensor_weights`` ``(bands, 3)`` = ``C_k Δλ``.
 
     Temperatures whose white point has a non-positive channel on this sensor (it sees no R or B of
     them) are left out rather than refused: a locus is a curve to draw, not a request.
     """
-    if kelvins is None:
-        kelvins = PLANCKIAN_KELVIN if kind == "blackbody" else DAYLIGHT_KELVIN
+    kelvins = PLANCKIAN_KELVIN if kind == "blackbody" else DAYLIGHT_KELVIN
     rgb = _spds(kind, tuple(kelvins), grid) @ np.asarray(sensor_weights, dtype=np.float64)
     ok = np.all(rgb > 0, axis=1) & np.all(np.isfinite(rgb), axis=1)
     return np.asarray(kelvins, dtype=np.float64)[ok], rgb[ok] / rgb[ok, 1:2]

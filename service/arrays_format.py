@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,9 +66,6 @@ class Encoded:
 
     chunks: list[memoryview]
     nbytes: int
-
-    def __iter__(self) -> Iterator[memoryview]:
-        return iter(self.chunks)
 
     def tobytes(self) -> bytes:
         """The body as one ``bytes`` (one copy of every array; for tests and in-process use)."""

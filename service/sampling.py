@@ -198,7 +198,8 @@ def _has_illumination(meta) -> bool:
     return meta.illumination is not None and meta.illumination.storage is not None
 
 
-def _cube_bytes(p: Plan) -> int:
+def cube_bytes(p: Plan) -> int:
+    """Decoded bytes of one whole float32 cube of the plan's view."""
     return p.full[0] * p.full[1] * p.metas[0].n_bands * 4
 
 
@@ -218,6 +219,17 @@ def _key(p: Plan, group: str, kind: str) -> tuple:
     return cube_key(p.scene, p.view, group, kind, p.denoise, p.metas[p.groups.index(group)].created)
 
 
+def projection_key(p: Plan, group: str, kind: str, skey, ikey) -> tuple:
+    """The key of a group's whole-frame projection (:mod:`service.projections`) for a sensor and an
+    illuminant key (:class:`service.library.Library`)."""
+    return (_key(p, group, kind), skey, ikey)
+
+
+def frame_bytes(p: Plan) -> int:
+    """Bytes of one whole-frame float32 camera-raw projection of the plan's view."""
+    return p.full[0] * p.full[1] * 3 * 4
+
+
 def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     """Upper bound of the bytes :func:`build` (and encoding, when ``encoded``) will allocate.
 
@@ -228,7 +240,7 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
     """
     w, h = p.window[2:]
     bands = p.metas[0].n_bands
-    cacheable = _cube_bytes(p) <= ctx.cache.max_cost
+    cacheable = cube_bytes(p) <= ctx.cache.max_cost
     copies = to_read = 0
     for kind in ("transport", "illumination") if p.illumination else ("transport",):
         for g, lit in zip(p.groups, p.reads()):
@@ -267,7 +279,7 @@ def whole_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np
     dn = p.denoise != "none"
     return ctx.cache.get(_key(p, group, kind),
                          lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind, denoised=dn),
-                         expected_cost=_cube_bytes(p))
+                         expected_cost=cube_bytes(p))
 
 
 def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.ndarray:
@@ -275,7 +287,7 @@ def read_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np.
     the LRU cache (so every later crop of it is a hit); a cube larger than the whole cache is read
     window by window, uncached."""
     x, y, w, h = p.window
-    if _cube_bytes(p) > ctx.cache.max_cost:
+    if cube_bytes(p) > ctx.cache.max_cost:
         return ctx.store.read_cube(p.scene, p.view, group, crop=p.window, kind=kind, denoised=p.denoise != "none")
     return whole_cube(ctx, p, group, kind)[y:y + h, x:x + w]
 
@@ -297,8 +309,8 @@ def group_inputs(ctx: Context, p: Plan, kind: str, unit: list[np.ndarray | None]
     w, h = p.window[2:]
     zero = np.broadcast_to(np.float32(0), (h, w, p.metas[0].n_bands))
     whole = (w, h) == p.full
-    frame_bytes = p.full[0] * p.full[1] * 3 * 4
-    proj = ctx.projections if _cube_bytes(p) <= ctx.cache.max_cost else None
+    frame = frame_bytes(p)
+    proj = ctx.projections if cube_bytes(p) <= ctx.cache.max_cost else None
     out = []
     for i, (g, r) in enumerate(zip(p.groups, p.reads())):
         if not r:
@@ -306,8 +318,8 @@ def group_inputs(ctx: Context, p: Plan, kind: str, unit: list[np.ndarray | None]
             continue
         win = None
         if proj is not None and unit[i] is not None:
-            win = proj.window((_key(p, g, kind), *keys[i]), lambda g=g: whole_cube(ctx, p, g, kind), unit[i],
-                              p.window, frame_bytes, whole)
+            win = proj.window(projection_key(p, g, kind, *keys[i]), lambda g=g: whole_cube(ctx, p, g, kind),
+                              unit[i], p.window, frame, whole)
         out.append(win if win is not None else read_cube(ctx, p, g, kind))
     return out
 
@@ -348,7 +360,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     sensor, skey = lib.sensor(spec.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
     # a CCM fit (~1 ms, then cached per sensor and illuminant) only when an output or the metadata uses it
-    if {"ccm", "srgb", "meta"} & set(spec.outputs) or spec.format in ("png", "tiff"):
+    if {"ccm", "srgb", "meta"} & set(spec.outputs):
         ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
     else:
         ccms, fit_de = None, [None] * len(spds)

@@ -20,7 +20,7 @@ import numpy as np
 
 from retarget.errors import SpectralError
 from retarget.finite import all_finite
-from retarget.groundtruth import white_points as gt_white_points
+from retarget.groundtruth import lit_white_points
 from service.sample_meta import sample_meta
 from store.lru import LRUCache
 
@@ -32,8 +32,8 @@ def refusal(spec) -> str | None:
     outputs = set(spec.array_outputs())
     bad = sorted(outputs - TORCH_OUTPUTS) + [f"{k}=" for k in ("size", "noise", "bayer", "exposure")
                                              if getattr(spec, k) is not None]
-    if spec.format in ("png", "tiff"):
-        bad.append(f"format={spec.format}")  # a PNG of raw is auto-exposed (sampling.exposure_for)
+    if spec.format not in ("npz", "arrays"):
+        bad.append(f"format={spec.format}")  # images and files: auto-exposed raw (sampling.exposure_for), levels
     if not outputs or bad:
         return (f"the device composes {', '.join(sorted(TORCH_OUTPUTS))} at the cropped size; "
                 f"{', '.join(bad) or 'no array output'} need the CPU path")
@@ -68,7 +68,7 @@ class TorchComposer:
 
         x, y, w, h = p.window
 
-        nbytes = p.full[0] * p.full[1] * p.metas[0].n_bands * 4
+        nbytes = sampling.cube_bytes(p)
         if nbytes > ctx.cache.max_cost or nbytes > self.cubes.max_cost:
             return self._to_device(sampling.read_cube(ctx, p, group, kind))  # the window, uncached
 
@@ -100,10 +100,7 @@ class TorchComposer:
 def build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device: bool,
                      t0: float, t_setup: float) -> tuple[dict, dict]:
     """:func:`build` on ``ctx.torch``'s device (an eligible request: :func:`torch_refusal`)."""
-    lit = np.asarray(p.intensities) > 0  # as retarget.compose: every lit group, read or recorded empty
-    wps = np.ones((len(p.groups), 3))
-    if lit.any():
-        wps[lit] = gt_white_points(sensor.weights(), np.stack(spds)[lit])
+    wps = lit_white_points(sensor.weights(), np.stack(spds), p.intensities)  # as retarget.compose
     out = ctx.torch.compose(ctx, p, unit, wps, valid)
     mask = out.get("mask")
     host_mask = None if mask is None else mask.cpu().numpy()

@@ -143,7 +143,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
     ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
     sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
     """
-    from service.sampling import unit_weights, whole_cube
+    from service.sampling import frame_bytes, projection_key, unit_weights, whole_cube
 
     log = log or (lambda _msg: None)
     pc, t0 = ctx.projections, time.perf_counter()
@@ -157,8 +157,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
             except (SpectralError, ServiceError, StoreError):
                 skipped += 1
                 continue
-            grid, (w, h) = p.metas[0].spectral_grid, p.full
-            frame = w * h * 3 * 4
+            grid, frame = p.metas[0].spectral_grid, frame_bytes(p)
             for s_name in sensors:
                 for i_name in illuminants:
                     try:
@@ -176,7 +175,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                             skipped += 1
                             continue
                         for kind in ("transport", "illumination") if p.illumination else ("transport",):
-                            key = (cube_key(scene, view, g, kind, p.denoise, meta.created), skey, ikey)
+                            key = projection_key(p, g, kind, skey, ikey)
                             if key in pc.cache:
                                 continue
                             if frame > pc.cache.max_cost - pc.cache.total_cost - pc.cache.evicted_cost:

@@ -86,3 +86,6 @@ def test_the_service_composes_eligible_requests_on_its_device(tmp_path):
         # a PNG of raw is auto-exposed: composed on the CPU, the same image either way
         png = {"outputs": "raw", "format": "png"}
         assert dev.get("/sample", params=SPEC | png).content == cpu.get("/sample", params=SPEC | png).content
+        # so is a DNG, a linear one too (bayer=none): the same auto exposure, the same digital numbers
+        dng = {"outputs": "raw", "format": "dng", "bayer": "none"}
+        assert dev.get("/sample", params=SPEC | dng).content == cpu.get("/sample", params=SPEC | dng).content

@@ -182,6 +182,7 @@ def test_frame_shares_edge_cases():
     ({"outputs": "raw"}, 422, "invalid_parameter"),
     ({"format": "npz"}, 422, "invalid_parameter"),
     ({"bayer": "RGGB"}, 422, "invalid_parameter"),
+    ({"noise": "phone"}, 422, "invalid_parameter"),  # the baseline would expose digital numbers as radiance
     ({"illuminants": "A,D56"}, 404, "not_found"),
     ({"sceen": "synth"}, 422, "unknown_parameter"),
 ])
@@ -197,7 +198,7 @@ def test_frame_refusals(client, bad, status, code):
 @pytest.mark.parametrize("path, typo, close, listed, not_listed", [
     ("/explore/spectra", "sensr", "sensor", ["sensor", "illuminants"], ["scene", "bayer", "outputs"]),
     ("/explore/frame", "sceen", "scene", ["scene", "view", "illuminants", "exposure"],
-     ["outputs", "format", "dtype", "bayer"]),  # the ones /explore/frame refuses are not offered
+     ["outputs", "format", "dtype", "bayer", "noise"]),  # the ones /explore/frame refuses are not offered
     ("/explore/frame", "output", None, ["scene"], ["outputs"]),
     ("/sample", "sceen", "scene", ["scene", "outputs", "format", "bayer"], ["sensr"]),
 ])

@@ -38,7 +38,7 @@ router = APIRouter(prefix="/explore", tags=["explore"])
 #: what a frame is composed with (ccm only to expose the baseline like the ground-truth rendering)
 FRAME_OUTPUTS = ("raw", "gain", "ccm", "srgb", "mixture", "illum", "mask", "meta")
 SENT = ("raw", "gain", "illum", "mixture", "mask")  # sent as composed; srgb and baseline as uint8
-FIXED = ("outputs", "format", "dtype", "bayer")
+FIXED = ("outputs", "format", "dtype", "bayer", "noise")  # noise: the baseline renders the clean raw
 BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor white points weighted by their "
                        "mean mixture share over valid pixels (thesis §5.2), with the CCMs weighted alike and "
                        "the ground-truth rendering's exposure")
@@ -53,7 +53,8 @@ BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor 
 def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
     single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,
-    dtype and bayer (the page needs these fixed). ``Server-Timing`` says where the time went (ms):
+    dtype, bayer and noise (the page needs these fixed; a noisy raw is in digital numbers, which the
+    baseline's exposure would not match). ``Server-Timing`` says where the time went (ms):
     ``compose`` (the sample), ``baseline`` (with the uint8 images and the encoding), ``total`` (from the
     request to the encoded body, before sending)."""
     t0 = time.perf_counter()
