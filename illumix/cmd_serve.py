@@ -104,8 +104,12 @@ def serve(
         app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb,
                          device=device, device_cache_mb=device_cache_mb)
     except ImportError:
+        if device is None:
+            raise
         raise UserError(f"--device {device}: torch is not installed; pip install torch") from None
     except RuntimeError as exc:
+        if device is None:
+            raise
         raise UserError(f"--device {device}: {exc}; leave out --device to compose on the CPU") from None
     if warm:  # before uvicorn binds: once the port answers, the cache is warm
         from service.warm import warm_cache

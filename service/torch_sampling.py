@@ -50,6 +50,10 @@ class TorchComposer:
         self.device = torch.device(device)
         if self.device.type == "cuda" and not torch.cuda.is_available():
             raise RuntimeError("torch sees no CUDA device (torch.cuda.is_available() is False)")
+        try:  # a device torch names but cannot compute on (meta, a cuda index out of range): refuse at start
+            torch.zeros(1, device=self.device).cpu()
+        except Exception as exc:
+            raise RuntimeError(f"torch cannot compute on it ({str(exc).splitlines()[0]})") from None
         self.cubes = LRUCache(device_cache_mb * 2**20, cost=lambda t: t.numel() * t.element_size())
 
     def out_of_memory(self, exc: BaseException) -> bool:
@@ -105,11 +109,10 @@ def build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, ke
     mask = out.get("mask")
     host_mask = None if mask is None else mask.cpu().numpy()
     arrays = out if keep_device else {k: v.cpu().numpy() for k, v in out.items()}
-    if not keep_device:
-        for k, a in arrays.items():
-            if not all_finite(a):
-                raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
-                                    "large); lower intensities=")
+    for k, a in arrays.items():  # on the device, one reduction per output
+        if not (bool(ctx.torch.torch.isfinite(a).all()) if keep_device else all_finite(a)):
+            raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
+                                "large); lower intensities=")
     t_compose = time.perf_counter()
     meta = sample_meta(p, sensor, wps, ccms, fit_de, host_mask, valid, reasons, 1.0, None,
                  {"setup": 1e3 * (t_setup - t0), "compose": 1e3 * (t_compose - t_setup)})

@@ -85,12 +85,12 @@ def test_local_dataset_equals_the_http_dataset(store_path, http, tmp_path):
 
 
 def test_the_dataset_passes_dtype_to_every_item_spec(store_path):
-    pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
+    torch = pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
     ds = ic.IllumixDataset(store=store_path, warm=False, cache_mb=64, scenes=["synth/v0"], illuminants=["A"],
                            sensors=["XYZ"], crop=(8, 8), epoch_length=2, dtype="float16")
     assert all(ds.spec(i)["dtype"] == "float16" for i in range(2))
     item = next(iter(ds))  # composed locally: float32 arrays whatever the wire dtype
-    assert item["raw"].dtype.is_floating_point and item["raw"].shape == (3, 8, 8)
+    assert item["raw"].dtype == torch.float32 and item["raw"].shape == (3, 8, 8)
 
 
 def test_persistent_workers_follow_consecutive_epochs(store_path):
@@ -123,3 +123,14 @@ def test_device_items_without_raw_or_gain(store_path):
                            sensors=["XYZ"], crop=(8, 8), epoch_length=2, outputs=("weights", "mask"))
     item = next(iter(ds))
     assert item["weights"].shape == (2, 8, 8) and item["mask"].shape == (1, 8, 8)
+
+
+def test_ccm_map_of_a_device_sample_stays_on_the_device(store_path):
+    """``Sample.ccm_map()`` of a local ``device=`` sample (tensors): a tensor on that device, equal
+    to the numpy rebuild of the same sample."""
+    torch = pytest.importorskip("torch", reason="torch is not installed (pip install torch==2.13.0)")
+    spec = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "A,D65", "outputs": ["mixture", "meta"]}
+    with LocalClient(store_path, cache_mb=64, device="cpu") as dev, LocalClient(store_path, cache_mb=64) as cpu:
+        t, a = dev.sample(**spec).ccm_map(), cpu.sample(**spec).ccm_map()
+    assert isinstance(t, torch.Tensor) and t.device.type == "cpu" and t.shape == a.shape
+    np.testing.assert_allclose(t.numpy(), a, rtol=1e-5, atol=1e-7)

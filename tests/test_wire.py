@@ -121,6 +121,11 @@ def test_bad_magic_version_and_header_are_clear_errors():
     forged = enc.PREFIX.pack(enc.MAGIC, enc.VERSION, len(text)) + text + bytes(200)
     with pytest.raises(ic.IllumixError, match="is not nbytes"):
         dec.decode(forged)
+    wrapping = json.loads(text)  # 2**32 × 2**32 wraps to 0 in int64: must not pass for nbytes 0
+    wrapping["arrays"]["a"].update(shape=[2**32, 2**32], nbytes=0)
+    text = json.dumps(wrapping).encode()
+    with pytest.raises(ic.IllumixError, match="is not nbytes"):
+        dec.decode(enc.PREFIX.pack(enc.MAGIC, enc.VERSION, len(text)) + text + bytes(200))
 
 
 # -- the service ------------------------------------------------------------------------------------

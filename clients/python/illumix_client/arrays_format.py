@@ -23,6 +23,7 @@ read-only over ``bytes``; they keep the body alive as long as any of them is.
 from __future__ import annotations
 
 import json
+import math
 import struct
 from typing import Any
 
@@ -79,7 +80,7 @@ def _array(body, size: int, data_start: int, name: str, e: Any) -> np.ndarray:
         raise _bad(f"array {name!r}: malformed entry ({exc})") from None
     if dtype.kind not in _KINDS or dtype.byteorder == ">" or dtype.hasobject:
         raise _bad(f"array {name!r}: unsupported dtype {e['dtype']!r}")
-    count = int(np.prod(shape, dtype=np.int64)) if shape else 1
+    count = math.prod(shape)  # a Python int: np.prod would wrap around on a forged shape
     if any(x < 0 for x in shape) or count * dtype.itemsize != nbytes:
         raise _bad(f"array {name!r}: shape {list(shape)} × {dtype.itemsize} bytes is not nbytes {nbytes}")
     if offset < data_start or offset + nbytes > size:

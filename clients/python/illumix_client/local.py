@@ -78,8 +78,8 @@ class LocalClient:
 
     # -- samples -------------------------------------------------------------------------------
     def sample(self, **spec: Any) -> Sample:
-        """One sample; ``spec`` as for :meth:`illumix_client.Client.sample` (``dtype`` and ``format``
-        shape the wire, which the local mode has not: its arrays are always float32)."""
+        """One sample; ``spec`` as for :meth:`illumix_client.Client.sample` (``dtype`` shapes the wire,
+        which the local mode has not: its arrays are always float32)."""
         return self._one(encode_spec(spec))
 
     def batch(self, specs: Iterable[Mapping[str, Any]]) -> list[Sample]:
@@ -89,8 +89,6 @@ class LocalClient:
     def _one(self, wire: dict[str, Any]) -> Sample:
         def run() -> Sample:
             spec = SampleSpec(**wire)
-            if spec.format not in ("npz", "arrays"):
-                raise InvalidRequestError("the local mode returns arrays, not images; leave out format=", 422)
             if self.torch is not None and (why := torch_refusal(spec)) is not None:
                 raise InvalidRequestError(f"device={self.torch.device.type}: {why} (device=None)", 422)
             p = plan(spec, self.ctx)

@@ -115,11 +115,15 @@ class Sample:
         if name is None or getattr(self, name) is None:
             raise ValueError(f"ccm_map() needs the 'mixture' output{' (or weights)' if method == 'formula' else ''}"
                              " with this sample's ground truth: request outputs including 'mixture' and 'meta'")
-        m = self.value(name).astype(np.float32, copy=False)
+        m = self.value(name)
         ccms = np.asarray([i["ccm"] for i in self.meta["illuminants"]], dtype=np.float32).reshape(-1, 9)
         if ccms.shape[0] != m.shape[-1]:
             raise ValueError(f"{name} has {m.shape[-1]} groups but meta lists {ccms.shape[0]} CCMs")
-        return (m @ ccms).reshape(*m.shape[:-1], 3, 3)
+        if not isinstance(m, np.ndarray):  # a torch tensor (the local mode's device=): the product stays there
+            import torch
+
+            return (m.float() @ torch.as_tensor(ccms, device=m.device)).reshape(*m.shape[:-1], 3, 3)
+        return (m.astype(np.float32, copy=False) @ ccms).reshape(*m.shape[:-1], 3, 3)
 
 
 def _join(value: Any, what: str) -> str:
