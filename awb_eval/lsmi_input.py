@@ -227,16 +227,18 @@ class LsmiCases:
         dng = self.root / f"{self.camera}.dng"
         if black is not None and white is not None:
             cam = read_levels(dng).cam_xyz if dng.is_file() else None
-            return CameraLevels(float(black), float(white), cam, "given")
-        if not dng.is_file():
+            levels = CameraLevels(float(black), float(white), cam, "given")
+        elif not dng.is_file():
             raise SpectralError(f"no template {dng.name} beside {self.camera_dir} for the black and white level; "
                                 "put it there or give --black-level and --white-level")
-        levels = read_levels(dng)
-        if black is not None or white is not None:
-            levels.black = levels.black if black is None else float(black)
-            levels.white = levels.white if white is None else float(white)
-        if not levels.white > levels.black:
-            raise SpectralError(f"{dng}: white level {levels.white} is not above the black level {levels.black}")
+        else:
+            levels = read_levels(dng)
+            if black is not None or white is not None:
+                levels.black = levels.black if black is None else float(black)
+                levels.white = levels.white if white is None else float(white)
+        if not levels.white > levels.black:  # given or read: every pixel would clip to nothing
+            raise SpectralError(f"{dng.name} / --black-level, --white-level: white level {levels.white:g} is not above "
+                                f"the black level {levels.black:g}")
         return levels
 
     def __len__(self) -> int:
@@ -288,21 +290,23 @@ class LsmiCases:
             npy = item.raw.with_suffix(".npy")
             if not npy.is_file():
                 raise SpectralError(f"{npy}: missing (the mixture of a {n}-light image)")
-            mix = np.load(npy).astype(np.float32)
-            if mix.shape != (h, w, n):
-                raise SpectralError(f"{npy}: shape {mix.shape}, expected {(h, w, n)} for {item.raw.name}")
+            mix = _load_npy(npy, (h, w, n))
         mask = np.all(np.isfinite(mix), axis=-1) & (mix[..., 0] != ZERO_MASK) & np.all(mix >= 0, axis=-1)
         mix = np.where(mask[..., None], mix, np.float32(0))
         chroma = []
         for i in item.lights:
             light = self.meta[item.place].get(f"Light{i}")
-            if light is None or len(light) != 3 or not all(float(v) > 0 for v in light):
+            try:
+                values = [float(v) for v in light]
+            except (TypeError, ValueError):
+                values = []
+            if len(values) != 3 or not all(v > 0 for v in values):  # NaN fails v > 0 too
                 raise SpectralError(f"{self.camera_dir / 'meta.json'}: {item.place}.Light{i} must be 3 positive "
                                     f"camera-RGB values, got {light!r}")
-            chroma.append([float(v) for v in light])
+            chroma.append(values)
         wps = np.array(chroma)
         if item.gt_illum.is_file():
-            illum = _load_gt_illum(item.gt_illum, (h, w, 3))
+            illum = _load_npy(item.gt_illum, (h, w, 3))
         else:
             illum = (mix @ wps.astype(np.float32)).astype(np.float32)  # LSMI mix_chroma
         mask &= np.all(np.isfinite(illum), axis=-1) & np.all(illum > 0, axis=-1)
@@ -314,15 +318,16 @@ class LsmiCases:
                     white_points=wps, ccm=self.ccm, usable=unsaturated(raw, top))
 
 
-def _load_gt_illum(path: Path, shape: tuple[int, int, int]) -> np.ndarray:
-    """A ``_gt_illum.npy`` file: ``shape`` float32 (non-positive or non-finite pixels are undefined)."""
+def _load_npy(path: Path, shape: tuple[int, int, int]) -> np.ndarray:
+    """A mixture or ``_gt_illum`` ``.npy`` file as ``shape`` float32 (no pickles; its undefined pixels
+    are left for the caller's mask)."""
     try:
-        gt = np.load(path, allow_pickle=False)
+        a = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as exc:
         raise SpectralError(f"{path}: not a readable .npy ({exc})") from None
-    if gt.shape != shape:
-        raise SpectralError(f"{path}: shape {gt.shape}, expected {shape} (the image's H × W × RGB)")
-    return np.asarray(gt, np.float32)
+    if a.shape != shape:
+        raise SpectralError(f"{path}: shape {a.shape}, expected {shape} (the image's H × W × channels)")
+    return np.asarray(a, np.float32)
 
 
 def _read_json(path: Path) -> dict:

@@ -116,7 +116,6 @@ class Method:
 
     label: str
     run: Callable[[Case], np.ndarray]
-    oracle: bool = False
 
 
 def resolve(names: list[str], *, grid: tuple[int, int] | None = None, interpolation: str = "bilinear") -> list[Method]:
@@ -131,7 +130,7 @@ def resolve(names: list[str], *, grid: tuple[int, int] | None = None, interpolat
             continue
         name = AWB_METHODS.canonical(raw_name)
         if name in ORACLES:
-            out.append(Method(name, ORACLES[name], oracle=True))
+            out.append(Method(name, ORACLES[name]))
         else:
             kw = {"grid": grid, "interpolation": interpolation} if name.startswith(PATCH_PREFIX) else {}
             out.append(Method(name, lambda c, n=name, kw=kw: statistical_gain(c.raw, n, valid=c.usable, **kw)))

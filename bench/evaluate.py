@@ -2,7 +2,7 @@
 
 A demo store (the procedural demo room, ``--rooms`` seeds × its 2 views, rendered at
 ``--resolution``/``--spp`` into ``--store`` unless already there) is evaluated with every built-in
-method over ``--pairs`` through :mod:`evaluate` exactly as the command does. Reported:
+method over ``--pairs`` through :mod:`awb_eval` exactly as the command does. Reported:
 
 - ``compose_ms``: composing one image with the service's pipeline (``service.sampling.build_sample``);
 - per method ``ms`` (the method alone, per image) and ``ratio_to_gray_world`` (baseline of the same run);

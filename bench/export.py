@@ -8,7 +8,7 @@ run is composition alone (``build_sample`` of the same frames, no writing), so `
 what the export adds on top of the service's own work. A second, resumed run over the complete
 export measures the skip path (checksum verification only).
 
-Usage: ``python bench/export.py [--scenes 4] [--repeats 1]``. Progress goes to stderr; the JSON
+Usage: ``python bench/export.py [--scenes 4]``. Progress goes to stderr; the JSON
 result is the last line on stdout.
 """
 

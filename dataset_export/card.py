@@ -9,7 +9,6 @@ LICENCES = {
     "colour-science": "colour-science (BSD-3-Clause): CIE illuminants and observer, ColorChecker N Ohta and "
                       "CIE 2017 colour-fidelity reflectances, NPL camera sensitivities",
     "rawtoaces": "rawtoaces-data camera sensitivities (Apache-2.0; AMPAS, Weta Digital physLight, NPL)",
-    "isetcam": "ISETCam reflectances (MIT; Vrhel et al. 1994, DuPont, Munsell, charts) where scenes use them",
     "upload": "curves uploaded to the store by its users: the uploader's terms",
     "illuminants": "CIE standard illuminants and the CIE 1931 observer via colour-science (BSD-3-Clause)",
     "scenes": ("scene materials: CIE 2017 colour-fidelity samples and ColorChecker N Ohta via colour-science "

@@ -19,8 +19,8 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     """Write the spectral EXRs (module docstring); fills ``summary``."""
     from service.extra_outputs import resize_image
 
-    todo = places  # one place per view: the plan never repeats a view under the same (empty) lighting
-    jobs = [(p, g, kind) for p in todo for g in p.groups for kind in ("transport", "illumination")
+    # one place per view: the plan never repeats a view under the same (empty) lighting
+    jobs = [(p, g, kind) for p in places for g in p.groups for kind in ("transport", "illumination")
             if kind == "transport" or _has_illumination(st.cube_meta(p.scene, p.view, g))]
     if on_progress:
         on_progress(len(jobs), None)
@@ -47,9 +47,9 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
         if on_progress:
             on_progress(1, rel)
     journal.write_json("cubes.json", index)
-    splits = {name: [n for n in names if n in {p.name for p in todo}] for name, names in summary["splits"].items()}
+    splits = {name: [n for n in names if n in {p.name for p in places}] for name, names in summary["splits"].items()}
     journal.write_json("split.json", splits)
-    summary |= {"splits": splits, "counts": {"views": len(todo), "spectral EXR files": len(jobs),
+    summary |= {"splits": splits, "counts": {"views": len(places), "spectral EXR files": len(jobs),
                                              "bands": len(wl), "values clipped to float16": clipped},
                 "layout": (f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
                            f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`. "

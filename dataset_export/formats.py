@@ -24,15 +24,11 @@ class ExportFormat:
     name: str
     raw_ext: str | None
     bayer: bool = False
-    description: str = ""
     modules: tuple[str, ...] = ()
 
 
 EXPORT_FORMATS: MethodRegistry[ExportFormat] = MethodRegistry("export format", {
-    "lsmi": ExportFormat("lsmi", ".tiff", description="LSMI layout, 16-bit RGB TIFF raws",
-                         modules=("pidng",)),
-    "dng": ExportFormat("dng", ".dng", bayer=True, description="LSMI layout, Bayer DNG raws",
-                        modules=("pidng",)),
-    "exr": ExportFormat("exr", None, description="spectral OpenEXR cubes (Fichet et al. 2021)",
-                        modules=("OpenEXR",)),
+    "lsmi": ExportFormat("lsmi", ".tiff", modules=("pidng",)),  # the template DNG
+    "dng": ExportFormat("dng", ".dng", bayer=True, modules=("pidng",)),
+    "exr": ExportFormat("exr", None, modules=("OpenEXR",)),
 }, aliases={"tiff": "lsmi", "openexr": "exr", "spectral exr": "exr", "raw": "dng"})

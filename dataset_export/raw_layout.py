@@ -31,11 +31,45 @@ def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
 
 
 def _levels(noise: str | None):
+    """The sensor model of the raw frames; its black and white levels must be whole digital numbers
+    (a TIFF's DN and a DNG's ``BlackLevel``/``WhiteLevel``; :func:`service.file_downloads.dng_levels`)."""
+    from retarget.errors import SpectralError
     from retarget.sensor_model import NoiseModel
+    from service.file_downloads import dng_levels
     from service.spec import parse_noise
 
-    model = parse_noise(noise) if noise else None
-    return model or NoiseModel()
+    model = (parse_noise(noise) if noise else None) or NoiseModel()
+    try:
+        dng_levels(model)
+    except SpectralError:
+        raise ExportError(f"--noise gives black level {model.black_level:g} and white level {model.white:g}; the "
+                          "raw files state whole digital numbers: give --noise "
+                          "'black_level:<integer>;white_level:<integer>'") from None
+    return model
+
+
+def check_frames(st, places, o, fmt) -> None:
+    """Refusals of the raw-frame options before anything is written: levels that are not whole
+    digital numbers (:func:`_levels`); a DNG frame smaller than libraw reads
+    (:data:`service.file_downloads.DNG_MIN_SIDE`)."""
+    _levels(o.noise)
+    if fmt.name == "dng":
+        _check_dng_sizes(st, places, o.size)
+
+
+def _check_dng_sizes(st, places, size: tuple[int, int] | None) -> None:
+    from service.file_downloads import DNG_MIN_SIDE
+
+    for place in places:
+        if size is None:
+            meta = st.view_meta(place.scene, place.view)
+            w, h = meta.width, meta.height
+        else:
+            w, h = size
+        if min(w, h) < DNG_MIN_SIDE:
+            raise ExportError(f"--format dng needs frames of at least {DNG_MIN_SIDE}x{DNG_MIN_SIDE} pixels (libraw "
+                              f"refuses smaller DNGs); {place.scene}/{place.view} would be {w}x{h}: give a larger "
+                              "--size, or --format lsmi")
 
 
 def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray | None:

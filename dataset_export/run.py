@@ -105,12 +105,16 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
     warnings = []
     if o.count is not None and len(places) < o.count:
+        more = "give more --illuminants/--pairs or render more views" if fmt.raw_ext else "render more views"
         warnings.append(f"--count {o.count}: the store has {len(places)} distinct view × lighting combination(s) "
-                        f"for these illuminants; each is exported once ({len(places)} places, no copies); give "
-                        "more --illuminants/--pairs or render more views for more")
+                        f"for these illuminants; each is exported once ({len(places)} places, no copies); {more} "
+                        "for more")
     splits = split_scenes({p.scene for p in places}, o.split, o.seed)
     if fmt.raw_ext:
+        from dataset_export.raw_layout import check_frames
+
         _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
+        check_frames(st, places, o, fmt)
     _check_out(out)
     params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(o).items() if k != "out"}
     params["format"] = fmt.name
@@ -136,7 +140,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
 
     journal.write_bytes("README.md", dataset_card(summary).encode())
     journal.write_json(MANIFEST, journal.manifest({"created": summary["created"], "counts": summary["counts"],
-                                                   "splits": by_split, "skipped": summary["skipped"],
+                                                   "splits": summary["splits"], "skipped": summary["skipped"],
                                                    "samples": summary.pop("samples")}))
     summary["out"] = str(out)
     summary["files"] = len(journal.files)

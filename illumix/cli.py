@@ -83,6 +83,13 @@ def main(argv: list[str] | None = None) -> None:
         print("illumix: aborted", file=sys.stderr)
         sys.exit(130)
     except Exception as exc:
+        # A store that is damaged or missing something: the store's errors are one line by contract.
+        # Looked up among the loaded modules (a StoreError exists only once store/ is imported), so
+        # --help never imports zarr.
+        store_errors = sys.modules.get("store.errors")
+        if store_errors is not None and isinstance(exc, store_errors.StoreError):
+            print(f"illumix: error: {exc}", file=sys.stderr)
+            sys.exit(2)
         # Usage errors (missing option, unknown command): typer ships its own copy of click, so
         # recognise them by what they can do rather than by class.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):

@@ -38,8 +38,9 @@ def export(
     fmt: str = typer.Option("lsmi", "--format", help=f"{', '.join(EXPORT_FORMATS.choices())} (any case): "
                                                      "lsmi = LSMI layout with 16-bit TIFF raws, dng = the same with "
                                                      "Bayer DNG raws, exr = the store's spectral cubes as OpenEXR."),
-    sensors: str = typer.Option("Nikon 5100 (NPL)", "--sensors",
-                                help="Comma-separated sensor names, one camera folder each (`illumix sensors list`)."),
+    sensors: str | None = typer.Option(None, "--sensors",
+                                       help="Comma-separated sensor names, one camera folder each (`illumix sensors "
+                                            "list`; default \"Nikon 5100 (NPL)\")."),
     pairs: str | None = typer.Option(None, "--pairs", help="Illuminant pairs lighting each view's first two light "
                                                            "groups, ';'-separated, e.g. \"A,D65;FL11,D50\" (default A,D65); "
                                                            "each place draws one with the seed."),
@@ -56,8 +57,9 @@ def export(
     split: str = typer.Option("0.7,0.15,0.15", "--split", help="Train,val,test fractions of the scenes."),
     noise: str | None = typer.Option(None, "--noise", help="Sensor model: none (default: noise-free, black level 64, "
                                                            "white level 4095), low, phone, high or key:value;… as /sample's noise="),
-    bayer: str = typer.Option("RGGB", "--bayer", help="CFA pattern of --format dng: RGGB, BGGR, GRBG or GBRG; "
-                                                      "none: LinearRaw DNGs (RGB per pixel, no mosaic)."),
+    bayer: str | None = typer.Option(None, "--bayer", help="CFA pattern of --format dng: RGGB (default), BGGR, "
+                                                             "GRBG or GBRG; none: LinearRaw DNGs (RGB per pixel, no "
+                                                             "mosaic)."),
     exr_dtype: str = typer.Option("float32", "--exr-dtype", help="float32 (exact) or float16 (clipped at 65504) "
                                                                  "for --format exr."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
@@ -70,6 +72,14 @@ def export(
     from service.spec import parse_noise
 
     name = EXPORT_FORMATS.canonical(fmt)
+    if name == "exr":  # the cubes: no camera, sensor model, ground truth or mosaic applies
+        given = [f for f, v in (("--sensors", sensors), ("--noise", noise), ("--gt", gt), ("--bayer", bayer))
+                 if v is not None]
+        if given:
+            raise UserError(f"--format exr writes the store's spectral cubes, which {', '.join(given)} does not "
+                            f"change; drop {', '.join(given)}")
+    sensors = "Nikon 5100 (NPL)" if sensors is None else sensors
+    bayer = "RGGB" if bayer is None else bayer
     if gt is not None and gt.lower() not in ("physical", "formula"):
         raise UserError(f"--gt {gt!r}: choose physical or formula")
     if exr_dtype not in ("float32", "float16"):

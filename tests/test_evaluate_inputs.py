@@ -126,6 +126,8 @@ def test_lsmi_levels_and_errors(lsmi, tmp_path):
     src = LsmiCases(bare, black_level=BLACK, white_level=WHITE)
     assert src.levels.source == "given"
     np.testing.assert_array_equal(src.ccm, np.eye(3))  # no colour matrix: identity
+    with pytest.raises(SpectralError, match="is not above the black level"):  # given levels are checked too
+        LsmiCases(bare, black_level=64, white_level=10)
     with pytest.raises(UnknownName, match="did you mean 'cam'"):
         LsmiCases(lsmi, camera="cma")
     with pytest.raises(SpectralError, match="no split 'dev'"):
@@ -199,3 +201,25 @@ def test_lsmi_reads_dng_exports(tmp_path):
         np.testing.assert_allclose(case.illum[blocks], mean_illum[blocks], rtol=1e-6)
     res = evaluate(bayer_src, resolve(["GT"]))
     assert len(res.images) == 2 and all(im["methods"]["Ground Truth"]["angular_max"] < ZERO for im in res.images)
+
+
+def test_damaged_lsmi_files_are_one_line_errors(tmp_path):
+    """A Light that is not three numbers, a mixture .npy that is not an array: SpectralErrors
+    (one line from the CLI), not tracebacks."""
+    import json
+
+    root = make_lsmi(tmp_path / "d")
+    src = LsmiCases(root, pairs="12", split="train")
+    item = src.items[0]
+    npy = item.raw.with_suffix(".npy")
+    good = npy.read_bytes()
+    np.save(npy, np.array([{"x": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(SpectralError, match="not a readable .npy"):
+        src.load(item)
+    npy.write_bytes(good)
+    meta = root / "cam" / "meta.json"
+    doc = json.loads(meta.read_text())
+    doc[item.place]["Light1"] = ["a", 1, 1]
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(SpectralError, match="must be 3 positive"):
+        LsmiCases(root, pairs="12", split="train").load(item)

@@ -106,6 +106,9 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--split", "0.5,0.5"], "three fractions"),
     (["--gt", "physics"], "physical or formula"),
     (["--noise", "loud"], "noise"),
+    (["--noise", "black_level:64.6"], "whole digital numbers"),  # a DNG's BlackLevel, a TIFF's DN offset
+    (["--format", "dng", "--size", "10x8"], "at least 22x22"),  # libraw refuses smaller DNGs
+    (["--format", "exr", "--sensors", "XYZ", "--bayer", "BGGR"], "drop --sensors, --bayer"),
 ])
 def test_cli_errors(store, tmp_path, capsys, args, says):
     line = assert_one_line_error(*run_cli(capsys, "export", store, str(tmp_path / "o"), *args))
@@ -195,3 +198,13 @@ def test_count_capped_at_distinct_places(store, tmp_path, capsys):
     summary = json.loads(stdout)
     assert code == 0 and summary["counts"]["places"] == 5  # 5 views × the one default lighting
     assert "--count 30: the store has 5 distinct" in err and summary["warnings"]
+
+
+@pytest.mark.parametrize("fmt", ["lsmi", "exr"])
+def test_a_damaged_cube_is_one_line(tmp_path, capsys, fmt):
+    """A corrupt chunk in the store: the store's own one-line error, exit 2 — not a traceback."""
+    store = build_export_store(tmp_path / "store")
+    (tmp_path / "store" / "scenes" / "room_1" / "v0" / "cubes" / "window" / "data" / "c" / "0" / "0" / "0").write_bytes(b"x")
+    code, _, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", fmt)
+    last = err.strip().splitlines()[-1]  # after the progress bar's line
+    assert code == 2 and "Traceback" not in err and last.startswith("illumix: error: corrupt array"), err
