@@ -24,12 +24,17 @@ def _cache_name(view: str, res: tuple[int, int], spp: int, seed: int, groups: Se
                 boost: tuple | None = None) -> str:
     """The cache file of a render; named by the renderer's default method too, so a change of
     default (issue 17: all-bands paths) never reads another renderer's cubes, and by the targeted
-    extra paths' factor and reach when boosted (``boost``: ``(mask, factor, reach)``)."""
+    extra paths' factor, reach and mask when boosted (``boost``: ``(mask, factor, reach)``)."""
     from renderer_jobs.render_settings import RenderSettings
 
     d = RenderSettings()
     method = f"{d.wavelengths}-{d.sampler}-b{d.bands_per_path}" if d.wavelengths == "all-bands" else d.wavelengths
-    tag = f"_boost{boost[1]}r{boost[2]:g}" if boost is not None else ""
+    tag = ""
+    if boost is not None:  # the mask too: it follows the guides and the denoiser's joint image
+        import hashlib
+
+        digest = hashlib.sha1(np.packbits(np.asarray(boost[0], bool)).tobytes()).hexdigest()[:8]
+        tag = f"_boost{boost[1]}r{boost[2]:g}m{digest}"
     return f"{view}_{res[0]}x{res[1]}_{spp}spp_seed{seed}_{'+'.join(groups)}_{method}{tag}.npz"
 
 

@@ -105,6 +105,9 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
         ms, sensor = load_mitsuba_scene(scene, view, groups, settings.resolution, portals=portals, flat_emission=flat,
                                         sampler={"type": settings.sampler, "sample_count": spp})
         w, h = (int(x) for x in sensor.film().crop_size())
+        # the film's paths per pixel, which weight its estimate against the extra paths': what the sampler
+        # renders (multijitter rounds some counts up, e.g. 32 -> 35; the stats still state the asked spp)
+        n_film = int(sensor.sampler().sample_count())
         t_load += time.perf_counter() - t1
         if cube is None:
             cube = np.zeros((h, w, nb), np.float64)
@@ -129,7 +132,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
                                        settings.max_lanes, np.asarray(quads[0], np.float32))
                 bad += float(sums[:, -1].sum())
                 aov = aov.reshape(-1, n_aov).astype(np.float64)  # exact: the others add as before
-                aov[boost] = (spp * aov[boost] + sums) / (spp + extra)
+                aov[boost] = (n_film * aov[boost] + sums) / (n_film + extra)
                 aov = aov.reshape(h, w, n_aov)
                 t_boost += time.perf_counter() - t3
             on = lanes >= 0

@@ -289,8 +289,6 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     passes = emitter_passes(scene, groups)
     if settings.wavelengths == "all-bands":
         return _render_all_bands(scene, view, groups, passes, settings, boost_mask)
-    if boost_mask is not None and settings.boost_factor > 1:
-        raise SceneError("targeted extra paths (boost) need wavelengths 'all-bands'")
     tracers = [Tracer(scene, view, groups, settings.resolution, portals=p) for p in passes]
     t_load = time.perf_counter() - t0
     nb = tracers[0].grid.n_bands

@@ -122,7 +122,8 @@ class RenderSettings:
                              "denoiser leaves in a pixel (e.g. 0.7)")
         if self.boost_factor > 1 and not applies:
             raise SceneError("a boost factor > 1 needs the mitsuba backend, wavelengths 'all-bands' and denoise "
-                             "'dt-irradiance' (the extra paths go where that filter cannot reach): use --boost-factor 1")
+                             "'dt-irradiance' (the extra paths go where that filter cannot reach): use --boost-factor 1 "
+                             "(render.boost_factor: 1 in a dataset config)")
 
     def to_dict(self) -> dict:
         return {"spp": self.spp, "seed": self.seed, "wavelengths": self.wavelengths, "sampler": self.sampler,
