@@ -93,11 +93,6 @@ def evaluate(
         raise UserError(f"--interpolation {interpolation!r}: choose {' or '.join(INTERPOLATIONS)}")
     if gt is not None and gt.lower() not in ("physical", "formula"):
         raise UserError(f"--gt {gt!r}: choose physical or formula")
-    if out is not None:
-        from awb_eval.outputs import prepare_folder
-
-        out = Path(out)
-        prepare_folder(out)  # before scoring: an unwritable --out fails in a second, not after the run
     names = split_methods(methods)
     if not names:
         raise UserError(f"--methods {methods!r} names no method; e.g. \"Gray World, Ground Truth\"")
@@ -105,6 +100,13 @@ def evaluate(
     labels = [m.label for m in chosen]
     source = _source(data, sensor=sensor, pairs=pairs, count=count, seed=seed, size=size,
                      gt=None if gt is None else gt.lower(), split=split, black_level=black_level, white_level=white_level)
+    if out is not None:
+        from awb_eval.outputs import prepare_folder
+
+        out = Path(out)
+        # after the input checks (a refused run leaves no folder), before scoring (an unwritable --out
+        # fails in a second, not after the run)
+        prepare_folder(out)
     quiet = as_json and not console.is_terminal
     with progress_bar(console, disable=quiet, transient=True) as prog:
         task = prog.add_task("evaluating", total=len(source), last="")
