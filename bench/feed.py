@@ -10,7 +10,8 @@ folder and measures, in one run, on the same machine:
   HTTP (``illumix serve``) and in the local mode (composed in-process), against a disk baseline:
   the same samples precomputed as 16-bit PNG raw + float32 ``.npy`` gain, read with cv2/numpy;
 - ``/sample`` latency p50: a 256² crop raw+gain (against reading one sample's two files), the full
-  frame raw+gain and all outputs, over HTTP and in-process (compose + encode);
+  frame raw+gain and all outputs, over HTTP through ``Client.sample`` (request + arrays decoded; the
+  crop also with ``wire_format="npz"``, ``/sample``'s own default) and in-process (compose + encode);
 - a cold epoch on a fresh server (no ``--warm``) over a warm one, the cache hit ratio of that
   random-crop epoch, and the server's peak RSS over its cache settings (``--cache-mb`` +
   ``--projection-cache-mb``);
@@ -79,22 +80,17 @@ def in_process(store: str, sensor: str, repeats: int) -> dict:
     return out
 
 
-def http_p50(url: str, specs: list[dict], n: int) -> float:
-    import httpx
+def client_p50(url: str, specs: list[dict], n: int, wire_format: str = "arrays") -> float:
+    """p50 ms of ``Client.sample`` over HTTP: the request and its arrays decoded, as a user of the
+    client gets them (the disk baseline decodes its PNG and ``.npy`` too)."""
+    from illumix_client import Client
 
-    with httpx.Client(timeout=120) as c:
+    with Client(url, wire_format=wire_format, timeout=120) as c:
         def one(i: int) -> None:
-            r = c.get(f"{url}/sample", params=specs[i % len(specs)])
-            assert r.status_code == 200, r.text
-            np.load(io.BytesIO(r.content))
+            s = c.sample(**specs[i % len(specs)])
+            assert s.raw is not None and s.gain is not None
         one(0)
         return fl.p50_ms(one, n)
-
-
-def wire(spec: dict) -> dict:
-    from illumix_client.sample import encode_spec
-
-    return encode_spec(spec)
 
 
 def accuracy(url: str, store: str, sensor: str) -> dict:
@@ -190,11 +186,12 @@ def main() -> None:
                 fl.log(f"HTTP feed, {w} workers …")
                 http[f"feed_w{w}"] = round(fl.feed_rate(fds, w, args.batch, 2, fds.set_epoch), 1)
             http["feed_w2_persistent"] = round(fl.feed_rate(fds, 2, args.batch, 2, fds.set_epoch, persistent=True), 1)
-            crop_specs = [wire(s) for s in specs[:32]]
-            http["crop_p50_ms"] = round(http_p50(srv.url, crop_specs, args.requests), 2)
+            crop_specs = specs[:32]
+            http["crop_p50_ms"] = round(client_p50(srv.url, crop_specs, args.requests), 2)
+            http["crop_p50_ms_npz"] = round(client_p50(srv.url, crop_specs, args.requests, "npz"), 2)
             full = dict(scene="room", view="v0", sensor=sensor, pair="A,D65")
-            http["full_raw_gain_p50_ms"] = round(http_p50(srv.url, [full | {"outputs": "raw,gain"}], 15), 1)
-            http["full_all_p50_ms"] = round(http_p50(srv.url, [full | {"outputs": "raw,gain,srgb,weights,mask,illum,mixture,meta"}], 10), 1)
+            http["full_raw_gain_p50_ms"] = round(client_p50(srv.url, [full | {"outputs": "raw,gain"}], 15), 1)
+            http["full_all_p50_ms"] = round(client_p50(srv.url, [full | {"outputs": "raw,gain,srgb,weights,mask,illum,mixture,meta"}], 10), 1)
             res["accuracy"] = accuracy(srv.url, store, sensor)
             rss, peak = srv.rss_mb()
             http["rss_mb"], http["peak_rss_mb"] = round(rss, 1), round(peak, 1)
@@ -239,6 +236,7 @@ def main() -> None:
         "feed_ratio_vs_disk_fresh_workers": round(max(fresh.values()), 3),
         "feed_ratio_vs_disk_fresh_workers_http": round(fresh["http"], 3),
         "crop_p50_ratio_vs_disk": round(res["http"]["crop_p50_ms"] / res["disk"]["read_p50_ms"], 2),
+        "crop_p50_ratio_vs_disk_npz": round(res["http"]["crop_p50_ms_npz"] / res["disk"]["read_p50_ms"], 2),
         "full_raw_gain_ms": res["in_process"]["full_raw_gain"]["total_ms"],
         "full_all_ms": res["in_process"]["full_all"]["total_ms"],
         "full_raw_gain_http_ms": res["http"]["full_raw_gain_p50_ms"], "full_all_http_ms": res["http"]["full_all_p50_ms"],

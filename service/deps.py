@@ -11,7 +11,8 @@ from service.errors import fail
 from service.sampling import Context
 
 
-def get_ctx(request: Request) -> Context:
+async def get_ctx(request: Request) -> Context:
+    # async: FastAPI runs a sync dependency on a worker thread, a hop that cost more than the lookup
     return request.app.state.ctx
 
 

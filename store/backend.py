@@ -20,6 +20,7 @@ import errno
 import json
 import os
 import shutil
+import threading
 import uuid
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,8 @@ from store.errors import StoreError
 
 STAGING = "_staging"
 TRASH = "_trash"
+#: parsed metadata files remembered per local store (a few KiB each); beyond it the memo starts over
+JSON_MEMO_ENTRIES = 4096
 
 
 def is_local(location: str) -> bool:
@@ -51,6 +54,7 @@ class Backend:
         if self.local:
             self.root: Path | None = Path(loc.removeprefix("file://")).expanduser().absolute()
             self.url = str(self.root)
+            self._root_s = self.url + os.sep
             self.zstore = zarr.storage.LocalStore(self.root, read_only=read_only)
             self.fs = None
             self.fsroot = ""
@@ -65,24 +69,35 @@ class Backend:
                 self.url, storage_options=storage_options, read_only=read_only)
         #: True: publish by directory rename; False: in-place write + completion marker.
         self.atomic_rename = self.local if atomic_rename is None else (atomic_rename and self.local)
+        # key -> ((inode, mtime_ns, size), parsed): a service reads the same few metadata files on
+        # every request; a stat tells whether one changed (every write replaces the file, so a new
+        # version has a new inode) at a tenth of the cost of reading and parsing it again
+        self._json_memo: dict[str, tuple[tuple[int, int, int], Any]] = {}
+        self._json_lock = threading.Lock()
 
     # ---- files -------------------------------------------------------------------------------
     def _p(self, key: str) -> Path:
         assert self.root is not None
         return self.root / key.lstrip("/")  # never an absolute path: keys stay under the root
 
+    def _s(self, key: str) -> str:
+        """The local path of ``key`` as a str (the hot read paths: joining a Path costs more than
+        the stat or scandir it is for)."""
+        return self._root_s + key.lstrip("/")
+
     def _f(self, key: str) -> str:
         key = key.lstrip("/")
         return f"{self.fsroot}/{key}" if key else self.fsroot
 
     def exists(self, key: str) -> bool:
-        return self._p(key).exists() if self.local else bool(self.fs.exists(self._f(key)))
+        return os.path.exists(self._s(key)) if self.local else bool(self.fs.exists(self._f(key)))
 
     def read_bytes(self, key: str) -> bytes | None:
         """The file's bytes, or ``None`` when it does not exist."""
         try:
             if self.local:
-                return self._p(key).read_bytes()
+                with open(self._s(key), "rb") as f:
+                    return f.read()
             return bytes(self.fs.cat_file(self._f(key)))
         except (FileNotFoundError, NotADirectoryError):
             return None
@@ -90,14 +105,33 @@ class Backend:
             return None
 
     def read_json(self, key: str) -> Any:
-        """Parsed JSON of ``key``; ``None`` when missing; :class:`StoreError` when unreadable."""
+        """Parsed JSON of ``key``; ``None`` when missing; :class:`StoreError` when unreadable.
+
+        Local stores remember what they parsed while the file's inode, mtime and size stay the same,
+        so the result is shared between calls: read it, never change it."""
+        stamp = None
+        if self.local:
+            try:
+                st = os.stat(self._s(key))
+            except (FileNotFoundError, NotADirectoryError):
+                return None
+            stamp = (st.st_ino, st.st_mtime_ns, st.st_size)
+            hit = self._json_memo.get(key)
+            if hit is not None and hit[0] == stamp:
+                return hit[1]
         raw = self.read_bytes(key)
         if raw is None:
             return None
         try:
-            return json.loads(raw)
+            parsed = json.loads(raw)
         except ValueError as exc:
             raise StoreError(f"corrupt metadata file {key} in {self.url}: {exc}; rewrite this node") from None
+        if stamp is not None:  # a file replaced since the stat has a new inode: the next call re-reads it
+            with self._json_lock:
+                if len(self._json_memo) >= JSON_MEMO_ENTRIES:
+                    self._json_memo.clear()
+                self._json_memo[key] = (stamp, parsed)
+        return parsed
 
     def write_bytes(self, key: str, data: bytes, exclusive: bool = False) -> None:
         """Atomically write ``key`` (temp file + rename locally, one PUT remotely).
@@ -131,7 +165,7 @@ class Backend:
         """Names of the sub-directories (node children) of ``key``; ``[]`` when it does not exist."""
         if self.local:
             try:
-                with os.scandir(self._p(key)) as it:
+                with os.scandir(self._s(key)) as it:
                     return sorted(e.name for e in it if e.is_dir() and not e.name.startswith("."))
             except (FileNotFoundError, NotADirectoryError):
                 return []
