@@ -11,7 +11,8 @@ with frames used once: a key is projected from its ``min_uses``-th request on (i
 whole frame, which is projected anyway), and only while the cache has room or the key has been
 asked for more often than the least recently used entry it would evict (TinyLFU's rule: Einziger,
 Friedman & Manes 2017), with request counts halved every ``_AGE_EVERY`` requests so that old
-popularity fades. The entries live in their own LRU cache (``--projection-cache-mb``, in addition
+popularity fades (lazily: a count remembers the age it was last touched at and is shifted when read,
+so no request pays for halving them all). The entries live in their own LRU cache (``--projection-cache-mb``, in addition
 to ``--cache-mb``), so they never evict the decoded cubes they are made from.
 """
 
@@ -44,9 +45,9 @@ class ProjectionCache:
         self.cache: LRUCache[np.ndarray] = LRUCache(max_bytes, cost=nbytes_cost, on_load=_read_only,
                                                     track_evicted=True)
         self.min_uses = max(1, int(min_uses))
-        self._seen: OrderedDict[Hashable, int] = OrderedDict()
+        self._seen: OrderedDict[Hashable, tuple[int, int]] = OrderedDict()  # key -> (count, age then)
         self._lock = threading.Lock()
-        self._ops = 0
+        self._ops = self._age = 0
 
     @property
     def hits(self) -> int:
@@ -56,16 +57,22 @@ class ProjectionCache:
     def misses(self) -> int:
         return self.cache.misses
 
+    def _aged(self, entry: tuple[int, int] | None) -> int:
+        """A remembered count, halved once per ``_AGE_EVERY`` requests since it was last touched."""
+        if entry is None:
+            return 0
+        n, age = entry
+        return n >> min(self._age - age, 63)
+
     def _count(self, key: Hashable) -> int:
         with self._lock:
-            n = self._seen.pop(key, 0) + 1
-            self._seen[key] = n
+            n = self._aged(self._seen.pop(key, None)) + 1
+            self._seen[key] = (n, self._age)
             while len(self._seen) > _SEEN:
                 self._seen.popitem(last=False)
             self._ops += 1
-            if self._ops >= _AGE_EVERY:  # popularity fades: halve every count, forget the zeros
-                self._ops = 0
-                self._seen = OrderedDict((k, v // 2) for k, v in self._seen.items() if v // 2)
+            if self._ops >= _AGE_EVERY:  # popularity fades
+                self._ops, self._age = 0, self._age + 1
             return n
 
     def _admit(self, key: Hashable, count: int, frame_bytes: int) -> bool:
@@ -74,7 +81,7 @@ class ProjectionCache:
             return True  # room without evicting anything
         victim = c.oldest_key()
         with self._lock:
-            return victim is None or count > self._seen.get(victim, 0)
+            return victim is None or count > self._aged(self._seen.get(victim))
 
     def window(self, key: Hashable, whole_cube: Callable[[], np.ndarray], weights: np.ndarray,
                window: tuple[int, int, int, int], frame_bytes: int, whole_frame: bool) -> Projected | None:
