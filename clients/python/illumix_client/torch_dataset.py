@@ -130,7 +130,8 @@ class IllumixDataset(IterableDataset):
         Items per epoch, over all ranks and workers.
     batch_size, prefetch
         Items per ``POST /batch`` (≤ the service's batch limit, 64 by default) and requests in
-        flight per worker.
+        flight per worker (in the local mode: chunks composed ahead on background threads at
+        ``num_workers=0``; local-mode DataLoader workers compose on their own thread).
     seed
         Makes the stream reproducible; ``None`` draws one at construction (shared by all workers).
     rank, world_size
@@ -241,7 +242,12 @@ class IllumixDataset(IterableDataset):
         epoch = self.epoch + (self._begun if self.auto_epoch else 0)
         self._begun += 1
         client = self._client()
-        pool = ThreadPoolExecutor(max_workers=max(1, self.prefetch), thread_name_prefix="illumix")
+        # A local-mode DataLoader worker composes on its own thread: composing is CPU work, the
+        # DataLoader already prefetches across workers, and background threads in every worker only
+        # contend for the cores (2 workers, 2 cores: 330-405 against 298-307 samples/s with them).
+        # Over HTTP they overlap the requests' network waits.
+        depth = 0 if (self.store is not None and info is not None) else self.prefetch
+        pool = ThreadPoolExecutor(max_workers=max(1, depth), thread_name_prefix="illumix")
         pending: deque = deque()
 
         def fetch(chunk: list[int]) -> tuple[list[int], list[Sample]]:
@@ -254,15 +260,15 @@ class IllumixDataset(IterableDataset):
 
         it = iter(chunks)
         try:
-            for chunk in islice(it, max(1, self.prefetch)):
+            for chunk in islice(it, max(1, depth)):
                 pending.append(pool.submit(fetch, chunk))
             while pending:
                 indices, samples = pending.popleft().result()
-                if self.prefetch:
+                if depth:
                     refill()  # keep `prefetch` requests in flight while this chunk is consumed
                 for i, s in zip(indices, samples):
                     yield self.to_item(i, s)
-                if not self.prefetch:
+                if not depth:
                     refill()
         finally:
             for f in pending:
