@@ -14,13 +14,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from server_testutil import free_port
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class ServerProcess:

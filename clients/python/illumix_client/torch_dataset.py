@@ -316,29 +316,25 @@ class IllumixDataset(IterableDataset):
         return item
 
     def _norm_raw(self, s: Sample) -> np.ndarray:
+        """The CHW float32 raw item, normalised as ``raw_norm`` says, in one pass over the raw."""
         raw = np.asarray(s.raw, dtype=np.float32)
+        src = raw[None] if raw.ndim == 2 else raw.transpose(2, 0, 1)  # a CHW view of the HWC raw
+        if self.raw_norm == "none" or not raw.size:
+            return np.ascontiguousarray(src)
         noise = s.meta.get("noise")
-        if self.raw_norm == "max" and not noise and raw.size:
-            # the common case in one pass: the peak of the (contiguous) HWC raw, then divide while
-            # transposing into the CHW item
-            peak = np.float32(raw.max())
-            src = raw[None] if raw.ndim == 2 else raw.transpose(2, 0, 1)
-            if not peak > 0:
-                return np.ascontiguousarray(src)
-            return np.divide(src, peak, out=np.empty(src.shape, np.float32))
-        raw = raw[None] if raw.ndim == 2 else raw.transpose(2, 0, 1)
-        raw = np.ascontiguousarray(raw)
-        if self.raw_norm == "none":
-            return raw
+        black, span = 0.0, 1.0  # DN -> (DN - black) / (white - black) with noise
         if noise:
             white = noise.get("white_level") or 2 ** int(noise.get("bit_depth", 12)) - 1
             black = float(noise.get("black_level", 0.0))
-            raw = (raw - black) / np.float32(max(white - black, 1e-12))
+            span = max(white - black, 1e-12)
         if self.raw_norm == "max":
-            peak = float(raw.max()) if raw.size else 0.0
-            if peak > 0:
-                raw = raw / np.float32(peak)
-        return raw.astype(np.float32, copy=False)
+            top = float(raw.max()) - black  # the peak of (raw - black), so that the peak becomes 1
+            if top > 0:
+                span = top
+        out = np.empty(src.shape, np.float32)
+        if black:
+            src = np.subtract(src, np.float32(black), out=out)
+        return np.divide(src, np.float32(span), out=out)
 
 
 def _check_names(client: Client, pool: IlluminantPool, sensors: Sequence[str]) -> None:
