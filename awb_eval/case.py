@@ -44,6 +44,16 @@ class Case:
         return self.raw.shape[:2]
 
 
+@dataclass(frozen=True)
+class Unusable:
+    """An image that could not be made (e.g. a view that cannot be relit as asked): skipped by the
+    evaluation with ``why``, so one bad view does not stop a whole store's run."""
+
+    name: str
+    pair: str
+    why: str
+
+
 def unsaturated(raw: np.ndarray, white: float) -> np.ndarray:
     """``(H, W)`` bool: pixels a statistical method may use — no channel at the white level, nor
     next to one (a 3×3 dilation of the saturated pixels, as van de Weijer's ``general_cc``)."""

@@ -1,6 +1,7 @@
 """The evaluation loop: every case × every method → per-image scores (and a few error maps).
 
-A case whose ground truth has no valid pixel is skipped (counted, with the reason); method times
+A case whose ground truth has no valid pixel, or an image that could not be made
+(:class:`awb_eval.case.Unusable`), is skipped (counted, with the reason); method times
 are wall-clock per image, the method alone (not the composition or the scoring).
 """
 
@@ -12,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from awb_eval.case import Case
+from awb_eval.case import Case, Unusable
 from awb_eval.methods import Method
 from awb_eval.scoring import reference, score
 
@@ -36,13 +37,13 @@ class Results:
     maps: list[ErrorMaps] = field(default_factory=list)
 
 
-def evaluate(cases: Iterable[Case], methods: list[Method], *, maps: int = 0,
+def evaluate(cases: Iterable[Case | Unusable], methods: list[Method], *, maps: int = 0,
              on_case: Callable[[Case | None, str], None] | None = None) -> Results:
     """Score ``methods`` on ``cases``; keep error maps of the first ``maps`` scored images.
     ``on_case(case, name)`` is called after each case (a progress bar)."""
     out = Results()
     for case in cases:
-        why = _unscorable(case)
+        why = case.why if isinstance(case, Unusable) else _unscorable(case)
         if why:
             out.skipped.append({"name": case.name, "pair": case.pair, "why": why})
         else:

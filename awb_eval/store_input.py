@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from awb_eval.case import Case, unsaturated
+from awb_eval.case import Case, Unusable, unsaturated
 from retarget.errors import SpectralError
 
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"  # a measured camera that every install has (colour-science)
@@ -94,6 +94,7 @@ class StoreCases:
                                 f"{', '.join(f'{s}/{v}' for s, v, _ in views[:5])}); give single illuminants, "
                                 "e.g. --pairs D65")
         self.skipped = len(views) * len(self.pairs) - len(self.jobs)
+        self.spec(self.jobs[0])  # bad options fail here, not as every image skipped
 
     def _check_names(self, first: tuple[str, str, int]) -> None:
         """Unknown sensor or illuminant → one line with close matches, before any composition."""
@@ -110,28 +111,41 @@ class StoreCases:
                 "views": len({(j.scene, j.view) for j in self.jobs}), "images": len(self.jobs),
                 "skipped_single_group": self.skipped, "seed": self.seed, "size": self.size, "gt": self.gt}
 
-    def __iter__(self) -> Iterator[Case]:
+    def __iter__(self) -> Iterator[Case | Unusable]:
+        """The cases in order; a view the service cannot compose as asked (its groups cannot be
+        relit, lack the illumination cubes ``--gt physical`` needs, a damaged cube …) is an
+        :class:`Unusable` with the service's reason, not the end of the run."""
         for job in self.jobs:
-            yield self.compose(job)
+            try:
+                yield self.compose(job)
+            except SpectralError as exc:
+                yield Unusable(job.name, job.pair, str(exc))
 
-    def compose(self, job: Job) -> Case:
-        """One sample through :func:`service.sampling.build_sample` → a :class:`Case`."""
+    def spec(self, job: Job):
+        """The :class:`service.spec.SampleSpec` of ``job``; the run's options (size, gt …) are
+        checked here, with one line for a bad one."""
         from pydantic import ValidationError
 
-        from service.errors import ServiceError
-        from service.sampling import build_sample
         from service.spec import SampleSpec
-        from store import StoreError
 
         n_groups = len(self.store.groups(job.scene, job.view))
         light = {"pair": list(job.lights)} if len(job.lights) == 2 else {"illuminants": list(job.lights) * n_groups}
         try:
-            spec = SampleSpec(scene=job.scene, view=job.view, sensor=self.sensor, seed=self.seed, size=self.size,
+            return SampleSpec(scene=job.scene, view=job.view, sensor=self.sensor, seed=self.seed, size=self.size,
                               gt=self.gt, outputs=list(OUTPUTS), exposure="auto", **light)
-            arrays, meta = build_sample(spec, self.ctx)
         except ValidationError as exc:
             first = exc.errors()[0]
             raise SpectralError(f"{'.'.join(str(x) for x in first.get('loc', ()))}: {first.get('msg')}") from None
+
+    def compose(self, job: Job) -> Case:
+        """One sample through :func:`service.sampling.build_sample` → a :class:`Case`."""
+        from service.errors import ServiceError
+        from service.sampling import build_sample
+        from store import StoreError
+
+        spec = self.spec(job)
+        try:
+            arrays, meta = build_sample(spec, self.ctx)
         except ServiceError as exc:
             raise SpectralError(f"{job.name}: {exc.detail}") from None
         except StoreError as exc:

@@ -77,6 +77,23 @@ def test_store_input_errors(store, tmp_path):
         StoreCases(str(empty))
 
 
+def test_a_view_that_cannot_be_composed_is_skipped_not_the_end_of_the_run(tmp_path):
+    """--gt physical on a store where only synth/v0 has illumination cubes: the other views are
+    skipped with the service's reason, synth/v0 is scored."""
+    import synthetic_store
+
+    path = tmp_path / "s"
+    synthetic_store.build(path, illumination=True)
+    src = StoreCases(str(path), pairs="A,D65;D65", gt="physical")
+    assert len(src) > 2
+    res = evaluate(src, resolve(["Ground Truth"]))
+    assert sorted(im["name"] for im in res.images) == ["synth/v0 A,D65", "synth/v0 D65"]
+    assert len(res.skipped) == len(src) - 2
+    assert all("illumination cubes" in s["why"] for s in res.skipped)
+    with pytest.raises(SpectralError, match="size"):  # the run's own options still fail at once
+        StoreCases(str(path), size="12")
+
+
 def test_lsmi_files_read_back_as_lsmi_reads_them(lsmi):
     assert is_lsmi(lsmi) and is_lsmi(lsmi / "cam")
     src = LsmiCases(lsmi)
