@@ -187,7 +187,7 @@ def render_all(args, scene, cache: Path | None) -> dict:
     test = dict(plain)
     if args.boost_factor > 1:  # the renderer's default: targeted extra paths from the guides alone
         for g in groups:
-            mask = boost_mask(Guides.from_aovs(aovs).with_direct(direct[g]["direct"]), DEFAULT_METHOD,
+            mask = boost_mask(dl.group_guides(Guides.from_aovs(aovs), direct[g]), DEFAULT_METHOD,
                               args.boost_reach)
             test[g] = dl.cached_render(scene, args.view, g, args.spp, TEST_SEED, args.res, cache, log,
                                        boost=(mask, args.boost_factor, args.boost_reach))
@@ -225,7 +225,7 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
         return {"boost_factor": args.boost_factor, "applied": False}
 
     def measure(renders: dict) -> dict:
-        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g]["direct"])
+        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g])
                           for g in groups], M)
         und = dl.compose([renders[g]["cube"] for g in groups], M)
         s = dl.err_summary(dl.rel_chroma_err(raw, ref["raw"]), classes["all"])
@@ -251,7 +251,7 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
 def den(R: dict, g: str, guides, name: str, kind: str = "transport") -> np.ndarray:
     """Group ``g``'s test cube (``kind``: transport or illumination) denoised by ``name``."""
     return dl.run_denoise(R["test"][g]["cube" if kind == "transport" else "illumination"], guides, name,
-                          R["direct"][g]["direct"] if g in R["direct"] else None, kind)
+                          R["direct"][g] if g in R["direct"] else None, kind)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -471,7 +471,7 @@ def tail_diagnosis(R: dict, guides, M: np.ndarray, ref: dict, maps: dict, classe
     against the reference, and at the test's tail pixels (error ≥ its p99.3) the median of that
     bias-only error beside the undenoised error there, with the tail's pixel classes."""
     groups = [g for g, _ in PAIR]
-    cubes = [dl.run_denoise(ref["cubes"][g]["cube"], guides, method, R["direct"][g]["direct"]) for g in groups]
+    cubes = [dl.run_denoise(ref["cubes"][g]["cube"], guides, method, R["direct"][g]) for g in groups]
     bias_err = dl.rel_chroma_err(dl.compose(cubes, M), ref["raw"])
     err, valid = maps[method]["err"], classes["all"]
     tail = valid & (err >= np.percentile(err[valid], 99.3))
