@@ -76,7 +76,7 @@ def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
         m = si.is_valid() & (si.shape == mi.ShapePtr(s))
         dr.eval(m)
         out[np.asarray(m, bool)] = k
-        names.append(s.id().removeprefix("shape_"))
+        names.append(s.id().removeprefix("shape_") or f"walls_{k}")  # Mitsuba merges meshes of one material
     return out.reshape(t.height, t.width), names
 
 
