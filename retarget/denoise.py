@@ -202,7 +202,7 @@ def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: flo
 
 
 def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial: float = 4.0,
-                   sigma_normal: float = 0.05, sigma_depth: float = 0.08, sigma_direct: float = 0.4,
+                   sigma_normal: float = 0.05, sigma_depth: float = 0.04, sigma_direct: float = 0.4,
                    albedo_floor: float = 0.01, iterations: int = 3) -> np.ndarray:
     """Filter ``cube / ρ`` (transport) or ``cube`` (illumination), then multiply ``ρ`` back;
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
@@ -304,7 +304,7 @@ class DenoiseMethod:
 #: Implementation of every name of :data:`DENOISE_METHODS`.
 IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
     "dt-irradiance": DenoiseMethod(
-        _dt_irradiance, {"sigma_spatial": 4.0, "sigma_normal": 0.05, "sigma_depth": 0.08, "sigma_direct": 0.4,
+        _dt_irradiance, {"sigma_spatial": 4.0, "sigma_normal": 0.05, "sigma_depth": 0.04, "sigma_direct": 0.4,
                          "albedo_floor": 0.01, "iterations": 3},
         "Gastal & Oliveira 2011 (domain transform, RF) on the albedo-demodulated cube, joint image from the "
         "normal, depth and the light group's direct light", ("albedo_bands", "normal", "depth", "mask", "emitter",
