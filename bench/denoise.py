@@ -9,8 +9,9 @@ each render cached as ``.npz`` under ``bench/out/denoise-cache/`` by (view, reso
 groups, the default renderer method) (``--no-cache`` renders again and writes nothing). The *test* is group ``daylight`` relit
 by illuminant A plus group ``ceiling`` relit by D65 (desk off), projected to camera raw through the
 sensor ``--sensor`` (Nikon 5100 (NPL)): ``raw = Σ_g T_g @ M_g`` with ``M_g`` from
-``retarget.relight.band_scales``/``raw_weights``. Seeds: test 0 (``--spp``, 64), error curve
-1, 2, … (one per extra spp), reference ``100 … 100+K−1``, the thesis protocol's mixed render 5.
+``retarget.relight.band_scales``/``raw_weights``. Seeds: test ``--seed`` (0; also its direct-light
+guides' seed, as in the renderer) at ``--spp`` (64), error curve 1, 2, … (one per extra spp),
+reference ``100 … 100+K−1``, the thesis protocol's mixed render 5, the equal-path uniform renders 7.
 
 Reference and its own floor
 ---------------------------
@@ -100,7 +101,8 @@ What is reported (JSON keys)
    and relight-exact, but its weights carry the render's noise (not "noise-free guides").
 8b. ``tail_diagnosis``: the default method applied to the reference's own cubes (``bias_only``: the
    error smoothing alone makes), and at the test's tail pixels (error ≥ its p99.3) the median of
-   that bias-only error beside the undenoised and denoised errors there, with the tail's classes.
+   that bias-only error beside the undenoised and denoised errors there, with the tail's classes
+   (``bench/denoise_tail.py`` counts those pixels by cause and draws them).
 9. ``oidn``: Intel Open Image Denoise (``pyoidn``, RT filter, HDR) on the composed raw with albedo
    and normal (not linear, so not on cubes), aux images prefiltered (``clean_aux=False``: the albedo
    AOV is noisy) and not (``clean_aux_true``); ``{"available": false, "why": …}`` without it.
@@ -162,7 +164,7 @@ def log(msg: str) -> None:
 def curve_seed(args, spp: int) -> int:
     """The error curve's seed at ``spp``: the test's at ``--spp``, else 1, 2, … in spp order."""
     others = [s for s in args.curve_spp if s != args.spp]
-    return TEST_SEED if spp == args.spp else 1 + others.index(spp)
+    return args.seed if spp == args.spp else 1 + others.index(spp)
 
 
 def render_all(args, scene, cache: Path | None) -> dict:
@@ -180,16 +182,16 @@ def render_all(args, scene, cache: Path | None) -> dict:
     log(f"AOVs ({args.aov_spp} and {args.clean_aov_spp} rays per pixel)")
     aovs = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.aov_spp, cache, log)
     clean = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.clean_aov_spp, cache, log)
-    direct = {g: dl.cached_direct(scene, args.view, g, args.res, TEST_SEED, cache, log) for g in groups}
-    log(f"test renders at {args.spp} spp, seed {TEST_SEED}" + (f", boosted x{args.boost_factor} where reach > "
+    direct = {g: dl.cached_direct(scene, args.view, g, args.res, args.seed, cache, log) for g in groups}
+    log(f"test renders at {args.spp} spp, seed {args.seed}" + (f", boosted x{args.boost_factor} where reach > "
                                                                f"{args.boost_reach}" if args.boost_factor > 1 else ""))
-    plain = {g: render(g, args.spp, TEST_SEED) for g in scene.group_names}
+    plain = {g: render(g, args.spp, args.seed) for g in scene.group_names}
     test = dict(plain)
     if args.boost_factor > 1:  # the renderer's default: targeted extra paths from the guides alone
         for g in groups:
-            mask = boost_mask(Guides.from_aovs(aovs).with_direct(direct[g]["direct"]), DEFAULT_METHOD,
+            mask = boost_mask(dl.group_guides(Guides.from_aovs(aovs), direct[g]), DEFAULT_METHOD,
                               args.boost_reach)
-            test[g] = dl.cached_render(scene, args.view, g, args.spp, TEST_SEED, args.res, cache, log,
+            test[g] = dl.cached_render(scene, args.view, g, args.spp, args.seed, args.res, cache, log,
                                        boost=(mask, args.boost_factor, args.boost_reach))
     curve = {}
     for spp in args.curve_spp:
@@ -225,7 +227,7 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
         return {"boost_factor": args.boost_factor, "applied": False}
 
     def measure(renders: dict) -> dict:
-        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g]["direct"])
+        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g])
                           for g in groups], M)
         und = dl.compose([renders[g]["cube"] for g in groups], M)
         s = dl.err_summary(dl.rel_chroma_err(raw, ref["raw"]), classes["all"])
@@ -251,7 +253,7 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
 def den(R: dict, g: str, guides, name: str, kind: str = "transport") -> np.ndarray:
     """Group ``g``'s test cube (``kind``: transport or illumination) denoised by ``name``."""
     return dl.run_denoise(R["test"][g]["cube" if kind == "transport" else "illumination"], guides, name,
-                          R["direct"][g]["direct"] if g in R["direct"] else None, kind)
+                          R["direct"][g] if g in R["direct"] else None, kind)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -471,7 +473,7 @@ def tail_diagnosis(R: dict, guides, M: np.ndarray, ref: dict, maps: dict, classe
     against the reference, and at the test's tail pixels (error ≥ its p99.3) the median of that
     bias-only error beside the undenoised error there, with the tail's pixel classes."""
     groups = [g for g, _ in PAIR]
-    cubes = [dl.run_denoise(ref["cubes"][g]["cube"], guides, method, R["direct"][g]["direct"]) for g in groups]
+    cubes = [dl.run_denoise(ref["cubes"][g]["cube"], guides, method, R["direct"][g]) for g in groups]
     bias_err = dl.rel_chroma_err(dl.compose(cubes, M), ref["raw"])
     err, valid = maps[method]["err"], classes["all"]
     tail = valid & (err >= np.percentile(err[valid], 99.3))
@@ -587,6 +589,8 @@ def cost(args, R: dict, guides, aovs: dict) -> dict:
 def parse(argv):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--spp", type=int, default=64, help="spp of the test renders")
+    ap.add_argument("--seed", type=int, default=TEST_SEED,
+                    help="seed of the test renders and their direct-light guides (not one of the other renders')")
     ap.add_argument("--ref-spp", type=int, default=1024, help="spp of each reference seed")
     ap.add_argument("--ref-seeds", type=int, default=4, help="independent reference renders averaged (even, >= 2)")
     ap.add_argument("--resolution", default="160x120")
@@ -621,6 +625,10 @@ def parse(argv):
     args.res = tuple(int(v) for v in args.resolution.lower().split("x"))
     args.cost_size = tuple(int(v) for v in args.cost_size.lower().split("x"))
     args.curve_spp = sorted({int(s) for s in args.curve_spp.split(",")} | {args.spp})
+    taken = {*range(1, len(args.curve_spp)), MIXED_SEED, UNIFORM_SEED, *range(REF_SEED0, REF_SEED0 + args.ref_seeds)}
+    if args.seed in taken or args.seed < 0:
+        ap.error(f"--seed {args.seed} is taken by another render of the benchmark ({sorted(taken)}) or negative; "
+                 f"the test must be independent of them: pick e.g. {TEST_SEED} or 10")
     return args
 
 
@@ -631,7 +639,7 @@ def main(argv: list[str] | None = None) -> dict:
     from renderer_jobs.mitsuba_variant import select_variant
     from retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
 
-    doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(),
+    doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(), "test_seed": args.seed,
                  "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": "demo-room-0", "view": args.view,
                  "resolution": list(args.res), "sensor": args.sensor,
                  "composition": {g: i for g, i in PAIR}, "spp": args.spp, "quick": args.quick,

@@ -122,18 +122,19 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
 
 def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int, cache: Path | None,
                   log: Callable[[str], None]) -> dict:
-    """A group's direct-light guide (``renderer_jobs.denoise_guides.direct_light``), cached:
-    ``{"direct" (H, W), "cpu_s"}``."""
+    """A group's direct-light guide and the light glass keeps from each pixel
+    (``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), cached:
+    ``{"direct" (H, W), "behind" (H, W), "cpu_s"}``."""
     from renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_light
 
-    name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}.npz"
+    name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}_glass.npz"
     path = cache / name if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as z:
-            return {"direct": z["direct"], "cpu_s": float(z["cpu_s"])}
+            return {"direct": z["direct"], "behind": z["behind"], "cpu_s": float(z["cpu_s"])}
     c0 = time.process_time()
-    d = direct_light(scene, view, group, res, seed)
-    out = {"direct": d, "cpu_s": time.process_time() - c0}
+    d, b = direct_light(scene, view, group, res, seed, behind_glass=True)
+    out = {"direct": d, "behind": b, "cpu_s": time.process_time() - c0}
     log(f"  traced the direct-light guide of {group}: {out['cpu_s']:.2f} s CPU")
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -141,11 +142,17 @@ def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int,
     return out
 
 
-def run_denoise(cube: np.ndarray, guides, name: str, direct: np.ndarray | None, kind: str = "transport") -> np.ndarray:
-    """``retarget.denoise.denoise`` with the group's direct-light guide where the method takes one."""
+def group_guides(guides, direct: dict):
+    """``guides`` with a group's :func:`cached_direct` record (its direct light and what glass keeps)."""
+    return guides.with_direct(direct["direct"], direct.get("behind"))
+
+
+def run_denoise(cube: np.ndarray, guides, name: str, direct: dict | None, kind: str = "transport") -> np.ndarray:
+    """``retarget.denoise.denoise`` with the group's direct-light guides (a :func:`cached_direct`
+    record) where the method takes them."""
     from retarget.denoise import denoise, method_guides
 
-    return denoise(cube, guides.with_direct(direct) if "direct" in method_guides(name) else guides, name, kind=kind)
+    return denoise(cube, group_guides(guides, direct) if "direct" in method_guides(name) else guides, name, kind=kind)
 
 
 def mean_render(renders: Sequence[dict]) -> dict:

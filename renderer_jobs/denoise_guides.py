@@ -12,6 +12,10 @@
   sharp steps in it, and a few dozen shadow rays per pixel make it nearly noise-free, at a small
   fraction of the cube's cost. It is traced with its own seed, so its noise is independent of the
   cube's (the filter's weights never follow the cube's noise).
+- **Behind glass** (``(H, W)``, same samples): the light those shadow rays would bring if the glass
+  (dielectrics) blocking them were not there, crossed in a straight line. Glass focuses light (a
+  caustic) where the direct guide shows its shadow; ``dt-irradiance`` averages nothing there
+  (:func:`retarget.denoise.irradiance_classes`), and the targeted extra paths go there instead.
 """
 
 from __future__ import annotations
@@ -84,19 +88,24 @@ def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarr
 
 
 def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
-                 samples: int = DIRECT_SAMPLES) -> np.ndarray:
+                 samples: int = DIRECT_SAMPLES, behind_glass: bool = False):
     """The direct-light guide ``(H, W)`` float32 of ``group`` in ``view`` (module docstring): the
-    mean over four wavelengths (:func:`guide_wavelengths`) and ``samples`` sub-pixel positions."""
+    mean over four wavelengths (:func:`guide_wavelengths`) and ``samples`` sub-pixel positions.
+    ``behind_glass``: also the light the same samples' shadow rays would bring if the dielectrics
+    (glass) that block them were not there, ``(H, W)`` float32 — where glass may focus or bend the
+    group's light (a caustic) that the first image shows as shadow: returns ``(direct, behind)``."""
     from renderer_jobs.mitsuba_scene import group_emission
 
     tracer = Tracer(scene, view, [group], resolution)
     lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
 
     def one(pix, jit):  # a batch's seed: its first pixel
-        return tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
-                                        mix_seed(seed, _DIRECT_SEED, int(pix[0]))).mean(axis=1, keepdims=True)
+        out = tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
+                                       mix_seed(seed, _DIRECT_SEED, int(pix[0])), behind_dielectric=behind_glass)
+        return np.stack([o.mean(axis=1) for o in out], -1) if behind_glass else out.mean(axis=1, keepdims=True)
 
-    return _per_pixel(tracer, samples, one)[..., 0]
+    img = _per_pixel(tracer, samples, one)
+    return (img[..., 0], img[..., 1]) if behind_glass else img[..., 0]
 
 
 __all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "albedo_bands", "direct_light", "guide_wavelengths", "guides_needed",

@@ -326,8 +326,10 @@ def denoise_guides(st, scene, job, settings) -> tuple:
         extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel) and added to the view"
     guides = Guides.from_aovs(aovs)
     if "direct" in wanted:
-        guides = guides.with_direct(dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed))
-        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed}
+        direct, behind = dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed,
+                                         behind_glass=True)
+        guides = guides.with_direct(direct, behind)
+        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": True}
     return guides, extra
 
 

@@ -145,13 +145,16 @@ class Tracer:
             out[:, 4 * q:4 * q + 4] = _numpy4(alb)
         return out[:, :len(lam)]
 
-    def direct_irradiance(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int
-                          ) -> np.ndarray:
+    def direct_irradiance(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int,
+                          behind_dielectric: bool = False):
         """One next-event sample per ray of the *direct* light a white Lambertian surface at the
         first hit sends back, ``(n, 4)`` float32 (``E_direct/π``, the direct part of
         :meth:`white_lambertian`): light sampling with visibility, no bounce. 0 where nothing is hit
         and on emitting surfaces. Shadows and lit patches have sharp, noise-free edges in its mean
-        over a few dozen samples: the illumination-edge guide of :mod:`retarget.denoise`."""
+        over a few dozen samples: the illumination-edge guide of :mod:`retarget.denoise`.
+
+        ``behind_dielectric``: returns ``(direct, behind)``, ``behind (n, 4)`` the same sample where
+        only surfaces that transmit (glass) block its shadow ray, else 0 (:meth:`_blocked_by_dielectrics_only`)."""
         mi, dr = self.mi, self.dr
         n = len(pix)
         sampler = self.sensor.sampler().clone()
@@ -161,10 +164,34 @@ class Tracer:
         hit = si.is_valid() & ~si.shape.is_emitter()
         normal = si.sh_frame.n
         normal = dr.select(dr.dot(normal, -ray.d) < 0, -normal, normal)  # the side the camera sees
-        ds, weight = self.ms.sample_emitter_direction(si, sampler.next_2d(hit), True, hit)
+        # without behind_dielectric, Mitsuba's own shadow test (the guide as it always was)
+        ds, weight = self.ms.sample_emitter_direction(si, sampler.next_2d(hit), not behind_dielectric, hit)
         u = mi.unpolarized_spectrum(dr.select(hit, weight * dr.maximum(dr.dot(normal, ds.d), 0.0) / dr.pi, 0.0))
-        dr.eval(u)
-        return _numpy4(u)
+        if not behind_dielectric:
+            dr.eval(u)
+            return _numpy4(u)
+        shadow = si.spawn_ray_to(ds.p)
+        visible = hit & (ds.pdf != 0) & ~self.ms.ray_test(shadow, hit)
+        glass = self._blocked_by_dielectrics_only(shadow, ds.p, hit & ~visible)
+        lit, behind = dr.select(visible, u, 0.0), dr.select(glass, u, 0.0)
+        dr.eval(lit, behind)
+        return _numpy4(lit), _numpy4(behind)
+
+    def _blocked_by_dielectrics_only(self, shadow, target, active, max_crossings: int = 4):
+        """Mask of the shadow rays in ``active`` (the blocked ones) whose every blocker before
+        ``target`` transmits light (glass, a dielectric): followed straight through up to
+        ``max_crossings`` surfaces (a sphere is two); an opaque blocker, or more crossings, is a
+        plain shadow. Straight, so not where the glass focuses the light: only where it may."""
+        mi = self.mi
+        ok, pending, ray = mi.Bool(active), mi.Bool(active), shadow
+        for _ in range(max_crossings):
+            si = self.ms.ray_intersect(ray, pending)
+            hit = pending & si.is_valid()
+            transmits = mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Transmission)
+            ok &= ~(hit & ~transmits)
+            pending = hit & transmits
+            ray = si.spawn_ray_to(target)
+        return ok & ~pending
 
     def _continuation(self):
         if self._cont is None:

@@ -55,6 +55,21 @@ from retarget.errors import SpectralError
 #: most others) map to distinct values.
 _NORMAL_AXIS = np.array([0.53, 0.71, 0.46]) / np.linalg.norm([0.53, 0.71, 0.46])
 _FAR = 1e4  # guide offset separating emitter / background pixels from surfaces
+#: Surface pixels this close (pixels, chessboard distance) to an emitter pixel get codes of their own in
+#: ``dt-irradiance``'s joint image: a lamp's edge spills light over two pixels (bench/DENOISE.md).
+LAMP_RING = 2
+#: A surface pixel whose group's direct light is blocked by glass alone for more than this share,
+#: and its neighbours within GLASS_MARGIN pixels, get codes of their own: a caustic may lie there.
+GLASS_SHARE = 0.05
+GLASS_MARGIN = 1
+
+
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask`` grown by ``radius`` pixels (a (2r+1)² square)."""
+    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+
+    kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
 
 
 @dataclass(frozen=True)
@@ -65,7 +80,10 @@ class Guides:
     normal; depth ``(H, W)`` metres (0 = no hit); hit ``(H, W)`` bool; emitter ``(H, W)`` bool;
     albedo_bands ``(H, W, bands)`` diffuse reflectance per band (0 for metal and glass), or None;
     direct ``(H, W)`` one light group's direct light on a white Lambertian surface (any linear
-    unit: only its log differences count), or None — a per-group guide, set with :meth:`with_direct`.
+    unit: only its log differences count), or None — a per-group guide, set with :meth:`with_direct`;
+    behind_glass ``(H, W)`` the share of that group's direct light that only glass (a dielectric,
+    crossed straight) keeps from the pixel, in [0, 1], or None: where the glass may focus the light
+    (a caustic) the direct guide shows a shadow, so there it tells nothing.
     """
 
     albedo: np.ndarray
@@ -75,6 +93,7 @@ class Guides:
     emitter: np.ndarray
     albedo_bands: np.ndarray | None = None
     direct: np.ndarray | None = None
+    behind_glass: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
@@ -91,15 +110,17 @@ class Guides:
         return cls(np.asarray(aovs["albedo"], np.float32), np.asarray(aovs["normal"], np.float32),
                    depth, hit, emitter, bands)
 
-    def with_direct(self, direct: np.ndarray) -> Guides:
-        """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0)."""
-        d = np.asarray(direct, np.float32)
-        if d.shape != self.shape:
-            raise SpectralError(f"denoise: the direct-light guide has shape {d.shape}; the view's is {self.shape}")
-        if not np.isfinite(d).all() or (d < 0).any():
-            raise SpectralError("denoise: the direct-light guide has NaN, inf or negative values; it must be "
-                                "finite and >= 0 (re-trace it: renderer_jobs.denoise_guides.direct_light)")
-        return replace(self, direct=d)
+    def with_direct(self, direct: np.ndarray, behind_glass: np.ndarray | None = None) -> Guides:
+        """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0) and, when
+        given, the light that glass keeps from each pixel ``(H, W)`` (finite, ≥ 0, same unit as
+        ``direct``: ``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), stored as
+        the share ``behind / (behind + direct)``."""
+        d = _checked_image(direct, self.shape, "direct-light guide")
+        if behind_glass is None:
+            return replace(self, direct=d, behind_glass=None)
+        b = _checked_image(behind_glass, self.shape, "behind-glass guide")
+        share = np.divide(b, b + d, out=np.zeros_like(b), where=(b + d) > 0)
+        return replace(self, direct=d, behind_glass=share)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -108,6 +129,16 @@ class Guides:
     def pixel_class(self) -> np.ndarray:
         """``(H, W)`` int8: 0 surface, 1 background (no hit), 2 emitter. Filters never mix classes."""
         return np.where(self.emitter, 2, np.where(self.hit, 0, 1)).astype(np.int8)
+
+
+def _checked_image(image: np.ndarray, shape: tuple[int, int], what: str) -> np.ndarray:
+    a = np.asarray(image, np.float32)
+    if a.shape != shape:
+        raise SpectralError(f"denoise: the {what} has shape {a.shape}; the view's is {shape}")
+    if not np.isfinite(a).all() or (a < 0).any():
+        raise SpectralError(f"denoise: the {what} has NaN, inf or negative values; it must be finite and >= 0 "
+                            "(re-trace it: renderer_jobs.denoise_guides.direct_light)")
+    return a
 
 
 # ---------------------------------------------------------------------------------------------
@@ -131,18 +162,27 @@ def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_a
 def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
     """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``):
     0 a diffuse surface, 1 background, 2 emitter, 3 a surface with no diffuse reflectance (metal,
-    glass: its ``cube / ρ`` is on another scale), and 4–8 the surface pixels next to a background or
-    emitter pixel. Those may cover part of a light source or of the sky behind a window (the AOVs
-    flag a pixel by its majority, or its centre), whose radiance dwarfs the surface's: each gets a
-    code none of its eight neighbours has, so it is left as rendered and nothing flows out of it
-    into the wall (a halo around every window and lamp otherwise: ``bench/DENOISE.md``)."""
-    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+    glass: its ``cube / ρ`` is on another scale), and 4–8 surface pixels the filter must leave as
+    rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
 
+    - next to a background pixel, or within :data:`LAMP_RING` pixels of an emitter pixel: they may
+      cover part of a light source or of the sky behind a window (the AOVs flag a pixel by its
+      majority, or its centre), whose radiance dwarfs the surface's (a halo around every window and
+      lamp otherwise: ``bench/DENOISE.md``);
+    - where glass alone blocks more than :data:`GLASS_SHARE` of the group's direct light
+      (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
+      caustic) that the direct guide shows as shadow, so no guide shows its edges.
+
+    The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
+    them more paths."""
     cls = guides.pixel_class().astype(np.float32)
     surface = cls == 0
     if guides.albedo_bands is not None:
         cls[surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)] = 3
-    near = cv2.dilate((~surface).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & surface
+    near = _dilate(guides.emitter, LAMP_RING) | _dilate(~surface & ~guides.emitter, 1)
+    if guides.behind_glass is not None:
+        near |= _dilate(guides.behind_glass > GLASS_SHARE, GLASS_MARGIN)
+    near &= surface
     y, x = np.indices(cls.shape)
     cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
     return cls
@@ -162,7 +202,7 @@ def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: flo
 
 
 def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial: float = 4.0,
-                   sigma_normal: float = 0.05, sigma_depth: float = 0.08, sigma_direct: float = 0.4,
+                   sigma_normal: float = 0.05, sigma_depth: float = 0.04, sigma_direct: float = 0.4,
                    albedo_floor: float = 0.01, iterations: int = 3) -> np.ndarray:
     """Filter ``cube / ρ`` (transport) or ``cube`` (illumination), then multiply ``ρ`` back;
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
@@ -264,7 +304,7 @@ class DenoiseMethod:
 #: Implementation of every name of :data:`DENOISE_METHODS`.
 IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
     "dt-irradiance": DenoiseMethod(
-        _dt_irradiance, {"sigma_spatial": 4.0, "sigma_normal": 0.05, "sigma_depth": 0.08, "sigma_direct": 0.4,
+        _dt_irradiance, {"sigma_spatial": 4.0, "sigma_normal": 0.05, "sigma_depth": 0.04, "sigma_direct": 0.4,
                          "albedo_floor": 0.01, "iterations": 3},
         "Gastal & Oliveira 2011 (domain transform, RF) on the albedo-demodulated cube, joint image from the "
         "normal, depth and the light group's direct light", ("albedo_bands", "normal", "depth", "mask", "emitter",

@@ -74,3 +74,44 @@ def test_a_view_stored_without_the_per_band_albedo_gets_it_once(tmp_path):
         assert ("albedo_bands" in passes) == (k == 0) and passes["direct"]["samples_per_pixel"] > 0
         assert "albedo_bands" in st.view_meta(s.name, "head-on").aovs
     assert st.read_aov(s.name, "head-on", "albedo_bands").shape == (*aovs["depth"].shape, 63)
+
+
+def _box_with_ball(material: str | None) -> object:
+    """The test box with a ball (``material``: glass, opaque white, or none) between the point light
+    and the floor, so its straight shadow lies on the floor in view."""
+    from test_render import box_scene
+
+    from renderer_jobs.scene_load import scene_from_dict
+
+    d = box_scene()
+    d["materials"]["glass"] = {"kind": "dielectric", "int_ior": 1.5}
+    if material is not None:
+        d["shapes"].append({"name": "ball", "type": "sphere", "material": material,
+                            "center": (-0.3, 0.55, 0.1), "radius": 0.2})
+    d["views"][0]["resolution"] = (48, 32)
+    return scene_from_dict(d)
+
+
+def test_behind_glass_is_the_light_the_glass_keeps_from_the_direct_guide():
+    """Under a point light (a delta light: no noise) the direct guide plus the light behind glass
+    equals the direct guide of the same box without the ball, wherever the camera sees the same
+    surface; glass keeps light only inside its own straight shadow, and an opaque ball of the same
+    size keeps none 'behind glass' (a plain shadow)."""
+    from scipy.ndimage import binary_erosion
+
+    res = (48, 32)
+    glass, none, opaque = (_box_with_ball(m) for m in ("glass", None, "white"))
+    direct, behind = dg.direct_light(glass, "cam", "bulb", res, seed=1, behind_glass=True)
+    np.testing.assert_allclose(direct, dg.direct_light(glass, "cam", "bulb", res, seed=1), rtol=1e-5, atol=1e-7)
+    free = dg.direct_light(none, "cam", "bulb", res, seed=1)
+    depth = [render_aovs(s, "cam", RenderSettings(spp=16, seed=1, resolution=res, denoise=None))["depth"]
+             for s in (glass, none)]
+    # not the ball's own pixels, nor their neighbours (the guide's sub-pixel positions differ from the AOVs')
+    same = binary_erosion(np.abs(depth[0] - depth[1]) < 1e-4, np.ones((3, 3), bool), border_value=1)
+    shadow = same & (behind > 0)
+    assert 4 < shadow.sum() < 0.3 * same.sum(), shadow.sum()
+    np.testing.assert_allclose((direct + behind)[same], free[same], rtol=1e-4, atol=1e-7)
+    full = shadow & (behind >= free - 1e-7)  # pixels wholly in the shadow: no direct light there
+    assert full.any() and (direct[full] < 1e-7).all()
+    d_opaque, b_opaque = dg.direct_light(opaque, "cam", "bulb", res, seed=1, behind_glass=True)
+    assert (b_opaque == 0).all() and (d_opaque[shadow] < free[shadow]).all()
