@@ -605,6 +605,9 @@ def parse(argv):
     ap.add_argument("--boost-factor", type=int, default=None,
                     help="targeted extra paths of the test renders (default: the renderer's, 8; 1 = off)")
     ap.add_argument("--boost-reach", type=float, default=None, help="their reach threshold (default: the renderer's)")
+    ap.add_argument("--room", type=int, default=0,
+                    help="the procedural demo room's seed (0: the room the defaults were chosen on; another seed "
+                         "is a room they have not seen; its renders are cached in a folder of their own)")
     ap.add_argument("--no-cache", action="store_true", help="render everything again (and cache nothing)")
     ap.add_argument("--quick", action="store_true",
                     help="smoke test: 64x48, reference 2 x 256 spp, curve 64/128, thesis factor 4")
@@ -640,12 +643,12 @@ def main(argv: list[str] | None = None) -> dict:
     from retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
 
     doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(), "test_seed": args.seed,
-                 "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": "demo-room-0", "view": args.view,
+                 "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": f"demo-room-{args.room}", "view": args.view,
                  "resolution": list(args.res), "sensor": args.sensor,
                  "composition": {g: i for g, i in PAIR}, "spp": args.spp, "quick": args.quick,
                  "boost_factor": args.boost_factor, "boost_reach": args.boost_reach}
-    scene = demo_room(0, args.res)
-    cache = None if args.no_cache else OUT / "denoise-cache"
+    scene = demo_room(args.room, args.res)
+    cache = None if args.no_cache else OUT / "denoise-cache" / (f"room{args.room}" if args.room else "")
     R = render_all(args, scene, cache)
     groups = [g for g, _ in PAIR]
     guides = Guides.from_aovs(R["aovs"])
