@@ -635,6 +635,11 @@ def parse(argv):
     return args
 
 
+def cache_dir(args) -> Path:
+    """The render cache of ``args.room`` (room 0's renders at the top, another room's in ``room<N>/``)."""
+    return OUT / "denoise-cache" / (f"room{args.room}" if args.room else "")
+
+
 def main(argv: list[str] | None = None) -> dict:
     args = parse(argv)
     t0, c0 = time.perf_counter(), time.process_time()
@@ -648,7 +653,7 @@ def main(argv: list[str] | None = None) -> dict:
                  "composition": {g: i for g, i in PAIR}, "spp": args.spp, "quick": args.quick,
                  "boost_factor": args.boost_factor, "boost_reach": args.boost_reach}
     scene = demo_room(args.room, args.res)
-    cache = None if args.no_cache else OUT / "denoise-cache" / (f"room{args.room}" if args.room else "")
+    cache = None if args.no_cache else cache_dir(args)
     R = render_all(args, scene, cache)
     groups = [g for g, _ in PAIR]
     guides = Guides.from_aovs(R["aovs"])

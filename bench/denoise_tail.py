@@ -82,11 +82,10 @@ def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
 
 def causes(R: dict, guides, scene, args, behind: dict) -> tuple[dict, np.ndarray, list[str]]:
     """Every cause's ``(H, W)`` mask (before the first-match rule), the shape ids and names."""
-    from retarget.denoise import irradiance_classes, method_params
+    from retarget.denoise import method_params
 
     p = method_params("dt-irradiance")[1]
     ids, names = shape_ids(scene, args.view, args.res)
-    cls = irradiance_classes(guides, p["albedo_floor"])
     light = ~guides.hit | guides.emitter
     logd = [np.log(R["direct"][g]["direct"] + 1e-3 * R["direct"][g]["direct"].max()) for g in R["direct"]]
     z = np.log(np.maximum(guides.depth, 1e-3))
@@ -94,7 +93,7 @@ def causes(R: dict, guides, scene, args, behind: dict) -> tuple[dict, np.ndarray
     glass_frac = [behind[g] / np.maximum(behind[g] + R["direct"][g]["direct"], 1e-30) for g in behind]
     return {
         "behind_glass": _dilate(np.any([f > 0.05 for f in glass_frac], axis=0), 1),
-        "metal_or_glass": cls == 3,
+        "metal_or_glass": guides.hit & ~guides.emitter & (guides.albedo_bands.max(axis=-1) < p["albedo_floor"]),
         "near_light": _dilate(light, 3) & ~light,
         "glossy_ball": ids == names.index("ball") if "ball" in names else np.zeros(ids.shape, bool),
         "shadow_edge": np.any([_any_neighbour(d, lambda a, b: np.abs(a - b) > p["sigma_direct"]) for d in logd], 0),
@@ -153,8 +152,8 @@ def main(argv: list[str] | None = None) -> dict:
     from renderer_jobs.demo import demo_room
     from retarget.denoise import DEFAULT_METHOD, Guides
 
-    scene = demo_room(0, args.res)
-    R = bd.render_all(args, scene, bd.OUT / "denoise-cache")
+    scene = demo_room(args.room, args.res)
+    R = bd.render_all(args, scene, bd.cache_dir(args))
     groups = [g for g, _ in bd.PAIR]
     guides = Guides.from_aovs(R["aovs"])
     M = dl.composition_weights(args.sensor, [i for _, i in bd.PAIR], [R["test"][g]["emission"] for g in groups])
@@ -169,7 +168,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     errs = {"bias_only": dl.rel_chroma_err(raw(ref["cubes"]), ref["raw"]),
             "test": dl.rel_chroma_err(raw(R["test"]), ref["raw"])}
-    doc: dict = {"view": args.view, "valid_pixels": int(valid.sum()),
+    doc: dict = {"room": args.room, "view": args.view, "valid_pixels": int(valid.sum()),
                  "cause_pixels_in_view": {c: int((m & valid).sum()) for c, m in masks.items()}}
     tails = {}
     for k, e in errs.items():
@@ -184,7 +183,7 @@ def main(argv: list[str] | None = None) -> dict:
                   "tail_also_in_bias_tail": None}
     bias_tail, test_tail = (t >= 0 for t in tails.values())
     doc["test"]["tail_also_in_bias_tail"] = int((bias_tail & test_tail).sum())
-    path = bd.OUT / f"denoise_tail_{args.view}.png"
+    path = bd.OUT / f"denoise_tail_{args.view}{f'_room{args.room}' if args.room else ''}.png"
     plot(path, {f"bias only (filter on the reference): p99.3 {doc['bias_only']['p99_3_rel_pct']:.2f} %":
                 errs["bias_only"], f"test (64 spp, boosted): p99.3 {doc['test']['p99_3_rel_pct']:.2f} %": errs["test"]},
          tails, valid)

@@ -161,14 +161,16 @@ def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_a
 
 def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
     """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``):
-    0 a diffuse surface, 1 background, 2 emitter, 3 a surface with no diffuse reflectance (metal,
-    glass: its ``cube / ρ`` is on another scale), and 4–8 surface pixels the filter must leave as
+    0 a diffuse surface, 1 background, 2 emitter, and 4–8 surface pixels the filter must leave as
     rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
 
+    - metal and glass (no diffuse reflectance): their ``cube / ρ`` is on another scale, and what
+      they show is the rest of the scene, reflected or refracted, which no guide describes
+      (filtered among themselves, a glass ball's refraction was smeared: ``bench/DENOISE.md``);
     - next to a background pixel, or within :data:`LAMP_RING` pixels of an emitter pixel: they may
       cover part of a light source or of the sky behind a window (the AOVs flag a pixel by its
       majority, or its centre), whose radiance dwarfs the surface's (a halo around every window and
-      lamp otherwise: ``bench/DENOISE.md``);
+      lamp otherwise);
     - where glass alone blocks more than :data:`GLASS_SHARE` of the group's direct light
       (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
       caustic) that the direct guide shows as shadow, so no guide shows its edges.
@@ -177,9 +179,9 @@ def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
     them more paths."""
     cls = guides.pixel_class().astype(np.float32)
     surface = cls == 0
-    if guides.albedo_bands is not None:
-        cls[surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)] = 3
     near = _dilate(guides.emitter, LAMP_RING) | _dilate(~surface & ~guides.emitter, 1)
+    if guides.albedo_bands is not None:
+        near |= guides.albedo_bands.max(axis=-1) < albedo_floor
     if guides.behind_glass is not None:
         near |= _dilate(guides.behind_glass > GLASS_SHARE, GLASS_MARGIN)
     near &= surface
@@ -206,8 +208,8 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
                    albedo_floor: float = 0.01, iterations: int = 3) -> np.ndarray:
     """Filter ``cube / ρ`` (transport) or ``cube`` (illumination), then multiply ``ρ`` back;
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
-    reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear; they are a
-    class of their own in the joint image, so their ``cube / ρ`` never mixes with a diffuse one's)."""
+    reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear; the joint
+    image leaves them as rendered, so their ``cube / ρ`` never mixes with another pixel's)."""
     joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor)
     if kind == "illumination":
         return dt_filter(cube, joint, sigma_spatial, iterations)

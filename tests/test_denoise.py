@@ -304,6 +304,22 @@ def test_metal_and_glass_do_not_mix_with_diffuse_surfaces():
     assert np.abs(den[near] / truth[near] - 1).max() < 0.1
     np.testing.assert_allclose(den[metal], 0.5, rtol=1e-4)
 
+def test_metal_and_glass_are_left_as_rendered():
+    """What a metal or glass pixel shows is the rest of the scene, reflected or refracted, which no
+    guide describes: a refracted pattern is not smoothed (it was, filtered among its own kind)."""
+    rng = np.random.default_rng(8)
+    _, noisy, g = _scene(rng, noise=0.02)
+    glass = np.zeros((H, W), bool)
+    glass[20:44, 30:58] = True
+    bands = g.albedo_bands.copy()
+    bands[glass] = 0.0
+    cube = noisy.copy()
+    yy, xx = np.indices((H, W))
+    cube[glass] = (0.2 + 0.15 * np.sin(xx / 1.5) * np.cos(yy / 2.0))[glass][:, None]  # a refracted image
+    den = denoise(cube, Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct), "dt-irradiance")
+    np.testing.assert_allclose(den[glass], cube[glass], rtol=1e-5)
+
+
 def test_registry_names_params_and_errors():
     assert DENOISE_METHODS.canonical("DT") == "dt-guides" == DENOISE_METHODS.canonical("Domain Transform")
     assert DENOISE_CHOICES.canonical("off") == "none"
