@@ -38,7 +38,7 @@ class Results:
 
 
 def evaluate(cases: Iterable[Case | Unusable], methods: list[Method], *, maps: int = 0,
-             on_case: Callable[[Case | None, str], None] | None = None) -> Results:
+             on_case: Callable[[Case | Unusable, str], None] | None = None) -> Results:
     """Score ``methods`` on ``cases``; keep error maps of the first ``maps`` scored images.
     ``on_case(case, name)`` is called after each case (a progress bar)."""
     out = Results()

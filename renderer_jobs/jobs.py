@@ -326,10 +326,13 @@ def denoise_guides(st, scene, job, settings) -> tuple:
         extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel) and added to the view"
     guides = Guides.from_aovs(aovs)
     if "direct" in wanted:
-        direct, behind = dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed,
-                                         behind_glass=True)
+        # the light glass keeps from each pixel: traced only where the scene has glass (0.1-0.25 s
+        # CPU a group otherwise spent finding none)
+        glass = any(getattr(m, "kind", None) == "dielectric" for m in scene.materials.values())
+        traced = dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed, behind_glass=glass)
+        direct, behind = traced if glass else (traced, None)
         guides = guides.with_direct(direct, behind)
-        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": True}
+        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": glass}
     return guides, extra
 
 

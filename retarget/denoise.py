@@ -22,8 +22,9 @@ Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHO
   the normal, log depth and log of the group's *direct* light (``Guides.direct``): it stops at
   geometric edges and at the edges of shadows and sunlit patches, which no albedo or normal shows.
   Illumination cubes are irradiance already: filtered the same way without the division
-  (``kind="illumination"``). Surface pixels next to a light source or the sky behind a window, and
-  metal and glass, are classes of their own (:func:`irradiance_classes`). Measured in
+  (``kind="illumination"``). Surface pixels next to a light source or the sky behind a window,
+  those glass shades from the group's light (a caustic may lie there) and, in transport cubes,
+  metal and glass are left as rendered (:func:`irradiance_classes`). Measured in
   ``bench/DENOISE.md``.
 - ``"dt-guides"`` (alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
@@ -62,6 +63,10 @@ LAMP_RING = 2
 #: and its neighbours within GLASS_MARGIN pixels, get codes of their own: a caustic may lie there.
 GLASS_SHARE = 0.05
 GLASS_MARGIN = 1
+#: ... unless glass shades more than this share of the surface pixels: then it encloses the light (a
+#: bulb's envelope, a lamp cover, a glazed window) rather than throwing a caustic somewhere, and
+#: leaving that much as rendered (and tracing it with the targeted paths' 8× the spp) would not pay
+GLASS_MAX_COVER = 0.25
 
 
 def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
@@ -159,31 +164,43 @@ def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_a
     return dt_filter(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
 
 
-def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
-    """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``):
-    0 a diffuse surface, 1 background, 2 emitter, and 4–8 surface pixels the filter must leave as
-    rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
+def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transport") -> np.ndarray:
+    """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``)
+    for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface, 1 background,
+    2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the filter must
+    leave as rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
 
-    - metal and glass (no diffuse reflectance): their ``cube / ρ`` is on another scale, and what
-      they show is the rest of the scene, reflected or refracted, which no guide describes
-      (filtered among themselves, a glass ball's refraction was smeared: ``bench/DENOISE.md``);
+    - metal and glass (no diffuse reflectance) in a transport cube: what they show is the rest of
+      the scene, reflected or refracted, which no guide describes (filtered among themselves, a glass
+      ball's refraction was smeared: ``bench/DENOISE.md``). An illumination cube holds the light
+      falling on them, as on any surface, which the guides do describe: there they are one class of
+      their own (3), since their neighbours' light may differ in kind;
     - next to a background pixel, or within :data:`LAMP_RING` pixels of an emitter pixel: they may
       cover part of a light source or of the sky behind a window (the AOVs flag a pixel by its
       majority, or its centre), whose radiance dwarfs the surface's (a halo around every window and
       lamp otherwise);
     - where glass alone blocks more than :data:`GLASS_SHARE` of the group's direct light
       (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
-      caustic) that the direct guide shows as shadow, so no guide shows its edges.
+      caustic) that the direct guide shows as shadow, so no guide shows its edges — unless that is
+      more than :data:`GLASS_MAX_COVER` of the surface (glass around the light itself).
 
     The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
     them more paths."""
+    if kind not in ("transport", "illumination"):
+        raise SpectralError(f"denoise: kind must be 'transport' or 'illumination', got {kind!r}")
     cls = guides.pixel_class().astype(np.float32)
     surface = cls == 0
     near = _dilate(guides.emitter, LAMP_RING) | _dilate(~surface & ~guides.emitter, 1)
     if guides.albedo_bands is not None:
-        near |= guides.albedo_bands.max(axis=-1) < albedo_floor
+        specular = surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)
+        if kind == "transport":
+            near |= specular
+        else:
+            cls[specular] = 3
     if guides.behind_glass is not None:
-        near |= _dilate(guides.behind_glass > GLASS_SHARE, GLASS_MARGIN)
+        shaded = guides.behind_glass > GLASS_SHARE
+        if surface.any() and shaded[surface].mean() <= GLASS_MAX_COVER:
+            near |= _dilate(shaded, GLASS_MARGIN)
     near &= surface
     y, x = np.indices(cls.shape)
     cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
@@ -191,12 +208,14 @@ def irradiance_classes(guides: Guides, albedo_floor: float) -> np.ndarray:
 
 
 def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float,
-                           albedo_floor: float = 0.01) -> np.ndarray:
-    """``dt-irradiance``'s joint image ``(H, W, 3)`` float32: the normal's component along a fixed
-    axis with the classes of :func:`irradiance_classes` pushed apart, ``log depth`` (a relative
-    step) and ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it), each over its sigma."""
+                           albedo_floor: float = 0.01, kind: str = "transport") -> np.ndarray:
+    """``dt-irradiance``'s joint image ``(H, W, 3)`` float32 for a ``kind`` of cube: the normal's
+    component along a fixed axis with the classes of :func:`irradiance_classes` pushed apart,
+    ``log depth`` (a relative step) and ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it),
+    each over its sigma."""
     g = np.empty((*guides.shape, 3), np.float32)
-    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * irradiance_classes(guides, albedo_floor)
+    classes = irradiance_classes(guides, albedo_floor, kind)
+    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * classes
     g[..., 1] = np.log(np.maximum(guides.depth, 1e-3)) / sigma_depth
     d = guides.direct
     g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
@@ -210,7 +229,7 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
     reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear; the joint
     image leaves them as rendered, so their ``cube / ρ`` never mixes with another pixel's)."""
-    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor)
+    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor, kind)
     if kind == "illumination":
         return dt_filter(cube, joint, sigma_spatial, iterations)
     rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))

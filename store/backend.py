@@ -21,7 +21,9 @@ import json
 import os
 import shutil
 import threading
+import time
 import uuid
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +33,13 @@ from store.errors import StoreError
 
 STAGING = "_staging"
 TRASH = "_trash"
-#: parsed metadata files remembered per local store (a few KiB each); beyond it the memo starts over
-JSON_MEMO_ENTRIES = 4096
+#: bytes of parsed metadata a local store remembers (a parsed cube ``zarr.json`` takes ~3× its
+#: 5–16 KiB on disk); the least recently read go first
+JSON_MEMO_BYTES = 16 * 2**20
+#: a file modified more recently than this is not remembered: on a file system whose timestamps are
+#: coarse (ext3: 1 s; ext4 before Linux 6.13: a few ms), a rewrite within the same tick that also
+#: reuses the inode could not be told apart from the version remembered (git's "racy" rule)
+JSON_MEMO_SETTLE_NS = 2 * 10**9
 
 
 def is_local(location: str) -> bool:
@@ -69,10 +76,11 @@ class Backend:
                 self.url, storage_options=storage_options, read_only=read_only)
         #: True: publish by directory rename; False: in-place write + completion marker.
         self.atomic_rename = self.local if atomic_rename is None else (atomic_rename and self.local)
-        # key -> ((inode, mtime_ns, size), parsed): a service reads the same few metadata files on
-        # every request; a stat tells whether one changed (every write replaces the file, so a new
-        # version has a new inode) at a tenth of the cost of reading and parsing it again
-        self._json_memo: dict[str, tuple[tuple[int, int, int], Any]] = {}
+        # key -> ((inode, mtime_ns, size), parsed, cost): a service reads the same few metadata files
+        # on every request; a stat tells whether one changed (every write replaces the file: a new
+        # inode and mtime) at a tenth of the cost of reading and parsing it again
+        self._json_memo: OrderedDict[str, tuple[tuple[int, int, int], Any, int]] = OrderedDict()
+        self._json_bytes = 0
         self._json_lock = threading.Lock()
 
     # ---- files -------------------------------------------------------------------------------
@@ -107,8 +115,9 @@ class Backend:
     def read_json(self, key: str) -> Any:
         """Parsed JSON of ``key``; ``None`` when missing; :class:`StoreError` when unreadable.
 
-        Local stores remember what they parsed while the file's inode, mtime and size stay the same,
-        so the result is shared between calls: read it, never change it."""
+        Local stores remember what they parsed while the file's inode, mtime and size stay the same
+        (files older than :data:`JSON_MEMO_SETTLE_NS`, up to :data:`JSON_MEMO_BYTES`), so the result
+        is shared between calls: read it, never change it."""
         stamp = None
         if self.local:
             try:
@@ -116,9 +125,11 @@ class Backend:
             except (FileNotFoundError, NotADirectoryError):
                 return None
             stamp = (st.st_ino, st.st_mtime_ns, st.st_size)
-            hit = self._json_memo.get(key)
-            if hit is not None and hit[0] == stamp:
-                return hit[1]
+            with self._json_lock:
+                hit = self._json_memo.get(key)
+                if hit is not None and hit[0] == stamp:
+                    self._json_memo.move_to_end(key)
+                    return hit[1]
         raw = self.read_bytes(key)
         if raw is None:
             return None
@@ -126,12 +137,21 @@ class Backend:
             parsed = json.loads(raw)
         except ValueError as exc:
             raise StoreError(f"corrupt metadata file {key} in {self.url}: {exc}; rewrite this node") from None
-        if stamp is not None:  # a file replaced since the stat has a new inode: the next call re-reads it
-            with self._json_lock:
-                if len(self._json_memo) >= JSON_MEMO_ENTRIES:
-                    self._json_memo.clear()
-                self._json_memo[key] = (stamp, parsed)
+        # a file replaced since the stat has another inode or mtime: the next call reads it again
+        if stamp is not None and time.time_ns() - stamp[1] > JSON_MEMO_SETTLE_NS:
+            self._remember(key, stamp, parsed, 3 * len(raw))
         return parsed
+
+    def _remember(self, key: str, stamp: tuple[int, int, int], parsed: Any, cost: int) -> None:
+        with self._json_lock:
+            old = self._json_memo.pop(key, None)
+            self._json_bytes -= old[2] if old else 0
+            if cost > JSON_MEMO_BYTES:
+                return
+            self._json_memo[key] = (stamp, parsed, cost)
+            self._json_bytes += cost
+            while self._json_bytes > JSON_MEMO_BYTES:
+                self._json_bytes -= self._json_memo.popitem(last=False)[1][2]
 
     def write_bytes(self, key: str, data: bytes, exclusive: bool = False) -> None:
         """Atomically write ``key`` (temp file + rename locally, one PUT remotely).

@@ -35,7 +35,8 @@ def write_group(backend: Backend, path: str, attrs: dict[str, Any]) -> None:
 
 
 def node_attrs(backend: Backend, path: str) -> dict[str, Any] | None:
-    """Attributes of the node at ``path``; ``None`` if it does not exist."""
+    """Attributes of the node at ``path``; ``None`` if it does not exist. Shared with every other
+    reader of the unchanged file (:meth:`store.backend.Backend.read_json`): never change them."""
     js = backend.read_json(f"{path}/zarr.json")
     if js is None:
         return None

@@ -261,6 +261,42 @@ def test_a_caustic_behind_glass_is_left_as_rendered():
                                rtol=1e-5, atol=1e-6)  # linear: nothing of the spot reaches the lit floor
 
 
+def test_glass_around_the_light_itself_is_filtered_as_usual():
+    """A bulb's envelope or a glazed window: glass keeps the group's light from nearly every pixel.
+    That marks no caustic anywhere; leaving the whole frame as rendered (and boosting it) would not
+    pay, so beyond GLASS_MAX_COVER of the surface the behind-glass guide changes nothing."""
+    from retarget.denoise import irradiance_classes
+
+    _, cube, g = _scene(np.random.default_rng(16), noise=0.05)
+    everywhere = g.with_direct(np.zeros_like(g.direct), g.direct)  # all the light comes through glass
+    assert np.array_equal(irradiance_classes(everywhere, 0.01), irradiance_classes(g.with_direct(g.direct), 0.01))
+    den = denoise(cube, everywhere, "dt-irradiance")
+    assert np.abs(den - cube).max() > 0  # filtered, not left as rendered
+
+
+def test_metal_and_glass_illumination_is_filtered_among_its_own():
+    """An illumination cube holds the light falling on a surface, glass and metal included, which
+    the guides describe: there metal and glass are one class (3), smoothed among themselves."""
+    from retarget.denoise import irradiance_classes
+
+    rng = np.random.default_rng(17)
+    _, _, g = _scene(rng)
+    metal = np.zeros((H, W), bool)
+    metal[20:44, 30:58] = True
+    bands = g.albedo_bands.copy()
+    bands[metal] = 0.0
+    guides = Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct)
+    assert (irradiance_classes(guides, 0.01, "illumination")[metal & g.hit & ~g.emitter] == 3).all()
+    assert (irradiance_classes(guides, 0.01, "transport")[metal & g.hit & ~g.emitter] >= 4).all()
+    light = np.full((H, W, 4), 0.3, np.float32) * (1 + 0.1 * rng.standard_normal((H, W, 4))).astype(np.float32)
+    den = denoise(light, guides, "dt-irradiance", kind="illumination")
+    inner = np.zeros((H, W), bool)
+    inner[24:40, 34:54] = True
+    assert den[inner].std() < 0.5 * light[inner].std()
+    with pytest.raises(SpectralError, match="kind"):
+        irradiance_classes(guides, 0.01, "both")
+
+
 def _grow(mask: np.ndarray, r: int) -> np.ndarray:
     from scipy.ndimage import binary_dilation
 
@@ -287,7 +323,7 @@ def test_a_receding_floor_is_averaged_over_a_short_stretch():
 
 def test_metal_and_glass_do_not_mix_with_diffuse_surfaces():
     """No diffuse reflectance (albedo_bands 0: metal, glass) means ``cube / floor`` is on another
-    scale (100× at the 0.01 floor): such pixels are a class of their own."""
+    scale (100× at the 0.01 floor): such pixels never mix with diffuse ones (left as rendered)."""
     rng = np.random.default_rng(7)
     truth, noisy, g = _scene(rng, noise=0.02)
     metal = np.zeros((H, W), bool)
@@ -303,6 +339,7 @@ def test_metal_and_glass_do_not_mix_with_diffuse_surfaces():
     near &= ~metal
     assert np.abs(den[near] / truth[near] - 1).max() < 0.1
     np.testing.assert_allclose(den[metal], 0.5, rtol=1e-4)
+
 
 def test_metal_and_glass_are_left_as_rendered():
     """What a metal or glass pixel shows is the rest of the scene, reflected or refracted, which no

@@ -55,7 +55,7 @@ import json
 import os
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import nullcontext
 from itertools import islice
 from typing import Any
@@ -131,7 +131,8 @@ class IllumixDataset(IterableDataset):
     batch_size, prefetch
         Items per ``POST /batch`` (≤ the service's batch limit, 64 by default) and requests in
         flight per worker (in the local mode: chunks composed ahead on background threads at
-        ``num_workers=0``; local-mode DataLoader workers compose on their own thread).
+        ``num_workers=0``; local-mode DataLoader workers compose in their own thread, one chunk at a
+        time). ``prefetch=0``: each chunk is fetched when the previous one is consumed.
     seed
         Makes the stream reproducible; ``None`` draws one at construction (shared by all workers).
     rank, world_size
@@ -242,26 +243,36 @@ class IllumixDataset(IterableDataset):
         epoch = self.epoch + (self._begun if self.auto_epoch else 0)
         self._begun += 1
         client = self._client()
-        # A local-mode DataLoader worker composes on its own thread: composing is CPU work, the
-        # DataLoader already prefetches across workers, and background threads in every worker only
-        # contend for the cores (2 workers, 2 cores: 330-405 against 298-307 samples/s with them).
-        # Over HTTP they overlap the requests' network waits.
+        # A local-mode DataLoader worker composes in its own thread, one chunk at a time: composing
+        # is CPU work, the DataLoader already prefetches across workers, and background threads in
+        # every worker only contend for the cores (2 workers, 2 cores: 330-405 against 298-307
+        # samples/s with them). Over HTTP they overlap the requests' network waits.
         depth = 0 if (self.store is not None and info is not None) else self.prefetch
-        pool = ThreadPoolExecutor(max_workers=max(1, depth), thread_name_prefix="illumix")
+        pool = ThreadPoolExecutor(max_workers=depth, thread_name_prefix="illumix") if depth else None
         pending: deque = deque()
 
         def fetch(chunk: list[int]) -> tuple[list[int], list[Sample]]:
             return chunk, client.batch([self.spec(i, epoch) for i in chunk])
 
+        def submit(chunk: list[int]) -> Future:
+            if pool is not None:
+                return pool.submit(fetch, chunk)
+            done: Future = Future()  # no prefetching: fetched now, in this thread
+            try:
+                done.set_result(fetch(chunk))
+            except Exception as exc:  # raised by .result(), where a pool's would be
+                done.set_exception(exc)
+            return done
+
         def refill() -> None:
             nxt = next(it, None)
             if nxt is not None:
-                pending.append(pool.submit(fetch, nxt))
+                pending.append(submit(nxt))
 
         it = iter(chunks)
         try:
             for chunk in islice(it, max(1, depth)):
-                pending.append(pool.submit(fetch, chunk))
+                pending.append(submit(chunk))
             while pending:
                 indices, samples = pending.popleft().result()
                 if depth:
@@ -273,7 +284,8 @@ class IllumixDataset(IterableDataset):
         finally:
             for f in pending:
                 f.cancel()
-            pool.shutdown(wait=True, cancel_futures=True)
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
             if self.store is None:
                 client.close()
 
