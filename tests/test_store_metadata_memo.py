@@ -10,8 +10,7 @@ import time
 
 from store_testutil import add_view, cube, meta, new_store
 
-from store import backend
-from store import CubeStore, StoreKeyError
+from store import CubeStore, StoreKeyError, backend
 
 
 def _age(path, seconds: float = 10.0) -> None:
