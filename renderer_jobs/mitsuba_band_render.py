@@ -106,7 +106,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
                                         sampler={"type": settings.sampler, "sample_count": spp})
         w, h = (int(x) for x in sensor.film().crop_size())
         # the film's paths per pixel, which weight its estimate against the extra paths': what the sampler
-        # renders (multijitter rounds some counts up, e.g. 32 -> 35; the stats still state the asked spp)
+        # renders (multijitter rounds some counts up, e.g. 32 -> 35: the stats state both)
         n_film = int(sensor.sampler().sample_count())
         t_load += time.perf_counter() - t1
         if cube is None:
@@ -124,8 +124,8 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             aov = out[..., out.shape[-1] - n_aov:]
             if illum is not None:  # every set sees the same first hits: count them once (the film's paths)
                 part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
-                kinds += part * spp / len(sets)
-            bad += float(aov[..., -1].sum(dtype=np.float64)) * spp
+                kinds += part * n_film / len(sets)
+            bad += float(aov[..., -1].sum(dtype=np.float64)) * n_film  # per-pixel means -> counts
             if extra:
                 t3 = time.perf_counter()
                 sums = extra_path_sums(ms, sensor, integrator, boost, extra, mix_seed(settings.seed, k, j),
@@ -147,6 +147,8 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
              "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": int(round(bad)),
              "band_sets": len(sets), "quadruples": n_quads // max(1, len(passes)),
              "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": settings.sampler,
+             # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
+             "paths_per_pixel_rendered": n_film * len(sets), "samples_per_band_rendered": n_film,
              "flat_emission_scaled": flat}
     if boosting:
         stats["targeted_paths"] = {"pixels": int(boost.size), "pixel_fraction": round(boost.size / (h * w), 5),
