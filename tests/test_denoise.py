@@ -219,11 +219,8 @@ def test_a_lamps_edge_two_pixels_wide_makes_no_halo():
     flows from them into the wall."""
     rng = np.random.default_rng(16)
     truth, noisy, g = _scene(rng, noise=0.02)
-    emitter = np.zeros((H, W), bool)
-    emitter[20:24, 30:34] = True
-    spill = np.zeros((H, W), bool)
-    spill[18:26, 28:36] = True
-    spill &= ~emitter
+    emitter = _box(np.s_[20:24, 30:34])
+    spill = _box(np.s_[18:26, 28:36]) & ~emitter
     cube = noisy.copy()
     cube[emitter] = 1e4
     cube[spill] += 300.0
@@ -241,10 +238,8 @@ def test_a_caustic_behind_glass_is_left_as_rendered():
     nothing flows out into the lit floor around it; without it the spot loses most of its peak."""
     rng = np.random.default_rng(15)
     truth, noisy, g = _scene(rng, noise=0.02)
-    shadow = np.zeros((H, W), bool)
-    shadow[16:32, 20:40] = True
-    spot = np.zeros((H, W), bool)
-    spot[22:26, 28:32] = True
+    shadow = _box(np.s_[16:32, 20:40])
+    spot = _box(np.s_[22:26, 28:32])
     direct = np.where(shadow, 0.0, g.direct).astype(np.float32)
     behind = np.where(shadow, g.direct, 0.0).astype(np.float32)  # what the glass keeps from the guide
     cube = noisy.copy()
@@ -281,11 +276,7 @@ def test_metal_and_glass_illumination_is_filtered_among_its_own():
 
     rng = np.random.default_rng(17)
     _, _, g = _scene(rng)
-    metal = np.zeros((H, W), bool)
-    metal[20:44, 30:58] = True
-    bands = g.albedo_bands.copy()
-    bands[metal] = 0.0
-    guides = Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct)
+    metal, guides = _specular(g, np.s_[20:44, 30:58])
     assert (irradiance_classes(guides, 0.01, "illumination")[metal & g.hit & ~g.emitter] == 3).all()
     assert (irradiance_classes(guides, 0.01, "transport")[metal & g.hit & ~g.emitter] >= 4).all()
     light = np.full((H, W, 4), 0.3, np.float32) * (1 + 0.1 * rng.standard_normal((H, W, 4))).astype(np.float32)
@@ -321,18 +312,29 @@ def test_a_receding_floor_is_averaged_over_a_short_stretch():
     assert np.abs(denoise(truth, guides, "dt-irradiance") / truth - 1).max() < 0.015
 
 
+def _box(region: tuple[slice, slice]) -> np.ndarray:
+    """An ``(H, W)`` mask, True in ``region`` (``np.s_[y0:y1, x0:x1]``)."""
+    mask = np.zeros((H, W), bool)
+    mask[region] = True
+    return mask
+
+
+def _specular(g: Guides, box: tuple[slice, slice]) -> tuple[np.ndarray, Guides]:
+    """``(mask, guides)``: ``g`` with no diffuse reflectance (metal or glass) in ``box``."""
+    mask = _box(box)
+    bands = g.albedo_bands.copy()
+    bands[mask] = 0.0
+    return mask, Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct)
+
+
 def test_metal_and_glass_do_not_mix_with_diffuse_surfaces():
     """No diffuse reflectance (albedo_bands 0: metal, glass) means ``cube / floor`` is on another
     scale (100× at the 0.01 floor): such pixels never mix with diffuse ones (left as rendered)."""
     rng = np.random.default_rng(7)
     truth, noisy, g = _scene(rng, noise=0.02)
-    metal = np.zeros((H, W), bool)
-    metal[30:40, 40:56] = True
-    bands = g.albedo_bands.copy()
-    bands[metal] = 0.0
+    metal, guides = _specular(g, np.s_[30:40, 40:56])
     cube = noisy.copy()
     cube[metal] = 0.5  # a bright specular reflection
-    guides = Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct)
     den = denoise(cube, guides, "dt-irradiance")
     near = np.zeros((H, W), bool)
     near[26:44, 36:60] = True
@@ -346,14 +348,11 @@ def test_metal_and_glass_are_left_as_rendered():
     guide describes: a refracted pattern is not smoothed (it was, filtered among its own kind)."""
     rng = np.random.default_rng(8)
     _, noisy, g = _scene(rng, noise=0.02)
-    glass = np.zeros((H, W), bool)
-    glass[20:44, 30:58] = True
-    bands = g.albedo_bands.copy()
-    bands[glass] = 0.0
+    glass, guides = _specular(g, np.s_[20:44, 30:58])
     cube = noisy.copy()
     yy, xx = np.indices((H, W))
     cube[glass] = (0.2 + 0.15 * np.sin(xx / 1.5) * np.cos(yy / 2.0))[glass][:, None]  # a refracted image
-    den = denoise(cube, Guides(g.albedo, g.normal, g.depth, g.hit, g.emitter, bands, g.direct), "dt-irradiance")
+    den = denoise(cube, guides, "dt-irradiance")
     np.testing.assert_allclose(den[glass], cube[glass], rtol=1e-5)
 
 
