@@ -34,11 +34,14 @@ class Composition:
     weights ``(H, W, G)`` (eq. 3.3, always the formula's), mask ``(H, W)`` bool, illum ``(H, W, 3)``
     the per-pixel white point in camera RGB with G = 1 (LSMI's illumination map), mixture
     ``(H, W, G)`` each group's share of that white point's G; all float32 but the mask. ``gt`` names
-    the ground truth that gain, ccm, srgb, illum and mixture follow.
+    the ground truth that gain, ccm, srgb, illum and mixture follow. ``srgb_exposure``: the gain the
+    sRGB rendering applied to ``ccm · (raw × gain)`` (its own constant AEC when no exposure was
+    asked, else 1).
     """
 
     white_points: np.ndarray
     exposure_gain: float
+    srgb_exposure: float = 1.0
     gt: str = "formula"
     raw: np.ndarray | None = None
     gain: np.ndarray | None = None
@@ -142,6 +145,7 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
         # one CCM pass: the AEC of the sRGB rendering measures the very image it then encodes
         linear = apply_ccm(raw * gain, ccm)
         if exposure is None:
-            linear *= np.float32(aec.aec_gain(linear, method="constant"))
+            out.srgb_exposure = float(aec.aec_gain(linear, method="constant"))
+            linear *= np.float32(out.srgb_exposure)
         out.srgb = encode_srgb(linear)
     return out

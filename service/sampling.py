@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import random
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,14 +64,19 @@ class Plan:
         return [a > 0 and not m.empty for a, m in zip(self.intensities, self.metas)]
 
 
-def _pick(kind: str, name: str | None, options: list[str], rng: random.Random) -> str:
-    if not options:
+def _pick(kind: str, name: str | None, options: Callable[[], list[str]], exists: Callable[[str], bool],
+          rng: random.Random) -> str:
+    """The named scene or view, or one drawn by ``rng``. ``exists`` tests a name without listing them
+    all (a request naming one of thousands of scenes reads one file); ``options`` lists them, only to
+    draw one or to suggest close matches for an unknown name."""
+    if name is not None and exists(name):
+        return name
+    known = options()
+    if not known:
         raise NotFound(f"the store has no {kind}s; render some with `illumix render`")
     if name is None:
-        return rng.choice(sorted(options))
-    if name not in options:
-        raise NotFound(str(unknown_name(kind, name, options)))
-    return name
+        return rng.choice(sorted(known))
+    raise NotFound(str(unknown_name(kind, name, known)))
 
 
 def _lighting(spec: SampleSpec, groups: list[str], rendered_as: list[str]) -> tuple[list[str | None], list[float]]:
@@ -123,8 +129,8 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     seed = spec.seed if spec.seed is not None else random.SystemRandom().randrange(2**31)
     rng = random.Random(seed)
     store = ctx.store
-    scene = _pick("scene", spec.scene, store.scenes(), rng)
-    view = _pick("view", spec.view, store.views(scene), rng)
+    scene = _pick("scene", spec.scene, store.scenes, store.has_scene, rng)
+    view = _pick("view", spec.view, lambda: store.views(scene), lambda v: store.has_view(scene, v), rng)
     groups = store.groups(scene, view)
     if not groups:
         raise NotFound(f"view {scene}/{view} has no complete light groups yet; finish rendering it")
@@ -410,6 +416,8 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain,
                        noise, {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
                                "compose": 1e3 * (t_compose - t_read)})
+    if comp.srgb is not None:
+        meta["srgb_exposure"] = comp.srgb_exposure  # what the sRGB rendering applied on top of raw
     return arrays, meta
 
 

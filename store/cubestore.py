@@ -163,6 +163,18 @@ class CubeStore:
                 out.append(v)
         return out
 
+    def has_scene(self, scene: str) -> bool:
+        """Whether ``scene`` exists (one file test; :meth:`scenes` lists them all)."""
+        return _safe(scene) and self._b.exists(f"scenes/{scene}/zarr.json")
+
+    def has_view(self, scene: str, view: str) -> bool:
+        """Whether ``scene`` has the view ``view`` with metadata (one metadata read; :meth:`views`
+        reads every view's)."""
+        if not (_safe(view) and self.has_scene(scene)):
+            return False
+        attrs = node_attrs(self._b, layout.view_path(scene, view))
+        return attrs is not None and VIEW_ATTR in attrs
+
     def groups(self, scene: str, view: str, include_incomplete: bool = False) -> list[str]:
         """The view's light groups in stored order: first ``ViewMeta.groups`` (declared order), then
         undeclared ones in order of first write. Only complete groups (empty ones included) unless
@@ -360,6 +372,15 @@ class CubeStore:
         from store.registry import Registry
 
         return Registry(self._b, kind, max_bytes=max_bytes)
+
+
+def _safe(name: object) -> bool:
+    """Whether ``name`` is a valid store name (:func:`store.names.check_name`), without raising."""
+    try:
+        check_name(name, "name")
+    except StoreError:
+        return False
+    return True
 
 
 def _backend(location: str | os.PathLike, **kwargs) -> Backend:

@@ -21,22 +21,20 @@ from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from retarget import global_wb
-from retarget.exposure import aec_gain
 from retarget.grid import DEFAULT_GRID
 from retarget.groundtruth import white_point
-from retarget.isp import apply_ccm
 from retarget.locus import locus
 from service import arrays_format
 from service.deps import CtxDep
 from service.errors import error_responses, fail, refuses
 from service.models import IlluminantCurve, LocusPoint, Spectra
 from service.routes.samples import HeldResponse
-from service.sampling import build, exposure_for, plan, price
+from service.sampling import build, plan, price
 from service.spec import MAX_NAME, SampleSpec
 
 router = APIRouter(prefix="/explore", tags=["explore"])
 #: what a frame is composed with (ccm only to expose the baseline like the ground-truth rendering)
-FRAME_OUTPUTS = ("raw", "gain", "ccm", "srgb", "mixture", "illum", "mask", "meta")
+FRAME_OUTPUTS = ("raw", "gain", "srgb", "mixture", "illum", "mask", "meta")
 SENT = ("raw", "gain", "illum", "mixture", "mask")  # sent as composed; srgb and baseline as uint8
 FIXED = ("outputs", "format", "dtype", "bayer", "noise")  # noise: the baseline renders the clean raw
 BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor white points weighted by their "
@@ -74,7 +72,7 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
         t1 = time.perf_counter()
         arrays, meta = build(p, ctx)
         t2 = time.perf_counter()
-        meta["baseline"] = _baseline(arrays, meta, spec)
+        meta["baseline"] = _baseline(arrays, meta)
         out = {k: arrays[k] for k in SENT}
         out["srgb"] = _bytes(arrays["srgb"])
         out["baseline"] = _bytes(meta["baseline"].pop("image"))
@@ -88,7 +86,7 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
         raise
 
 
-def _baseline(arrays: dict[str, np.ndarray], meta: dict, spec: SampleSpec) -> dict:
+def _baseline(arrays: dict[str, np.ndarray], meta: dict) -> dict:
     """The single-global-white-point rendering and its parameters (``image``: float32 sRGB)."""
     groups = meta["illuminants"]
     shares = global_wb.frame_shares(arrays["mixture"], arrays["mask"])
@@ -96,8 +94,7 @@ def _baseline(arrays: dict[str, np.ndarray], meta: dict, spec: SampleSpec) -> di
     ccm = global_wb.global_ccm(shares, np.array([g["ccm"] for g in groups]))
     wp = global_wb.global_white_point(shares, wps)
     raw = arrays["raw"]
-    # compose exposes the ground truth's sRGB itself when no exposure was asked (retarget.compose): same here
-    exposure = aec_gain(apply_ccm(raw * arrays["gain"], arrays["ccm"]), "constant") if exposure_for(spec) is None else 1.0
+    exposure = meta["srgb_exposure"]  # the ground truth's sRGB rendering's own (retarget.compose)
     return {"white_point_rgb": wp.tolist(), "ccm": ccm.round(8).tolist(), "exposure": exposure,
             "shares": {g["group"]: float(s) for g, s in zip(groups, shares)}, "definition": BASELINE_DEFINITION,
             "image": global_wb.render_global(raw, wp, ccm, exposure)}
