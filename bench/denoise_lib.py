@@ -108,8 +108,15 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
     if path is not None and path.exists():
         with np.load(path) as z:
-            if "albedo_bands" in z.files:  # older caches predate the per-band albedo: render again
-                return {k: z[k] for k in z.files}
+            cached = {k: z[k] for k in z.files} if "albedo_bands" in z.files else None  # older: render again
+        if cached is not None and "straddle" not in cached:  # older caches predate it: trace it alone
+            from renderer_jobs.denoise_guides import straddle
+            from renderer_jobs.mitsuba_trace import Tracer
+
+            cached["straddle"] = straddle(Tracer(scene, view, None, res))
+            np.savez(path, **cached)
+        if cached is not None:
+            return cached
     c0 = time.process_time()
     aovs = render_aovs(scene, view, RenderSettings(spp=64, seed=seed, aov_spp=aov_spp))
     aovs["cpu_s"] = np.float64(time.process_time() - c0)

@@ -16,6 +16,11 @@
   (dielectrics) blocking them were not there, crossed in a straight line. Glass focuses light (a
   caustic) where the direct guide shows its shadow; ``dt-irradiance`` averages nothing there
   (:func:`retarget.denoise.irradiance_classes`), and the targeted extra paths go there instead.
+- **Straddle** (the ``straddle`` AOV, ``(H, W)`` bool): the pixel's sub-pixel rays hit more than one
+  surface (normals more than ~11° apart, depths more than 5 % apart, or some rays miss). Its light
+  is then a mix of two surfaces' that no neighbour has, and its averaged normal and depth look like
+  neither side's, or like the side with the larger share: ``dt-irradiance`` leaves it as rendered
+  (bench/DENOISE.md measures what that bought).
 """
 
 from __future__ import annotations
@@ -30,6 +35,9 @@ from renderer_jobs.scene_model import Scene
 
 ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
 DIRECT_SAMPLES = 64  # next-event samples per pixel of the direct-light guide
+STRADDLE_RAYS = 16  # sub-pixel positions of the straddle AOV (finds a second surface covering >= ~1/16)
+STRADDLE_COS = 0.98  # two hits whose normals' dot product is below this are on different surfaces
+STRADDLE_LOG_DEPTH = 0.05  # ... and so are two whose depths differ by more than this (log ratio)
 _CHUNK = 1 << 20  # rays per Dr.Jit batch (bounds memory at any resolution)
 _DIRECT_SEED = 0xD1EC7  # mixed with the render's seed: the guide's random numbers are its own
 
@@ -76,6 +84,33 @@ def albedo_bands(tracer: Tracer, rays: int = ALBEDO_RAYS) -> np.ndarray:
     return _per_pixel(tracer, rays, lambda pix, jit: tracer.spectral_albedo(pix, jit, lam))
 
 
+def straddle(tracer: Tracer, rays: int = STRADDLE_RAYS) -> np.ndarray:
+    """The ``straddle`` AOV ``(H, W)`` bool of the tracer's view (module docstring): a pixel whose
+    ``rays`` Hammersley positions' first hits are not all on one surface — some miss, or a hit's
+    normal is off the pixel's mean normal (:data:`STRADDLE_COS`), or its depth off the pixel's
+    median depth (:data:`STRADDLE_LOG_DEPTH`)."""
+    lam = np.float32([450.0, 550.0, 650.0, 550.0])  # geometry only: any wavelengths
+    jit = hammersley(rays)
+    npix = tracer.width * tracer.height
+    out = np.zeros(npix, bool)
+    per = max(1, _CHUNK // rays)
+    for start in range(0, npix, per):
+        p = np.arange(start, min(npix, start + per))
+        hits = tracer.first_hit(np.repeat(p, rays), np.tile(jit, (len(p), 1)), np.tile(lam, (len(p) * rays, 1)))
+        hit = hits["hit"].reshape(len(p), rays)
+        normal = hits["normal"].reshape(len(p), rays, 3) * hit[..., None]
+        mean = normal.sum(axis=1)
+        mean /= np.maximum(np.linalg.norm(mean, axis=1, keepdims=True), 1e-12)
+        logd = np.log(np.maximum(hits["distance"].reshape(len(p), rays), 1e-12))
+        some = hit.any(axis=1)
+        median = np.zeros(len(p))
+        median[some] = np.nanmedian(np.where(hit, logd, np.nan)[some], axis=1)
+        off = hit & ((np.einsum("pkc,pc->pk", normal, mean) < STRADDLE_COS)
+                     | (np.abs(logd - median[:, None]) > STRADDLE_LOG_DEPTH))
+        out[p] = off.any(axis=1) | (some & ~hit.all(axis=1))
+    return out.reshape(tracer.height, tracer.width)
+
+
 def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
     """Four band centres (nm) at the 1/8, 3/8, 5/8 and 7/8 quantiles of a group's emission over the
     bands: the guide sees the light where the group emits (a narrow-band group too)."""
@@ -108,5 +143,5 @@ def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
     return (img[..., 0], img[..., 1]) if behind_glass else img[..., 0]
 
 
-__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "albedo_bands", "direct_light", "guide_wavelengths", "guides_needed",
-           "hammersley"]
+__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "STRADDLE_RAYS", "albedo_bands", "direct_light", "guide_wavelengths",
+           "guides_needed", "hammersley", "straddle"]

@@ -309,21 +309,26 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
 def denoise_guides(st, scene, job, settings) -> tuple:
     """``(Guides, guide_passes)`` of ``settings.denoise`` for a cube job: the view's stored AOVs, plus
     what only the renderer can make (:mod:`renderer_jobs.denoise_guides`): the group's direct-light
-    guide, and the per-band albedo of a view stored without it (e.g. by Cycles, or before it
-    existed), traced once and added to the view. ``guide_passes`` records what was traced."""
+    guide, and the per-band albedo and the straddle AOV of a view stored without them (e.g. by
+    Cycles, or before they existed), traced once and added to the view. ``guide_passes`` records what was traced."""
     from renderer_jobs import denoise_guides as dg
     from renderer_jobs.mitsuba_trace import Tracer
     from retarget.denoise import Guides
 
     wanted = dg.guides_needed(settings.denoise)
     view_meta = st.view_meta(scene.name, job.view)
-    names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter")
+    names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter", "straddle")
     aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in view_meta.aovs}
     extra: dict = {}
-    if "albedo_bands" in wanted and "albedo_bands" not in aovs:
-        aovs["albedo_bands"] = dg.albedo_bands(Tracer(scene, job.view, None, settings.resolution))
-        st.write_view(scene.name, job.view, view_meta, {"albedo_bands": aovs["albedo_bands"]})
-        extra["albedo_bands"] = f"traced for denoising ({dg.ALBEDO_RAYS} rays per pixel) and added to the view"
+    traced = {name: (fn, rays) for name, fn, rays in (("albedo_bands", dg.albedo_bands, dg.ALBEDO_RAYS),
+                                                      ("straddle", dg.straddle, dg.STRADDLE_RAYS))
+              if name in wanted and name not in aovs}
+    if traced:
+        tracer = Tracer(scene, job.view, None, settings.resolution)
+        for name, (fn, rays) in traced.items():
+            aovs[name] = fn(tracer)
+            extra[name] = f"traced for denoising ({rays} rays per pixel) and added to the view"
+        st.write_view(scene.name, job.view, view_meta, {n: aovs[n] for n in traced})
     guides = Guides.from_aovs(aovs)
     if "direct" in wanted:
         # the light glass keeps from each pixel: traced only where the scene has glass (0.1-0.25 s

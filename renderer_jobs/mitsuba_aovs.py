@@ -1,12 +1,12 @@
-"""Geometry AOVs of a view (albedo, per-band albedo, normal, depth, hit mask, emitter mask): the denoising guides and
-the validity masks the service serves, from jittered primary rays (no path tracing)."""
+"""Geometry AOVs of a view (albedo, per-band albedo, normal, depth, hit mask, emitter mask, straddle): the
+denoising guides and the validity masks the service serves, from jittered primary rays (no path tracing)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from renderer_jobs.denoise_guides import albedo_bands as spectral_albedo
-from renderer_jobs.denoise_guides import guides_needed
+from renderer_jobs.denoise_guides import guides_needed, straddle
 from renderer_jobs.mitsuba_render import RenderSettings
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.scene_model import Scene
@@ -22,11 +22,12 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)`` (when ``settings.denoise``
     reads it): the diffuse reflectance per band, exact at the band centres, over ``ALBEDO_RAYS``
     Hammersley positions per pixel (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance``
-    guide); normal ``(H, W, 3)``: world-space shading normal
+    guide); straddle ``(H, W)`` bool (when ``settings.denoise`` reads it): the pixel's rays hit more
+    than one surface (``renderer_jobs.denoise_guides.straddle``); normal ``(H, W, 3)``: world-space shading normal
     (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
     nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``
     bool: most of the pixel's rays hit a light source's own surface (any group's), where the
-    illumination of a surface is not defined. float32 except mask and emitter.
+    illumination of a surface is not defined. float32 except mask, emitter and straddle.
     """
     tracer = Tracer(scene, view, None, settings.resolution)  # every emitter on: emitting shapes flagged
     w, h = tracer.width, tracer.height
@@ -58,4 +59,6 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
             "emitter": emitter.reshape(h, w)}
     if "albedo_bands" in guides_needed(settings.denoise):
         aovs["albedo_bands"] = spectral_albedo(tracer)
+    if "straddle" in guides_needed(settings.denoise):
+        aovs["straddle"] = straddle(tracer)
     return aovs

@@ -49,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from retarget.denoise_classes import irradiance_classes
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
 from retarget.errors import SpectralError
 
@@ -56,27 +57,6 @@ from retarget.errors import SpectralError
 #: most others) map to distinct values.
 _NORMAL_AXIS = np.array([0.53, 0.71, 0.46]) / np.linalg.norm([0.53, 0.71, 0.46])
 _FAR = 1e4  # guide offset separating emitter / background pixels from surfaces
-#: Surface pixels this close (pixels, chessboard distance) to an emitter pixel get codes of their own in
-#: ``dt-irradiance``'s joint image: a lamp's edge spills light over two pixels (bench/DENOISE.md).
-LAMP_RING = 2
-#: A surface pixel whose group's direct light is blocked by glass alone for more than this share,
-#: and its neighbours within GLASS_MARGIN pixels, get codes of their own: a caustic may lie there.
-GLASS_SHARE = 0.05
-GLASS_MARGIN = 1
-#: ... unless glass shades more than this share of the surface pixels: then it encloses the light (a
-#: bulb's envelope, a lamp cover, a glazed window) rather than throwing a caustic somewhere, and
-#: leaving that much as rendered (and tracing it with the targeted paths' 8× the spp) would not pay
-GLASS_MAX_COVER = 0.25
-
-
-def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
-    """``mask`` grown by ``radius`` pixels (a (2r+1)² square)."""
-    import cv2  # noqa: PLC0415 - heavy; only the filters need it
-
-    kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
-    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
-
-
 @dataclass(frozen=True)
 class Guides:
     """A view's denoising guides, all ``(H, W, …)`` float32/bool from the geometry AOV pass.
@@ -88,7 +68,8 @@ class Guides:
     unit: only its log differences count), or None — a per-group guide, set with :meth:`with_direct`;
     behind_glass ``(H, W)`` the share of that group's direct light that only glass (a dielectric,
     crossed straight) keeps from the pixel, in [0, 1], or None: where the glass may focus the light
-    (a caustic) the direct guide shows a shadow, so there it tells nothing.
+    (a caustic) the direct guide shows a shadow, so there it tells nothing; straddle ``(H, W)`` bool
+    the pixel's sub-pixel rays hit more than one surface (the ``straddle`` AOV), or None.
     """
 
     albedo: np.ndarray
@@ -99,11 +80,12 @@ class Guides:
     albedo_bands: np.ndarray | None = None
     direct: np.ndarray | None = None
     behind_glass: np.ndarray | None = None
+    straddle: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
-        """From a view's AOVs (``albedo``, ``normal``, ``depth``; ``mask``, ``emitter`` and
-        ``albedo_bands`` optional)."""
+        """From a view's AOVs (``albedo``, ``normal``, ``depth``; ``mask``, ``emitter``,
+        ``albedo_bands`` and ``straddle`` optional)."""
         missing = [k for k in ("albedo", "normal", "depth") if k not in aovs]
         if missing:
             raise SpectralError(f"denoising needs the view's AOVs {missing}; re-render the view "
@@ -112,8 +94,9 @@ class Guides:
         hit = np.asarray(aovs["mask"], bool) if "mask" in aovs else depth > 0
         emitter = np.asarray(aovs["emitter"], bool) if "emitter" in aovs else np.zeros_like(hit)
         bands = np.asarray(aovs["albedo_bands"], np.float32) if "albedo_bands" in aovs else None
+        straddle = np.asarray(aovs["straddle"], bool) if "straddle" in aovs else None
         return cls(np.asarray(aovs["albedo"], np.float32), np.asarray(aovs["normal"], np.float32),
-                   depth, hit, emitter, bands)
+                   depth, hit, emitter, bands, straddle=straddle)
 
     def with_direct(self, direct: np.ndarray, behind_glass: np.ndarray | None = None) -> Guides:
         """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0) and, when
@@ -162,49 +145,6 @@ def dt_guide_image(guides: Guides, sigma_albedo: float, sigma_normal: float) -> 
 def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_albedo: float = 0.05,
         sigma_normal: float = 0.2, iterations: int = 3) -> np.ndarray:
     return dt_filter(cube, dt_guide_image(guides, sigma_albedo, sigma_normal), sigma_spatial, iterations)
-
-
-def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transport") -> np.ndarray:
-    """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (pushed apart by ``_FAR``)
-    for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface, 1 background,
-    2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the filter must
-    leave as rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
-
-    - metal and glass (no diffuse reflectance) in a transport cube: what they show is the rest of
-      the scene, reflected or refracted, which no guide describes (filtered among themselves, a glass
-      ball's refraction was smeared: ``bench/DENOISE.md``). An illumination cube holds the light
-      falling on them, as on any surface, which the guides do describe: there they are one class of
-      their own (3), since their neighbours' light may differ in kind;
-    - next to a background pixel, or within :data:`LAMP_RING` pixels of an emitter pixel: they may
-      cover part of a light source or of the sky behind a window (the AOVs flag a pixel by its
-      majority, or its centre), whose radiance dwarfs the surface's (a halo around every window and
-      lamp otherwise);
-    - where glass alone blocks more than :data:`GLASS_SHARE` of the group's direct light
-      (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
-      caustic) that the direct guide shows as shadow, so no guide shows its edges — unless that is
-      more than :data:`GLASS_MAX_COVER` of the surface (glass around the light itself).
-
-    The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
-    them more paths."""
-    if kind not in ("transport", "illumination"):
-        raise SpectralError(f"denoise: kind must be 'transport' or 'illumination', got {kind!r}")
-    cls = guides.pixel_class().astype(np.float32)
-    surface = cls == 0
-    near = _dilate(guides.emitter, LAMP_RING) | _dilate(~surface & ~guides.emitter, 1)
-    if guides.albedo_bands is not None:
-        specular = surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)
-        if kind == "transport":
-            near |= specular
-        else:
-            cls[specular] = 3
-    if guides.behind_glass is not None:
-        shaded = guides.behind_glass > GLASS_SHARE
-        if surface.any() and shaded[surface].mean() <= GLASS_MAX_COVER:
-            near |= _dilate(shaded, GLASS_MARGIN)
-    near &= surface
-    y, x = np.indices(cls.shape)
-    cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
-    return cls
 
 
 def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float,
@@ -329,7 +269,7 @@ IMPLEMENTATIONS: dict[str, DenoiseMethod] = {
                          "albedo_floor": 0.01, "iterations": 3},
         "Gastal & Oliveira 2011 (domain transform, RF) on the albedo-demodulated cube, joint image from the "
         "normal, depth and the light group's direct light", ("albedo_bands", "normal", "depth", "mask", "emitter",
-                                                            "direct")),
+                                                            "straddle", "direct")),
     "dt-guides": DenoiseMethod(_dt, {"sigma_spatial": 4.0, "sigma_albedo": 0.05, "sigma_normal": 0.2, "iterations": 3},
                                "Gastal & Oliveira 2011 (domain transform, RF), joint image from AOV guides",
                                ("albedo", "normal", "mask", "emitter")),

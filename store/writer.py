@@ -32,7 +32,7 @@ ILLUMINATION = "illumination"  # sub-group of a cube node holding its illuminati
 DENOISED = "denoised"  # sub-group holding the denoised transport cube (and DENOISED/ILLUMINATION)
 KNOWN_AOVS: dict[str, tuple[int | None, type]] = {
     "albedo": (3, np.float32), "normal": (3, np.float32), "depth": (None, np.float32), "mask": (None, np.bool_),
-    "emitter": (None, np.bool_), "albedo_bands": (-1, np.float32)}
+    "emitter": (None, np.bool_), "albedo_bands": (-1, np.float32), "straddle": (None, np.bool_)}
 
 
 def _validated(model: type, meta: Any, what: str) -> Any:

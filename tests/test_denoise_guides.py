@@ -53,27 +53,32 @@ def test_albedo_bands_and_direct_light_match_the_closed_forms_on_the_validation_
 
 
 def test_a_view_stored_without_the_per_band_albedo_gets_it_once(tmp_path):
-    """A store written without ``albedo_bands`` (``--denoise none``, Cycles, or before it existed):
-    the first cube denoised with the default traces it and adds it to the view; the next one reads
-    it (the same guide for every group), and both record the direct-light pass."""
+    """A store written without ``albedo_bands`` and ``straddle`` (``--denoise none``, Cycles, or
+    before they existed): the first cube denoised with the default traces them and adds them to the
+    view; the next one reads them (the same guides for every group), and both record the
+    direct-light pass."""
     from renderer_jobs import jobs
     from renderer_jobs.mitsuba_render import render_cube
+    from renderer_jobs.mitsuba_trace import Tracer
     from store import CubeStore
 
     s = demo.validation_chart()
     plain = RenderSettings(spp=16, seed=1, denoise=None)
     st = CubeStore.open(str(tmp_path / "store"), mode="a")
     aovs = render_aovs(s, "head-on", plain)
-    assert "albedo_bands" not in aovs  # not asked for: not traced
+    assert "albedo_bands" not in aovs and "straddle" not in aovs  # not asked for: not traced
     st.write_view(s.name, "head-on", jobs._view_meta(s, "head-on"), aovs)
     settings = RenderSettings(spp=16, seed=1)
     result = render_cube(s, "head-on", "light", settings)
     for k in range(2):
         jobs.store_result(st, s, jobs.Job(s.name, "head-on", "light"), result, settings, overwrite=k > 0, extra_stats={})
         passes = st.cube_meta(s.name, "head-on", "light").denoised.model_extra["guide_passes"]
-        assert ("albedo_bands" in passes) == (k == 0) and passes["direct"]["samples_per_pixel"] > 0
-        assert "albedo_bands" in st.view_meta(s.name, "head-on").aovs
+        assert ("albedo_bands" in passes) == ("straddle" in passes) == (k == 0)
+        assert passes["direct"]["samples_per_pixel"] > 0
+        assert {"albedo_bands", "straddle"} <= set(st.view_meta(s.name, "head-on").aovs)
     assert st.read_aov(s.name, "head-on", "albedo_bands").shape == (*aovs["depth"].shape, 63)
+    np.testing.assert_array_equal(st.read_aov(s.name, "head-on", "straddle"),
+                                  dg.straddle(Tracer(s, "head-on", None, None)))
 
 
 def _box_with_ball(material: str | None) -> object:
@@ -115,3 +120,34 @@ def test_behind_glass_is_the_light_the_glass_keeps_from_the_direct_guide():
     assert full.any() and (direct[full] < 1e-7).all()
     d_opaque, b_opaque = dg.direct_light(opaque, "cam", "bulb", res, seed=1, behind_glass=True)
     assert (b_opaque == 0).all() and (d_opaque[shadow] < free[shadow]).all()
+
+
+def test_straddle_marks_pixels_whose_rays_hit_two_surfaces():
+    """The ``straddle`` AOV flags pixels only at geometric edges — where two walls of the box meet,
+    or where its rays partly miss — never inside a flat face; a ball adds a ring around its own
+    footprint (measured against the geometry AOVs of the box with and without it)."""
+    from scipy.ndimage import binary_dilation, binary_erosion
+
+    from renderer_jobs.mitsuba_trace import Tracer
+
+    res, k3 = (48, 32), np.ones((3, 3), bool)
+    empty, ball = (_box_with_ball(m) for m in (None, "white"))
+    aovs = [render_aovs(s, "cam", RenderSettings(spp=16, seed=1, resolution=res, denoise=None, aov_spp=64))
+            for s in (empty, ball)]
+    flags = [dg.straddle(Tracer(s, "cam", None, res)) for s in (empty, ball)]
+    n, hit = aovs[0]["normal"], aovs[0]["mask"]
+    # a geometric edge between two adjacent pixels: normals > 25° apart, or one hits and one misses
+    edge = np.zeros(res[::-1], bool)
+    for a, b in (np.s_[:, :-1], np.s_[:, 1:]), (np.s_[:-1, :], np.s_[1:, :]), (np.s_[:-1, :-1], np.s_[1:, 1:]),\
+                (np.s_[:-1, 1:], np.s_[1:, :-1]):
+        e = (np.einsum("hwc,hwc->hw", n[a], n[b]) < 0.9) | (hit[a] != hit[b])
+        edge[a] |= e
+        edge[b] |= e
+    near_edge = binary_dilation(edge, k3)
+    assert flags[0].dtype == bool and flags[0].shape == res[::-1] and 20 < flags[0].sum() < 0.2 * flags[0].size
+    assert not (flags[0] & ~near_edge).any()  # never inside a flat face
+    footprint = np.abs(aovs[1]["depth"] - aovs[0]["depth"]) > 1e-4
+    ring = footprint & ~binary_erosion(footprint, k3)
+    added = flags[1] & ~flags[0]
+    assert not (added & ~binary_dilation(footprint, k3)).any()  # only on and around the ball
+    assert (added & ring).sum() >= 0.6 * ring.sum()

@@ -1,0 +1,91 @@
+"""Which pixels ``dt-irradiance`` may average together: the class codes of its joint image.
+
+A guide-only linear filter is biased wherever the light changes in a way no guide shows; the
+pixels where that is known to happen get codes none of their neighbours has, so the filter leaves
+them as rendered (their reach is then ~1, and the targeted extra paths of
+:mod:`renderer_jobs.boost_paths` give them more paths). Every rule reads the guides alone, never
+the cube, so the filter stays linear and the extra paths' placement unbiased. The rules and what
+each bought are measured in ``bench/DENOISE.md``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from retarget.errors import SpectralError
+
+if TYPE_CHECKING:
+    from retarget.denoise import Guides
+
+#: Surface pixels this close (pixels, chessboard distance) to an emitter pixel get codes of their own in
+#: ``dt-irradiance``'s joint image: a lamp's edge spills light over two pixels (bench/DENOISE.md).
+LAMP_RING = 2
+#: A surface pixel whose group's direct light is blocked by glass alone for more than this share,
+#: and its neighbours within GLASS_MARGIN pixels, get codes of their own: a caustic may lie there.
+GLASS_SHARE = 0.05
+GLASS_MARGIN = 1
+#: ... unless glass shades more than this share of the surface pixels: then it encloses the light (a
+#: bulb's envelope, a lamp cover, a glazed window) rather than throwing a caustic somewhere, and
+#: leaving that much as rendered (and tracing it with the targeted paths' 8× the spp) would not pay
+GLASS_MAX_COVER = 0.25
+
+
+def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask`` grown by ``radius`` pixels (a (2r+1)² square)."""
+    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+
+    kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
+def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transport") -> np.ndarray:
+    """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (the filter never averages
+    across codes)
+    for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface, 1 background,
+    2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the filter must
+    leave as rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
+
+    - metal and glass (no diffuse reflectance) in a transport cube: what they show is the rest of
+      the scene, reflected or refracted, which no guide describes (filtered among themselves, a glass
+      ball's refraction was smeared: ``bench/DENOISE.md``). An illumination cube holds the light
+      falling on them, as on any surface, which the guides do describe: there they are one class of
+      their own (3), since their neighbours' light may differ in kind;
+    - next to a background pixel, or within :data:`LAMP_RING` pixels of an emitter pixel: they may
+      cover part of a light source or of the sky behind a window (the AOVs flag a pixel by its
+      majority, or its centre), whose radiance dwarfs the surface's (a halo around every window and
+      lamp otherwise);
+    - where glass alone blocks more than :data:`GLASS_SHARE` of the group's direct light
+      (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
+      caustic) that the direct guide shows as shadow, so no guide shows its edges — unless that is
+      more than :data:`GLASS_MAX_COVER` of the surface (glass around the light itself);
+    - straddling a geometric edge (``guides.straddle``, when the view has it: its sub-pixel rays hit
+      two surfaces): its light is a mix of theirs that no neighbour has, and its averaged normal and
+      depth look like neither side's, or like the side with the larger share, which it would be
+      averaged with.
+
+    The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
+    them more paths."""
+    if kind not in ("transport", "illumination"):
+        raise SpectralError(f"denoise: kind must be 'transport' or 'illumination', got {kind!r}")
+    cls = guides.pixel_class().astype(np.float32)
+    surface = cls == 0
+    near = _dilate(guides.emitter, LAMP_RING) | _dilate(~surface & ~guides.emitter, 1)
+    if guides.albedo_bands is not None:
+        specular = surface & (guides.albedo_bands.max(axis=-1) < albedo_floor)
+        if kind == "transport":
+            near |= specular
+        else:
+            cls[specular] = 3
+    if guides.behind_glass is not None:
+        shaded = guides.behind_glass > GLASS_SHARE
+        if surface.any() and shaded[surface].mean() <= GLASS_MAX_COVER:
+            near |= _dilate(shaded, GLASS_MARGIN)
+    if guides.straddle is not None:
+        near |= guides.straddle
+    near &= surface
+    y, x = np.indices(cls.shape)
+    cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
+    return cls
+
+
+__all__ = ["GLASS_MARGIN", "GLASS_MAX_COVER", "GLASS_SHARE", "LAMP_RING", "irradiance_classes"]
