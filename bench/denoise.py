@@ -134,6 +134,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -221,13 +222,16 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
     default) and on uniform renders at the two spp that bracket the same total of paths (``--spp`` ×
     (1 + the boost's extra fraction); spp the sampler renders exactly, :func:`denoise_lib.exact_spp_bracket`),
     against the reference; plus the equal-path estimate of a noise-limited tail,
-    ``plain × √(spp / (spp·(1 + extra)))``."""
+    ``plain × √(spp / (spp·(1 + extra)))``. The renders without the extra paths are denoised
+    without the ``straddle`` guide, as the renderer does (``denoise_guides.uses_straddle``)."""
     groups = [g for g, _ in PAIR]
     if R["uniform"] is None:
         return {"boost_factor": args.boost_factor, "applied": False}
 
-    def measure(renders: dict) -> dict:
-        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides, method, R["direct"][g])
+    unboosted = replace(guides, straddle=None)  # the renderer uses it only with the extra paths
+
+    def measure(renders: dict, boosted: bool = False) -> dict:
+        raw = dl.compose([dl.run_denoise(renders[g]["cube"], guides if boosted else unboosted, method, R["direct"][g])
                           for g in groups], M)
         und = dl.compose([renders[g]["cube"] for g in groups], M)
         s = dl.err_summary(dl.rel_chroma_err(raw, ref["raw"]), classes["all"])
@@ -238,7 +242,7 @@ def targeted_paths(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dic
     extra = R["uniform"]["extra_paths_fraction"]
     out = {"boost_factor": args.boost_factor, "boost_reach": args.boost_reach, "applied": True, "method": method,
            "per_group": {g: R["test"][g]["targeted_paths"] for g in groups},
-           "extra_paths_fraction": round(extra, 5), "plain": measure(R["plain"]), "boosted": measure(R["test"]),
+           "extra_paths_fraction": round(extra, 5), "plain": measure(R["plain"]), "boosted": measure(R["test"], boosted=True),
            "uniform_equal_paths": [{"spp": spp, "extra_paths_fraction": round(spp / args.spp - 1, 4),
                                     "seed": UNIFORM_SEED, **measure(r)} for spp, r in R["uniform"]["renders"].items()]}
     scale = (1 + extra) ** -0.5

@@ -20,7 +20,8 @@
   surface (normals more than ~11° apart, depths more than 5 % apart, or some rays miss). Its light
   is then a mix of two surfaces' that no neighbour has, and its averaged normal and depth look like
   neither side's, or like the side with the larger share: ``dt-irradiance`` leaves it as rendered
-  (bench/DENOISE.md measures what that bought).
+  (bench/DENOISE.md measures what that bought). Used only with the targeted extra paths
+  (:func:`uses_straddle`).
 """
 
 from __future__ import annotations
@@ -42,11 +43,22 @@ _CHUNK = 1 << 20  # rays per Dr.Jit batch (bounds memory at any resolution)
 _DIRECT_SEED = 0xD1EC7  # mixed with the render's seed: the guide's random numbers are its own
 
 
-def guides_needed(method: str | None) -> tuple[str, ...]:
-    """The guides a ``RenderSettings.denoise`` value reads (none for ``None``)."""
+def guides_needed(settings) -> tuple[str, ...]:
+    """The guides ``settings`` (a :class:`RenderSettings`) denoise with: those its ``denoise``
+    method reads (none for ``None``), less ``straddle`` without the targeted extra paths
+    (:func:`uses_straddle`)."""
     from retarget.denoise import method_guides
 
-    return () if method is None else method_guides(method)
+    names = () if settings.denoise is None else method_guides(settings.denoise)
+    return tuple(n for n in names if n != "straddle" or uses_straddle(settings))
+
+
+def uses_straddle(settings) -> bool:
+    """The ``straddle`` AOV is used only when the targeted extra paths are on
+    (``settings.boost_factor > 1``): the pixels it leaves as rendered have the filter's largest
+    reach, so the extra paths go there; without them they keep the spp's noise, which costs more
+    than their bias (``front`` p99.3 3.05 → 3.50 % at 64 spp, bench/DENOISE.md)."""
+    return settings.denoise is not None and settings.boost_factor > 1
 
 
 def hammersley(n: int) -> np.ndarray:
@@ -144,4 +156,4 @@ def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
 
 
 __all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "STRADDLE_RAYS", "albedo_bands", "direct_light", "guide_wavelengths",
-           "guides_needed", "hammersley", "straddle"]
+           "guides_needed", "hammersley", "straddle", "uses_straddle"]

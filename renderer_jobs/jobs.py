@@ -315,9 +315,11 @@ def denoise_guides(st, scene, job, settings) -> tuple:
     from renderer_jobs.mitsuba_trace import Tracer
     from retarget.denoise import Guides
 
-    wanted = dg.guides_needed(settings.denoise)
+    wanted = dg.guides_needed(settings)
     view_meta = st.view_meta(scene.name, job.view)
-    names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter", "straddle")
+    # the straddle AOV only where it is wanted (the view may hold it from a boosted render)
+    names = ("albedo", "albedo_bands", "normal", "depth", "mask", "emitter",
+             *(("straddle",) if "straddle" in wanted else ()))
     aovs = {n: st.read_aov(scene.name, job.view, n) for n in names if n in view_meta.aovs}
     extra: dict = {}
     traced = {name: (fn, rays) for name, fn, rays in (("albedo_bands", dg.albedo_bands, dg.ALBEDO_RAYS),
@@ -355,7 +357,10 @@ def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = No
     out = {"transport": denoise(result.cube, guides, method)}
     if result.illumination is not None:
         out["illumination"] = denoise(result.illumination, guides, method, kind="illumination")
-    meta.denoised = DenoisedInfo(**describe(method), cost_ms=round(1e3 * (time.perf_counter() - t), 2),
+    info = describe(method)
+    if guides.straddle is None:  # optional: used only with the targeted extra paths
+        info["guides"] = [g for g in info["guides"] if g != "straddle"]
+    meta.denoised = DenoisedInfo(**info, cost_ms=round(1e3 * (time.perf_counter() - t), 2),
                                  **({"guide_passes": extra} if extra else {}))
     return out
 

@@ -22,8 +22,9 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)`` (when ``settings.denoise``
     reads it): the diffuse reflectance per band, exact at the band centres, over ``ALBEDO_RAYS``
     Hammersley positions per pixel (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance``
-    guide); straddle ``(H, W)`` bool (when ``settings.denoise`` reads it): the pixel's rays hit more
-    than one surface (``renderer_jobs.denoise_guides.straddle``); normal ``(H, W, 3)``: world-space shading normal
+    guide); straddle ``(H, W)`` bool (when ``settings`` denoise with it: with the targeted extra
+    paths): the pixel's rays hit more than one surface (``renderer_jobs.denoise_guides.straddle``);
+    normal ``(H, W, 3)``: world-space shading normal
     (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
     nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``
     bool: most of the pixel's rays hit a light source's own surface (any group's), where the
@@ -57,8 +58,9 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
             "depth": depth.reshape(h, w).astype(np.float32),
             "mask": hit[:, 0].reshape(h, w),
             "emitter": emitter.reshape(h, w)}
-    if "albedo_bands" in guides_needed(settings.denoise):
+    wanted = guides_needed(settings)
+    if "albedo_bands" in wanted:
         aovs["albedo_bands"] = spectral_albedo(tracer)
-    if "straddle" in guides_needed(settings.denoise):
+    if "straddle" in wanted:
         aovs["straddle"] = straddle(tracer)
     return aovs

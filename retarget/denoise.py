@@ -23,9 +23,9 @@ Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHO
   geometric edges and at the edges of shadows and sunlit patches, which no albedo or normal shows.
   Illumination cubes are irradiance already: filtered the same way without the division
   (``kind="illumination"``). Surface pixels next to a light source or the sky behind a window,
-  those glass shades from the group's light (a caustic may lie there) and, in transport cubes,
-  metal and glass are left as rendered (:func:`irradiance_classes`). Measured in
-  ``bench/DENOISE.md``.
+  those glass shades from the group's light (a caustic may lie there), those straddling a
+  geometric edge (the ``straddle`` AOV) and, in transport cubes, metal and glass are left as
+  rendered (:func:`retarget.denoise_classes.irradiance_classes`). Measured in ``bench/DENOISE.md``.
 - ``"dt-guides"`` (alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
   OpenCV ``ximgproc.dtFilter``, joint image = 4 guide channels: albedo R, G, B / ``sigma_albedo`` and

@@ -360,8 +360,9 @@ def test_a_pixel_straddling_a_geometric_edge_is_left_as_rendered():
     """A box's front (depth 2.0, in a shadow no guide shows: the direct guide is flat) before a lit
     wall (depth 2.6). The pixels of column 31 are 90 % box, 10 % wall: their averaged depth is the
     box's within σ_depth, so the filter averages them with the box and loses most of the wall's
-    share of their light (3 % off; the goal's p99.3 is 2.5 %). The ``straddle`` AOV (their rays hit two surfaces) leaves them
-    as rendered; the pure pixels on both sides are still averaged and unbiased."""
+    share of their light (3 % off; the goal's p99.3 is 2.5 %). The ``straddle`` AOV (their rays hit
+    two surfaces) leaves them as rendered; the pure pixels on both sides are still averaged and
+    unbiased."""
     refl = np.full((H, W, NB), 0.5, np.float32)
     share = np.clip(np.arange(W, dtype=np.float32) - 30.9, 0.0, 1.0)  # wall's share: 0.1 in column 31
     light = 0.4 * (1 - share) + 1.0 * share

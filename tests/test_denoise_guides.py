@@ -151,3 +151,21 @@ def test_straddle_marks_pixels_whose_rays_hit_two_surfaces():
     added = flags[1] & ~flags[0]
     assert not (added & ~binary_dilation(footprint, k3)).any()  # only on and around the ball
     assert (added & ring).sum() >= 0.6 * ring.sum()
+
+
+def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
+    """Without extra paths (``boost_factor`` 1) the pixels ``straddle`` leaves as rendered would keep
+    the spp's noise: it is neither traced nor read, even from a view that holds it, and the denoised
+    copy's record does not list it."""
+    from renderer_jobs import jobs
+    from store import CubeStore
+
+    s = demo.validation_chart()
+    boosted, plain = RenderSettings(spp=16, seed=1), RenderSettings(spp=16, seed=1, boost_factor=1)
+    assert "straddle" in dg.guides_needed(boosted) and "straddle" not in dg.guides_needed(plain)
+    assert "straddle" not in render_aovs(s, "head-on", plain)
+    st = CubeStore.open(str(tmp_path / "store"), mode="a")
+    st.write_view(s.name, "head-on", jobs._view_meta(s, "head-on"), render_aovs(s, "head-on", boosted))
+    for settings, used in ((plain, False), (boosted, True)):
+        guides, _ = jobs.denoise_guides(st, s, jobs.Job(s.name, "head-on", "light"), settings)
+        assert (guides.straddle is not None) == used
