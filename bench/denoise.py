@@ -661,6 +661,8 @@ def main(argv: list[str] | None = None) -> dict:
     R = render_all(args, scene, cache)
     groups = [g for g, _ in PAIR]
     guides = Guides.from_aovs(R["aovs"])
+    if args.boost_factor <= 1:  # the renderer uses the straddle guide only with the targeted extra paths
+        guides = replace(guides, straddle=None)
     M = dl.composition_weights(args.sensor, [i for _, i in PAIR], [R["test"][g]["emission"] for g in groups])
     ref = reference(R, M, guides)
     valid = ref["valid"]

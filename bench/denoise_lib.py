@@ -101,25 +101,29 @@ def exact_spp_bracket(target: float, sets: int = 4) -> tuple[int, int]:
 
 def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int, cache: Path | None,
                 log: Callable[[str], None]) -> dict:
-    """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached."""
+    """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached;
+    the ``straddle`` AOV is traced again alone when the cache's was made by another rule."""
     from renderer_jobs.mitsuba_aovs import render_aovs
     from renderer_jobs.mitsuba_render import RenderSettings
 
+    from renderer_jobs import denoise_guides as dg
+
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
+    rule = np.float64([dg.STRADDLE_RAYS, dg.STRADDLE_COS, dg.STRADDLE_LOG_DEPTH])  # the straddle AOV's
     if path is not None and path.exists():
         with np.load(path) as z:
             cached = {k: z[k] for k in z.files} if "albedo_bands" in z.files else None  # older: render again
-        if cached is not None and "straddle" not in cached:  # older caches predate it: trace it alone
-            from renderer_jobs.denoise_guides import straddle
+        if cached is not None and not np.array_equal(cached.get("straddle_rule"), rule):  # older: trace it alone
             from renderer_jobs.mitsuba_trace import Tracer
 
-            cached["straddle"] = straddle(Tracer(scene, view, None, res))
+            cached["straddle"], cached["straddle_rule"] = dg.straddle(Tracer(scene, view, None, res)), rule
             np.savez(path, **cached)
         if cached is not None:
             return cached
     c0 = time.process_time()
     aovs = render_aovs(scene, view, RenderSettings(spp=64, seed=seed, aov_spp=aov_spp))
     aovs["cpu_s"] = np.float64(time.process_time() - c0)
+    aovs["straddle_rule"] = rule
     log(f"  rendered AOVs ({aov_spp} rays per pixel): {aovs['cpu_s']:.1f} s CPU")
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)

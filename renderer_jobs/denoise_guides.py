@@ -15,9 +15,10 @@
 - **Behind glass** (``(H, W)``, same samples): the light those shadow rays would bring if the glass
   (dielectrics) blocking them were not there, crossed in a straight line. Glass focuses light (a
   caustic) where the direct guide shows its shadow; ``dt-irradiance`` averages nothing there
-  (:func:`retarget.denoise.irradiance_classes`), and the targeted extra paths go there instead.
+  (:func:`retarget.denoise_classes.irradiance_classes`), and the targeted extra paths go there instead.
 - **Straddle** (the ``straddle`` AOV, ``(H, W)`` bool): the pixel's sub-pixel rays hit more than one
-  surface (normals more than ~11° apart, depths more than 5 % apart, or some rays miss). Its light
+  surface (two of them with normals more than 20° apart, or one more than 5 % of its depth off the
+  other's tangent plane, or some rays miss). Its light
   is then a mix of two surfaces' that no neighbour has, and its averaged normal and depth look like
   neither side's, or like the side with the larger share: ``dt-irradiance`` leaves it as rendered
   (bench/DENOISE.md measures what that bought). Used only with the targeted extra paths
@@ -37,8 +38,8 @@ from renderer_jobs.scene_model import Scene
 ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
 DIRECT_SAMPLES = 64  # next-event samples per pixel of the direct-light guide
 STRADDLE_RAYS = 16  # sub-pixel positions of the straddle AOV (finds a second surface covering >= ~1/16)
-STRADDLE_COS = 0.98  # two hits whose normals' dot product is below this are on different surfaces
-STRADDLE_LOG_DEPTH = 0.05  # ... and so are two whose depths differ by more than this (log ratio)
+STRADDLE_COS = 0.94  # two hits whose normals are more than 20° apart are on different surfaces
+STRADDLE_LOG_DEPTH = 0.05  # ... and so are two off each other's tangent plane by more than 5 % of the depth
 _CHUNK = 1 << 20  # rays per Dr.Jit batch (bounds memory at any resolution)
 _DIRECT_SEED = 0xD1EC7  # mixed with the render's seed: the guide's random numbers are its own
 
@@ -98,28 +99,37 @@ def albedo_bands(tracer: Tracer, rays: int = ALBEDO_RAYS) -> np.ndarray:
 
 def straddle(tracer: Tracer, rays: int = STRADDLE_RAYS) -> np.ndarray:
     """The ``straddle`` AOV ``(H, W)`` bool of the tracer's view (module docstring): a pixel whose
-    ``rays`` Hammersley positions' first hits are not all on one surface — some miss, or a hit's
-    normal is off the pixel's mean normal (:data:`STRADDLE_COS`), or its depth off the pixel's
-    median depth (:data:`STRADDLE_LOG_DEPTH`)."""
+    ``rays`` Hammersley positions' first hits are not all on one surface. Every pair of hits is
+    compared, so a half-and-half pixel is found as surely as a sliver: some rays miss; or two
+    normals are further apart than :data:`STRADDLE_COS` (a crease); or a hit lies off the plane
+    of another — its depth differs by more than :data:`STRADDLE_LOG_DEPTH` from where its ray
+    meets the other hit's tangent plane (one surface in front of another; a plane seen at a
+    grazing angle spans a range of depths in one pixel, but all on that plane)."""
     lam = np.float32([450.0, 550.0, 650.0, 550.0])  # geometry only: any wavelengths
     jit = hammersley(rays)
     npix = tracer.width * tracer.height
     out = np.zeros(npix, bool)
-    per = max(1, _CHUNK // rays)
+    per = max(1, _CHUNK // (rays * rays))  # pairwise: rays² per pixel
     for start in range(0, npix, per):
         p = np.arange(start, min(npix, start + per))
-        hits = tracer.first_hit(np.repeat(p, rays), np.tile(jit, (len(p), 1)), np.tile(lam, (len(p) * rays, 1)))
-        hit = hits["hit"].reshape(len(p), rays)
-        normal = hits["normal"].reshape(len(p), rays, 3) * hit[..., None]
-        mean = normal.sum(axis=1)
-        mean /= np.maximum(np.linalg.norm(mean, axis=1, keepdims=True), 1e-12)
-        logd = np.log(np.maximum(hits["distance"].reshape(len(p), rays), 1e-12))
+        h = tracer.first_hit(np.repeat(p, rays), np.tile(jit, (len(p), 1)), np.tile(lam, (len(p) * rays, 1)),
+                             rays=True)
+        hit = h["hit"].reshape(len(p), rays)
+        both = hit[:, :, None] & hit[:, None, :]
+        n = np.where(hit[..., None], h["normal"].reshape(len(p), rays, 3), 0.0)
+        o, d = (h[k].reshape(len(p), rays, 3).astype(np.float64) for k in ("origin", "direction"))
+        t = h["distance"].reshape(len(p), rays).astype(np.float64)
+        crease = both & (np.einsum("pkc,pjc->pkj", n, n) < STRADDLE_COS)
+        # where ray j meets hit k's tangent plane: n_k·(o_k + t_k d_k − o_j) / (n_k·d_j)
+        hit_k = o + t[..., None] * d
+        num = np.einsum("pkc,pkc->pk", n, hit_k)[:, :, None] - np.einsum("pkc,pjc->pkj", n, o)
+        den = np.einsum("pkc,pjc->pkj", n, d)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            on_plane = num / den  # (p, k, j); inf/NaN where ray j runs along the plane: no verdict
+            off = both & np.isfinite(on_plane) & (on_plane > 0) \
+                & (np.abs(np.log(t[:, None, :] / on_plane)) > STRADDLE_LOG_DEPTH)
         some = hit.any(axis=1)
-        median = np.zeros(len(p))
-        median[some] = np.nanmedian(np.where(hit, logd, np.nan)[some], axis=1)
-        off = hit & ((np.einsum("pkc,pc->pk", normal, mean) < STRADDLE_COS)
-                     | (np.abs(logd - median[:, None]) > STRADDLE_LOG_DEPTH))
-        out[p] = off.any(axis=1) | (some & ~hit.all(axis=1))
+        out[p] = (some & ~hit.all(axis=1)) | crease.any(axis=(1, 2)) | off.any(axis=(1, 2))
     return out.reshape(tracer.height, tracer.width)
 
 

@@ -202,9 +202,11 @@ class Tracer:
     def _camera_rays(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, differential: bool):
         return camera_rays(self.mi, self.sensor, self.width, self.height, pix, jitter, wavelengths, differential)
 
-    def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray) -> dict[str, np.ndarray]:
+    def first_hit(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray,
+                  rays: bool = False) -> dict[str, np.ndarray]:
         """Primary-hit AOVs per sample: albedo ``(n, 4)``, normal ``(n, 3)``, distance ``(n,)``, hit
-        ``(n,)``, emitter ``(n,)`` (the hit shape emits, in the groups this tracer loaded)."""
+        ``(n,)``, emitter ``(n,)`` (the hit shape emits, in the groups this tracer loaded); with
+        ``rays``, also the camera rays' ``origin`` and unit ``direction`` ``(n, 3)``."""
         dr = self.dr
         ray = self._camera_rays(pix, jitter, wavelengths, differential=False)
         si = self.ms.ray_intersect(ray)
@@ -212,8 +214,12 @@ class Tracer:
         bsdf = si.bsdf(ray)
         alb = bsdf.eval_diffuse_reflectance(si, valid)
         n = si.sh_frame.n
-        return {"albedo": np.stack([np.asarray(alb[i]) for i in range(4)], axis=1),
-                "normal": np.stack([np.asarray(n[i]) for i in range(3)], axis=1),
-                "distance": np.asarray(dr.select(valid, si.t, 0.0)),
-                "hit": np.asarray(valid, dtype=bool),
-                "emitter": np.asarray(valid & si.shape.is_emitter(), dtype=bool)}
+        out = {"albedo": np.stack([np.asarray(alb[i]) for i in range(4)], axis=1),
+               "normal": np.stack([np.asarray(n[i]) for i in range(3)], axis=1),
+               "distance": np.asarray(dr.select(valid, si.t, 0.0)),
+               "hit": np.asarray(valid, dtype=bool),
+               "emitter": np.asarray(valid & si.shape.is_emitter(), dtype=bool)}
+        if rays:
+            out["origin"] = np.stack([np.asarray(ray.o[i]) for i in range(3)], axis=1)
+            out["direction"] = np.stack([np.asarray(ray.d[i]) for i in range(3)], axis=1)
+        return out

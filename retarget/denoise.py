@@ -322,6 +322,9 @@ def denoise(cube: np.ndarray, guides: Guides, method: str = DEFAULT_METHOD, kind
 
 
 def _check_guides(name: str, impl: DenoiseMethod, guides: Guides, arr: np.ndarray, kind: str) -> None:
+    if guides.straddle is not None and guides.straddle.shape != guides.shape:
+        raise SpectralError(f"denoise: the straddle guide {guides.straddle.shape} does not match the view's "
+                            f"{guides.shape} (H, W); re-render the view's AOVs (`illumix render … --overwrite`)")
     if impl.per_group and guides.direct is None:
         raise SpectralError(f"denoise method {name!r} needs the light group's direct-light guide "
                             "(Guides.with_direct; the renderer traces it: renderer_jobs.denoise_guides), "

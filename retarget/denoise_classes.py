@@ -38,12 +38,14 @@ def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
 
     kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
     return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
+
+
 def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transport") -> np.ndarray:
     """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (the filter never averages
-    across codes)
-    for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface, 1 background,
-    2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the filter must
-    leave as rendered, each with a code none of its eight neighbours has, so nothing flows in or out:
+    across codes) for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface,
+    1 background, 2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the
+    filter must leave as rendered, each with a code none of its eight neighbours has, so nothing
+    flows in or out:
 
     - metal and glass (no diffuse reflectance) in a transport cube: what they show is the rest of
       the scene, reflected or refracted, which no guide describes (filtered among themselves, a glass
@@ -58,10 +60,10 @@ def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transpo
       (``guides.behind_glass``), grown by :data:`GLASS_MARGIN`: the glass may focus light there (a
       caustic) that the direct guide shows as shadow, so no guide shows its edges — unless that is
       more than :data:`GLASS_MAX_COVER` of the surface (glass around the light itself);
-    - straddling a geometric edge (``guides.straddle``, when the view has it: its sub-pixel rays hit
-      two surfaces): its light is a mix of theirs that no neighbour has, and its averaged normal and
-      depth look like neither side's, or like the side with the larger share, which it would be
-      averaged with.
+    - straddling a geometric edge (``guides.straddle``, when the guides carry it; the renderer
+      passes it only with its targeted extra paths): its sub-pixel rays hit two surfaces, so its
+      light is a mix of theirs that no neighbour has, and its averaged normal and depth look like
+      neither side's, or like the side with the larger share, which it would be averaged with.
 
     The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
     them more paths."""

@@ -9,6 +9,8 @@ and the light's direct part (``dt-irradiance``'s per-group guide).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -52,6 +54,8 @@ def test_linear_relighting_is_exact(method):
     """denoise(Σ a Φ T) = Σ a Φ denoise(T) per band, to float32 precision (DESIGN.md "Denoising")."""
     rng = np.random.default_rng(1)
     _, t1, guides = _scene(rng)
+    if method == "dt-irradiance":  # with pixels left as rendered too (straddle, as with the renderer's boost)
+        guides = replace(guides, straddle=rng.random((H, W)) < 0.05)
     t2 = np.roll(t1, 7, axis=1) * rng.uniform(0.2, 2.0, NB).astype(np.float32)  # a second group
     s1, s2 = (rng.uniform(0.0, 3.0, NB).astype(np.float32) for _ in range(2))  # a_g Φ_g / E_g per band
     lhs = denoise(s1 * t1 + s2 * t2, guides, method)
@@ -122,6 +126,8 @@ def test_missing_guides_name_the_fix():
         g.with_direct(g.direct, np.zeros((H, W + 1), np.float32))
     with pytest.raises(SpectralError, match="behind-glass guide has NaN"):
         g.with_direct(g.direct, np.full(g.shape, -1.0, np.float32))
+    with pytest.raises(SpectralError, match="straddle guide"):
+        denoise(cube, replace(g, straddle=np.zeros((1, W), bool)), "dt-irradiance")
     out = denoise(cube @ np.ones((NB, 3), np.float32), g, "dt-irradiance", kind="illumination")
     assert out.shape == (H, W, 3)
 

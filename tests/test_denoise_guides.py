@@ -158,6 +158,7 @@ def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
     the spp's noise: it is neither traced nor read, even from a view that holds it, and the denoised
     copy's record does not list it."""
     from renderer_jobs import jobs
+    from renderer_jobs.mitsuba_render import render_cube
     from store import CubeStore
 
     s = demo.validation_chart()
@@ -166,6 +167,10 @@ def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
     assert "straddle" not in render_aovs(s, "head-on", plain)
     st = CubeStore.open(str(tmp_path / "store"), mode="a")
     st.write_view(s.name, "head-on", jobs._view_meta(s, "head-on"), render_aovs(s, "head-on", boosted))
-    for settings, used in ((plain, False), (boosted, True)):
-        guides, _ = jobs.denoise_guides(st, s, jobs.Job(s.name, "head-on", "light"), settings)
+    job = jobs.Job(s.name, "head-on", "light")
+    result = render_cube(s, "head-on", "light", plain)
+    for k, (settings, used) in enumerate(((plain, False), (boosted, True))):
+        guides, _ = jobs.denoise_guides(st, s, job, settings)
         assert (guides.straddle is not None) == used
+        jobs.store_result(st, s, job, result, settings, overwrite=k > 0, extra_stats={})
+        assert ("straddle" in st.cube_meta(s.name, "head-on", "light").denoised.guides) == used
