@@ -104,33 +104,59 @@ def straddle(tracer: Tracer, rays: int = STRADDLE_RAYS) -> np.ndarray:
     normals are further apart than :data:`STRADDLE_COS` (a crease); or a hit lies off the plane
     of another — its depth differs by more than :data:`STRADDLE_LOG_DEPTH` from where its ray
     meets the other hit's tangent plane (one surface in front of another; a plane seen at a
-    grazing angle spans a range of depths in one pixel, but all on that plane)."""
+    grazing angle spans a range of depths in one pixel, but all on that plane). Pixels whose hits
+    all lie on the first hit's plane, with its normal (within 1 % of the depth and 2°), pass
+    without the pairwise test: most pixels (at 960×720 the AOV took 16 s CPU with it everywhere,
+    7 s now, nearly all of it tracing)."""
     lam = np.float32([450.0, 550.0, 650.0, 550.0])  # geometry only: any wavelengths
     jit = hammersley(rays)
     npix = tracer.width * tracer.height
     out = np.zeros(npix, bool)
-    per = max(1, _CHUNK // (rays * rays))  # pairwise: rays² per pixel
+    per = max(1, _CHUNK // rays)
     for start in range(0, npix, per):
         p = np.arange(start, min(npix, start + per))
         h = tracer.first_hit(np.repeat(p, rays), np.tile(jit, (len(p), 1)), np.tile(lam, (len(p) * rays, 1)),
                              rays=True)
         hit = h["hit"].reshape(len(p), rays)
-        both = hit[:, :, None] & hit[:, None, :]
-        n = np.where(hit[..., None], h["normal"].reshape(len(p), rays, 3), 0.0)
-        o, d = (h[k].reshape(len(p), rays, 3).astype(np.float64) for k in ("origin", "direction"))
-        t = h["distance"].reshape(len(p), rays).astype(np.float64)
-        crease = both & (np.einsum("pkc,pjc->pkj", n, n) < STRADDLE_COS)
-        # where ray j meets hit k's tangent plane: n_k·(o_k + t_k d_k − o_j) / (n_k·d_j)
-        hit_k = o + t[..., None] * d
-        num = np.einsum("pkc,pkc->pk", n, hit_k)[:, :, None] - np.einsum("pkc,pjc->pkj", n, o)
-        den = np.einsum("pkc,pjc->pkj", n, d)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            on_plane = num / den  # (p, k, j); inf/NaN where ray j runs along the plane: no verdict
-            off = both & np.isfinite(on_plane) & (on_plane > 0) \
-                & (np.abs(np.log(t[:, None, :] / on_plane)) > STRADDLE_LOG_DEPTH)
-        some = hit.any(axis=1)
-        out[p] = (some & ~hit.all(axis=1)) | crease.any(axis=(1, 2)) | off.any(axis=(1, 2))
+        geo = (h["normal"].reshape(len(p), rays, 3).astype(np.float64),
+               *(h[k].reshape(len(p), rays, 3).astype(np.float64) for k in ("origin", "direction")),
+               h["distance"].reshape(len(p), rays).astype(np.float64))
+        full = hit.all(axis=1)
+        flat = np.zeros(len(p), bool)
+        flat[full] = _on_first_plane(*(g[full] for g in geo))
+        check = np.flatnonzero(full & ~flat)
+        for c in range(0, len(check), max(1, _CHUNK // (rays * rays))):  # pairwise: rays² per pixel
+            sub = check[c:c + max(1, _CHUNK // (rays * rays))]
+            out[p[sub]] = _two_surfaces(*(g[sub] for g in geo))
+        out[p] |= hit.any(axis=1) & ~full  # some rays miss
     return out.reshape(tracer.height, tracer.width)
+
+
+def _plane_depths(n: np.ndarray, o: np.ndarray, d: np.ndarray, t: np.ndarray, k: slice) -> np.ndarray:
+    """``(P, K, R)``: where ray j meets hit k's tangent plane, ``n_k·(o_k + t_k d_k − o_j) / (n_k·d_j)``
+    (inf/NaN where ray j runs along the plane: no verdict)."""
+    nk = n[:, k]
+    num = np.einsum("pkc,pkc->pk", nk, o[:, k] + t[:, k, None] * d[:, k])[:, :, None] - np.einsum("pkc,pjc->pkj", nk, o)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return num / np.einsum("pkc,pjc->pkj", nk, d)
+
+
+def _off_plane(t: np.ndarray, on_plane: np.ndarray, tol: float) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.isfinite(on_plane) & (on_plane > 0) & (np.abs(np.log(t[:, None, :] / on_plane)) > tol)
+
+
+def _on_first_plane(n, o, d, t) -> np.ndarray:
+    """``(P,)``: every hit of the pixel (all hit) on the first hit's plane and facing its way."""
+    near = np.einsum("pjc,pc->pj", n, n[:, 0]) >= np.cos(np.radians(2.0))
+    return near.all(axis=1) & ~_off_plane(t, _plane_depths(n, o, d, t, slice(0, 1)), 0.01).any(axis=(1, 2))
+
+
+def _two_surfaces(n, o, d, t) -> np.ndarray:
+    """``(P,)``: the pixel's hits (all hit) are on two surfaces (:func:`straddle`'s pairwise test)."""
+    crease = np.einsum("pkc,pjc->pkj", n, n) < STRADDLE_COS
+    off = _off_plane(t, _plane_depths(n, o, d, t, slice(None)), STRADDLE_LOG_DEPTH)
+    return crease.any(axis=(1, 2)) | off.any(axis=(1, 2))
 
 
 def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
