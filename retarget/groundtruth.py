@@ -60,8 +60,8 @@ def lit_white_points(sensor_weights: np.ndarray, spds: np.ndarray, intensities) 
     spds = np.atleast_2d(spds)
     lit = np.asarray(intensities, dtype=np.float64).reshape(-1) > 0
     wps = np.ones((len(spds), 3))
-    if lit.any():
-        wps[lit] = white_points(sensor_weights, spds[lit])
+    for g in np.flatnonzero(lit):  # numbered as the request numbers them, unlit groups included
+        wps[g] = white_point(sensor_weights, spds[g], what=f"illuminant #{g}")
     return wps
 
 

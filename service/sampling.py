@@ -221,14 +221,15 @@ def aov_key(scene: str, view: str, name: str, stamp: tuple) -> tuple:
     return (scene, view, "aov", name, stamp)
 
 
-def _key(p: Plan, group: str, kind: str) -> tuple:
+def plan_cube_key(p: Plan, group: str, kind: str) -> tuple:
+    """The cube cache's key of a group's ``kind`` cube in plan ``p`` (:func:`cube_key`)."""
     return cube_key(p.scene, p.view, group, kind, p.denoise, p.metas[p.groups.index(group)].created)
 
 
 def projection_key(p: Plan, group: str, kind: str, skey, ikey) -> tuple:
     """The key of a group's whole-frame projection (:mod:`service.projections`) for a sensor and an
     illuminant key (:class:`service.library.Library`)."""
-    return (_key(p, group, kind), skey, ikey)
+    return (plan_cube_key(p, group, kind), skey, ikey)
 
 
 def frame_bytes(p: Plan) -> int:
@@ -252,7 +253,7 @@ def price(p: Plan, ctx: Context, encoded: bool = True) -> int:
         for g, lit in zip(p.groups, p.reads()):
             if not lit:
                 continue
-            cube = ctx.cache.lookup(_key(p, g, kind), count=False) if cacheable else None
+            cube = ctx.cache.lookup(plan_cube_key(p, g, kind), count=False) if cacheable else None
             if cube is not None:
                 p.held[(g, kind)] = cube
                 continue
@@ -283,7 +284,7 @@ def whole_cube(ctx: Context, p: Plan, group: str, kind: str = "transport") -> np
         ctx.cache.count_hit()  # found by price() without counting, used now
         return cube
     dn = p.denoise != "none"
-    return ctx.cache.get(_key(p, group, kind),
+    return ctx.cache.get(plan_cube_key(p, group, kind),
                          lambda: ctx.store.read_cube(p.scene, p.view, group, kind=kind, denoised=dn),
                          expected_cost=cube_bytes(p))
 

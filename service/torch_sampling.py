@@ -80,9 +80,7 @@ class TorchComposer:
             # a copy on "cpu" too: the device cache then owns its memory, within device_cache_mb
             return self._to_device(sampling.whole_cube(ctx, p, group, kind), copy=self.device.type == "cpu")
 
-        full = self.cubes.get(sampling.cube_key(p.scene, p.view, group, kind, p.denoise,
-                                                p.metas[p.groups.index(group)].created),
-                              load, expected_cost=nbytes)
+        full = self.cubes.get(sampling.plan_cube_key(p, group, kind), load, expected_cost=nbytes)
         return full[y:y + h, x:x + w]
 
     def compose(self, ctx, p, unit: list, white_points: np.ndarray, valid: np.ndarray | None) -> dict:
@@ -109,8 +107,14 @@ def build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, ke
     mask = out.get("mask")
     host_mask = None if mask is None else mask.cpu().numpy()
     arrays = out if keep_device else {k: v.cpu().numpy() for k, v in out.items()}
-    for k, a in arrays.items():  # on the device, one reduction per output
-        if not (bool(ctx.torch.torch.isfinite(a).all()) if keep_device else all_finite(a)):
+    floats = {k: a for k, a in arrays.items() if a.dtype != (ctx.torch.torch.bool if keep_device else np.bool_)}
+    if keep_device:  # one reduction per output, one device sync for all
+        t = ctx.torch.torch
+        finite = t.stack([t.isfinite(a).all() for a in floats.values()]).cpu().numpy() if floats else []
+    else:
+        finite = [all_finite(a) for a in floats.values()]
+    for k, ok in zip(floats, finite):
+        if not ok:
             raise SpectralError(f"the composed {k} overflows float32 (intensities × the stored radiance is too "
                                 "large); lower intensities=")
     t_compose = time.perf_counter()

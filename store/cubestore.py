@@ -170,9 +170,9 @@ class CubeStore:
     def has_view(self, scene: str, view: str) -> bool:
         """Whether ``scene`` has the view ``view`` with metadata (one metadata read; :meth:`views`
         reads every view's)."""
-        if not (_safe(view) and self.has_scene(scene)):
+        if not (_safe(scene) and _safe(view)):
             return False
-        attrs = node_attrs(self._b, layout.view_path(scene, view))
+        attrs = node_attrs(self._b, layout.view_path(scene, view))  # None as well when the scene is missing
         return attrs is not None and VIEW_ATTR in attrs
 
     def groups(self, scene: str, view: str, include_incomplete: bool = False) -> list[str]:

@@ -749,3 +749,17 @@ def test_bench_compose_runs_and_reports_json_last():
     assert doc["error_fused_vs_naive"]["max_rel_raw"] < 1e-5
     assert doc["error_float16_vs_float32"]["max_rel_raw"] < 2.0**-11 + 1e-5
     assert "fused" in r.stderr  # progress goes to stderr
+
+
+def test_lit_white_points_skip_unlit_groups_and_name_the_group_that_fails():
+    """A switched-off group's white point is never used (ones), so an illuminant the sensor cannot
+    see refuses only a request that lights it, and the error numbers groups as the request does."""
+    w = sen.get_sensor("Nikon 5100 (NPL)", DEFAULT_GRID).weights()
+    d65 = ill.illuminant_spd("D65", DEFAULT_GRID)
+    dark = np.zeros_like(d65)  # no response on any sensor
+    spds = np.stack([dark, d65, dark])
+    wps = gt.lit_white_points(w, spds, [0.0, 1.0, 0.0])
+    np.testing.assert_allclose(wps[[0, 2]], 1.0)
+    np.testing.assert_allclose(wps[1], gt.white_point(w, d65))
+    with pytest.raises(SpectralError, match="illuminant #2"):
+        gt.lit_white_points(w, spds, [0.0, 1.0, 1.0])

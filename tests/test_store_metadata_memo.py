@@ -8,6 +8,8 @@ from __future__ import annotations
 import os
 import time
 
+import pytest
+
 from store_testutil import add_view, cube, meta, new_store
 
 from store import CubeStore, StoreKeyError, backend
@@ -67,6 +69,8 @@ def test_a_rewrite_in_the_same_timestamp_tick_reusing_the_inode_is_seen(tmp_path
     b.write_bytes("x/zarr.json", b'{"a": 2}')
     b.write_bytes("x/zarr.json", b'{"a": 3}')
     os.utime(path, ns=(first.st_atime_ns, first.st_mtime_ns))  # the coarse clock's same tick
+    if os.stat(path).st_ino != first.st_ino:
+        pytest.skip("this file system gave the rewrite a new inode: the stamps differ anyway")
     assert b.read_json("x/zarr.json") == {"a": 3}
     os.remove(path)
     assert b.read_json("x/zarr.json") is None

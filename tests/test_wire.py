@@ -122,10 +122,11 @@ def test_bad_magic_version_and_header_are_clear_errors():
     with pytest.raises(ic.IllumixError, match="is not nbytes"):
         dec.decode(forged)
     wrapping = json.loads(text)  # 2**32 × 2**32 wraps to 0 in int64: must not pass for nbytes 0
-    wrapping["arrays"]["a"].update(shape=[2**32, 2**32], nbytes=0)
-    text = json.dumps(wrapping).encode()
-    with pytest.raises(ic.IllumixError, match="is not nbytes"):
-        dec.decode(enc.PREFIX.pack(enc.MAGIC, enc.VERSION, len(text)) + text + bytes(200))
+    for shape in ([2**32, 2**32], [0, 2**70]):  # the second: 0 elements, a side numpy cannot hold
+        wrapping["arrays"]["a"].update(shape=shape, nbytes=0)
+        text = json.dumps(wrapping).encode()
+        with pytest.raises(ic.IllumixError, match="is not nbytes"):
+            dec.decode(enc.PREFIX.pack(enc.MAGIC, enc.VERSION, len(text)) + text + bytes(200))
 
 
 # -- the service ------------------------------------------------------------------------------------

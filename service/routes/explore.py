@@ -33,7 +33,7 @@ from service.sampling import build, plan, price
 from service.spec import MAX_NAME, SampleSpec
 
 router = APIRouter(prefix="/explore", tags=["explore"])
-#: what a frame is composed with (ccm only to expose the baseline like the ground-truth rendering)
+#: what a frame is composed with (meta carries each group's white point and CCM for the baseline)
 FRAME_OUTPUTS = ("raw", "gain", "srgb", "mixture", "illum", "mask", "meta")
 SENT = ("raw", "gain", "illum", "mixture", "mask")  # sent as composed; srgb and baseline as uint8
 FIXED = ("outputs", "format", "dtype", "bayer", "noise")  # noise: the baseline renders the clean raw
@@ -63,10 +63,10 @@ def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     spec = params.model_copy(update={"outputs": list(FRAME_OUTPUTS), "format": "arrays"})
     p = plan(spec, ctx)
     w, h = p.out_size
-    # beyond /sample's price: the ground truth's linear image for its exposure (raw × gain, the CCM'd
-    # copy, the percentile's copy), the baseline's rendering (the same two plus encode_srgb's three
-    # float32 temporaries) and two uint8 images — at most ~100 bytes a pixel alive at once
-    extra = w * h * 3 * (4 * 8 + 2)
+    # beyond /sample's price (which covers the ground truth's sRGB): the baseline's rendering (the
+    # white-balanced and the CCM'd copies plus encode_srgb's three float32 temporaries) and two
+    # uint8 images — at most ~66 bytes a pixel alive at once
+    extra = w * h * 3 * (4 * 5 + 2)
     hold = ctx.memory.acquire(price(p, ctx) + extra, f"this explorer frame ({w}x{h})")
     try:
         t1 = time.perf_counter()

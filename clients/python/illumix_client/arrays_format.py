@@ -81,7 +81,7 @@ def _array(body, size: int, data_start: int, name: str, e: Any) -> np.ndarray:
     if dtype.kind not in _KINDS or dtype.byteorder == ">" or dtype.hasobject:
         raise _bad(f"array {name!r}: unsupported dtype {e['dtype']!r}")
     count = math.prod(shape)  # a Python int: np.prod would wrap around on a forged shape
-    if any(x < 0 for x in shape) or count * dtype.itemsize != nbytes:
+    if any(x < 0 or x > size for x in shape) or count * dtype.itemsize != nbytes:  # no side beyond the body
         raise _bad(f"array {name!r}: shape {list(shape)} × {dtype.itemsize} bytes is not nbytes {nbytes}")
     if offset < data_start or offset + nbytes > size:
         raise _bad(f"array {name!r} spans bytes {offset}..{offset + nbytes}, outside the body's "

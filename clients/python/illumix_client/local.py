@@ -177,6 +177,12 @@ class _ReadOnceMetadata:
     def view_meta(self, scene: str, view: str):
         return self._once("view_meta", scene, view)
 
+    def has_scene(self, scene: str) -> bool:
+        return self._once("has_scene", scene)
+
+    def has_view(self, scene: str, view: str) -> bool:
+        return self._once("has_view", scene, view)
+
     def __getattr__(self, name: str):
         return getattr(self._store, name)  # reads of pixels, registries, url, …
 
