@@ -182,7 +182,7 @@ def render_all(args, scene, cache: Path | None) -> dict:
 
     log(f"AOVs ({args.aov_spp} and {args.clean_aov_spp} rays per pixel)")
     aovs = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.aov_spp, cache, log)
-    clean = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.clean_aov_spp, cache, log)
+    clean = dl.cached_aovs(scene, args.view, args.res, AOV_SEED, args.clean_aov_spp, cache, log, straddle=False)
     direct = {g: dl.cached_direct(scene, args.view, g, args.res, args.seed, cache, log) for g in groups}
     log(f"test renders at {args.spp} spp, seed {args.seed}" + (f", boosted x{args.boost_factor} where reach > "
                                                                f"{args.boost_reach}" if args.boost_factor > 1 else ""))
@@ -514,8 +514,10 @@ def oidn_part(args, R: dict, guides, aovs: dict, M: np.ndarray, ref: dict, class
     return out
 
 
-def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, classes: dict, args) -> dict:
-    """Part 10: the methods with clean (many-ray) guides, and the albedo AOV's noise."""
+def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, classes: dict, args,
+                straddle: np.ndarray | None) -> dict:
+    """Part 10: the methods with clean (many-ray) guides, and the albedo AOV's noise (``straddle``:
+    the test's, a geometric flag that averaging more rays does not change)."""
     from retarget.denoise import DENOISE_METHODS, Guides
 
     groups = [g for g, _ in PAIR]
@@ -523,7 +525,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
     d = (aovs["albedo"] - clean["albedo"])[v]
     out = {"aov_spp": args.aov_spp, "clean_aov_spp": args.clean_aov_spp,
            "albedo_rms_vs_clean_rgb": [round(float(x), 4) for x in np.sqrt(np.mean(d ** 2, axis=0))], "methods": {}}
-    gclean = Guides.from_aovs(clean)
+    gclean = replace(Guides.from_aovs(clean), straddle=straddle)
     for name in DENOISE_METHODS.names:
         raw = dl.compose([den(R, g, gclean, name) for g in groups], M)
         err = dl.rel_chroma_err(raw, ref["raw"])
@@ -723,7 +725,7 @@ def main(argv: list[str] | None = None) -> dict:
         f"{doc['tail_diagnosis']['tail_median_bias_only_rel_pct']:.3f} % (denoised "
         f"{doc['tail_diagnosis']['tail_median_denoised_rel_pct']:.3f} %)")
     doc["oidn"] = oidn_part(args, R, guides, R["aovs"], M, ref, classes)
-    doc["guide_noise"] = guide_noise(R, R["aovs"], R["clean_aovs"], M, ref, classes, args)
+    doc["guide_noise"] = guide_noise(R, R["aovs"], R["clean_aovs"], M, ref, classes, args, guides.straddle)
     log("cost")
     doc.update(cost(args, R, guides, R["aovs"]))
 

@@ -70,11 +70,16 @@ def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed:
     if "targeted_paths" in r.stats:
         out["targeted_paths"] = r.stats["targeted_paths"]
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **{k: (json.dumps(v) if k == "targeted_paths" else v) for k, v in out.items() if k != "cached"})
-        tmp.replace(path)
+        _save(path, {k: (json.dumps(v) if k == "targeted_paths" else v) for k, v in out.items() if k != "cached"})
     return out
+
+
+def _save(path: Path, arrays: dict) -> None:
+    """``np.savez`` through a temporary file: an interrupted run leaves no half-written cache."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(path)
 
 
 def multijitter_count(n: int) -> int:
@@ -100,34 +105,35 @@ def exact_spp_bracket(target: float, sets: int = 4) -> tuple[int, int]:
 
 
 def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int, cache: Path | None,
-                log: Callable[[str], None]) -> dict:
-    """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached;
-    the ``straddle`` AOV is traced again alone when the cache's was made by another rule."""
+                log: Callable[[str], None], straddle: bool = True) -> dict:
+    """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached.
+    ``straddle``: with the ``straddle`` AOV, traced again alone when the cache's was made by another
+    rule (the guides' AOVs; the clean ones for pixel classes need none)."""
+    from renderer_jobs import denoise_guides as dg
     from renderer_jobs.mitsuba_aovs import render_aovs
     from renderer_jobs.mitsuba_render import RenderSettings
 
-    from renderer_jobs import denoise_guides as dg
-
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
-    rule = np.float64([dg.STRADDLE_RAYS, dg.STRADDLE_COS, dg.STRADDLE_LOG_DEPTH])  # the straddle AOV's
+    rule = np.float64([dg.STRADDLE_RAYS, dg.STRADDLE_COS, dg.STRADDLE_LOG_DEPTH, dg.FLAT_LOG_DEPTH, dg.FLAT_DEGREES])
     if path is not None and path.exists():
         with np.load(path) as z:
             cached = {k: z[k] for k in z.files} if "albedo_bands" in z.files else None  # older: render again
-        if cached is not None and not np.array_equal(cached.get("straddle_rule"), rule):  # older: trace it alone
+        if cached is not None and straddle and not np.array_equal(cached.get("straddle_rule"), rule):
             from renderer_jobs.mitsuba_trace import Tracer
 
             cached["straddle"], cached["straddle_rule"] = dg.straddle(Tracer(scene, view, None, res)), rule
-            np.savez(path, **cached)
+            _save(path, cached)
         if cached is not None:
             return cached
     c0 = time.process_time()
-    aovs = render_aovs(scene, view, RenderSettings(spp=64, seed=seed, aov_spp=aov_spp))
+    aovs = render_aovs(scene, view, RenderSettings(spp=64, seed=seed, aov_spp=aov_spp,
+                                                   **({} if straddle else {"boost_factor": 1})))
     aovs["cpu_s"] = np.float64(time.process_time() - c0)
-    aovs["straddle_rule"] = rule
+    if straddle:
+        aovs["straddle_rule"] = rule
     log(f"  rendered AOVs ({aov_spp} rays per pixel): {aovs['cpu_s']:.1f} s CPU")
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, **aovs)
+        _save(path, aovs)
     return aovs
 
 
@@ -148,8 +154,7 @@ def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int,
     out = {"direct": d, "behind": b, "cpu_s": time.process_time() - c0}
     log(f"  traced the direct-light guide of {group}: {out['cpu_s']:.2f} s CPU")
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, **out)
+        _save(path, out)
     return out
 
 

@@ -56,20 +56,15 @@ def _any_neighbour(a: np.ndarray, pred) -> np.ndarray:
     return out
 
 
-def _dilate(mask: np.ndarray, r: int) -> np.ndarray:
-    import cv2
-
-    return cv2.dilate(mask.astype(np.uint8), np.ones((2 * r + 1, 2 * r + 1), np.uint8)).astype(bool)
-
-
 def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
     """``(H, W)`` int: index into the returned shape names of each pixel centre's first hit (−1: none)."""
-    from renderer_jobs.mitsuba_trace import Tracer
+    from renderer_jobs.mitsuba_trace import Tracer, camera_rays
 
     t = Tracer(scene, view, None, res)
     mi, dr = t.mi, t.dr
     pix = np.arange(t.width * t.height)
-    ray = t._camera_rays(pix, np.full((len(pix), 2), 0.5, np.float32), np.full((len(pix), 4), 550, np.float32), False)
+    ray = camera_rays(mi, t.sensor, t.width, t.height, pix, np.full((len(pix), 2), 0.5, np.float32),
+                      np.full((len(pix), 4), 550, np.float32), differential=False)
     si = t.ms.ray_intersect(ray)
     out = np.full(len(pix), -1)
     names = []
@@ -84,6 +79,7 @@ def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
 def causes(R: dict, guides, scene, args, behind: dict) -> tuple[dict, np.ndarray, list[str]]:
     """Every cause's ``(H, W)`` mask (before the first-match rule), the shape ids and names."""
     from retarget.denoise import method_params
+    from retarget.denoise_classes import GLASS_MARGIN, GLASS_SHARE, _dilate
 
     p = method_params("dt-irradiance")[1]
     ids, names = shape_ids(scene, args.view, args.res)
@@ -91,9 +87,9 @@ def causes(R: dict, guides, scene, args, behind: dict) -> tuple[dict, np.ndarray
     logd = [np.log(R["direct"][g]["direct"] + 1e-3 * R["direct"][g]["direct"].max()) for g in R["direct"]]
     z = np.log(np.maximum(guides.depth, 1e-3))
     clean = R["clean_aovs"]["albedo_bands"]
-    glass_frac = [behind[g] / np.maximum(behind[g] + R["direct"][g]["direct"], 1e-30) for g in behind]
+    glass_frac = [guides.with_direct(R["direct"][g]["direct"], behind[g]).behind_glass for g in behind]
     return {
-        "behind_glass": _dilate(np.any([f > 0.05 for f in glass_frac], axis=0), 1),
+        "behind_glass": _dilate(np.any([f > GLASS_SHARE for f in glass_frac], axis=0), GLASS_MARGIN),
         "metal_or_glass": guides.hit & ~guides.emitter & (guides.albedo_bands.max(axis=-1) < p["albedo_floor"]),
         "near_light": _dilate(light, 3) & ~light,
         "glossy_ball": ids == names.index("ball") if "ball" in names else np.zeros(ids.shape, bool),

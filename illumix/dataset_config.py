@@ -24,6 +24,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StrictInt,
     ValidationError,
     field_validator,
     model_validator,
@@ -72,7 +73,7 @@ class RenderSection(BaseModel):
     illumination: bool = True
     denoise: str = DEFAULT_METHOD
     backend: str = "mitsuba"
-    boost_factor: int | None = None  # targeted extra paths (None: the renderer's default)
+    boost_factor: StrictInt | None = None  # targeted extra paths (None: the renderer's default; strict: `true` is not 1)
     boost_reach: float | None = None
 
     @field_validator("resolution", mode="before")

@@ -51,8 +51,12 @@ def render_settings(*, spp: int, seed: int, wavelengths: str, sampler: str, band
         raise UserError(f"{flag('noise-target')} {noise_target} must lie in (0, 1): a relative standard deviation, "
                         "e.g. 0.05 for 5 %")
     adaptive = adaptive or noise_target is not None  # a target spreads paths by the adaptive pilot
-    return RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
-                          bands_per_path=bands_per_path, skip_dark=skip_dark,
-                          adaptive=adaptive, noise_target=noise_target, illumination=illumination,
-                          denoise=denoise, backend=backend, boost_factor=boost_factor,
-                          **({} if boost_reach is None else {"boost_reach": boost_reach}))
+    settings = RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
+                              bands_per_path=bands_per_path, skip_dark=skip_dark,
+                              adaptive=adaptive, noise_target=noise_target, illumination=illumination,
+                              denoise=denoise, backend=backend, boost_factor=boost_factor,
+                              **({} if boost_reach is None else {"boost_reach": boost_reach}))
+    if boost_reach is not None and settings.boost_factor == 1:
+        raise UserError(f"{flag('boost-reach')} chooses where the targeted extra paths go, but there are none "
+                        f"here ({flag('boost-factor')} 1, or not all-bands with denoise dt-irradiance); drop it")
+    return settings

@@ -32,7 +32,7 @@ import numpy as np
 from renderer_jobs.modes import EXECUTORS
 from renderer_jobs.scene_load import scene_from_dict
 from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_schema import SceneError
+from renderer_jobs.scene_schema import Dielectric, SceneError
 
 
 class JobError(RuntimeError):
@@ -335,7 +335,7 @@ def denoise_guides(st, scene, job, settings) -> tuple:
     if "direct" in wanted:
         # the light glass keeps from each pixel: traced only where the scene has glass (0.1-0.25 s
         # CPU a group otherwise spent finding none)
-        glass = any(getattr(m, "kind", None) == "dielectric" for m in scene.materials.values())
+        glass = any(isinstance(m, Dielectric) for m in scene.materials.values())
         traced = dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed, behind_glass=glass)
         direct, behind = traced if glass else (traced, None)
         guides = guides.with_direct(direct, behind)

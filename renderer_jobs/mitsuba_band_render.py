@@ -128,7 +128,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             bad += float(aov[..., -1].sum(dtype=np.float64)) * n_film  # per-pixel means -> counts
             if extra:
                 t3 = time.perf_counter()
-                sums = extra_path_sums(ms, sensor, integrator, boost, extra, mix_seed(settings.seed, k, j),
+                sums = extra_path_sums(ms, sensor, integrator, boost, extra, seed,
                                        settings.max_lanes, np.asarray(quads[0], np.float32))
                 bad += float(sums[:, -1].sum())
                 aov = aov.reshape(-1, n_aov).astype(np.float64)  # exact: the others add as before

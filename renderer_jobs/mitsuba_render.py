@@ -384,6 +384,9 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
     boost = None
     if boost_mask is not None and settings.boost_factor > 1:
+        w, h = settings.resolution or scene.view(view).resolution
+        if np.shape(boost_mask) != (h, w):
+            raise SceneError(f"boost mask {np.shape(boost_mask)} does not match view {view!r}'s ({h}, {w}) (H, W)")
         boost = np.flatnonzero(np.asarray(boost_mask, bool).ravel())
     cube, illum, stats = render_all_bands(scene, view, groups, passes, settings, np.asarray(emission, np.float64),
                                           boost)

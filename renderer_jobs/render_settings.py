@@ -119,7 +119,7 @@ class RenderSettings:
         object.__setattr__(self, "boost_factor", int(self.boost_factor))
         if not 0 < self.boost_reach <= 1:
             raise SceneError(f"boost reach {self.boost_reach} must lie in (0, 1]: the share of white noise the "
-                             "denoiser leaves in a pixel (e.g. 0.7)")
+                             "denoiser leaves in a pixel (default 0.6)")
         if self.boost_factor > 1 and not applies:
             raise SceneError("a boost factor > 1 needs the mitsuba backend, wavelengths 'all-bands' and denoise "
                              "'dt-irradiance' (the extra paths go where that filter cannot reach): use --boost-factor 1 "

@@ -57,6 +57,8 @@ from retarget.errors import SpectralError
 #: most others) map to distinct values.
 _NORMAL_AXIS = np.array([0.53, 0.71, 0.46]) / np.linalg.norm([0.53, 0.71, 0.46])
 _FAR = 1e4  # guide offset separating emitter / background pixels from surfaces
+
+
 @dataclass(frozen=True)
 class Guides:
     """A view's denoising guides, all ``(H, W, …)`` float32/bool from the geometry AOV pass.

@@ -54,6 +54,9 @@ def tiny(**over) -> dict:
     ({"name": "x", "generated": {"count": 1}, "render": {"noise_target": 2.0, "wavelengths": "stratified"}},
      "render.noise_target 2.0 must lie in (0, 1)"),
     ({"name": "x", "generated": {"count": 1}, "render": {"resolution": "big"}}, "render.resolution"),
+    ({"name": "x", "generated": {"count": 1}, "render": {"boost_factor": True}}, "render.boost_factor"),
+    ({"name": "x", "generated": {"count": 1}, "render": {"boost_factor": 1, "boost_reach": 0.5}},
+     "render.boost_reach chooses where the targeted extra paths go"),
     ({"name": "x", "scenes": ["missing.yaml"]}, "scenes: missing.yaml"),
     ([1, 2], "a dataset config is a mapping"),
 ])

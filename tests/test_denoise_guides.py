@@ -174,3 +174,52 @@ def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
         assert (guides.straddle is not None) == used
         jobs.store_result(st, s, job, result, settings, overwrite=k > 0, extra_stats={})
         assert ("straddle" in st.cube_meta(s.name, "head-on", "light").denoised.guides) == used
+
+
+def _rays_through_one_pixel(rays: int = 16, spread: float = 0.004) -> tuple[np.ndarray, np.ndarray]:
+    """``(origin, direction) (1, rays, 3)``: a pinhole's rays through one pixel's Hammersley positions."""
+    xy = (dg.hammersley(rays).astype(np.float64) - 0.5) * spread
+    d = np.concatenate([xy, np.ones((rays, 1))], axis=1)
+    return np.zeros((1, rays, 3)), (d / np.linalg.norm(d, axis=1, keepdims=True))[None]
+
+
+def _hits_on(planes: list[tuple[np.ndarray, float]], which: np.ndarray, o: np.ndarray, d: np.ndarray):
+    """Normals and distances of rays hitting plane ``which[j]`` of ``planes`` (unit normal n, n·x = c)."""
+    n = np.stack([planes[k][0] for k in which])[None]
+    t = np.array([planes[k][1] / (planes[k][0] @ d[0, j]) for j, k in enumerate(which)])[None]
+    return n, t
+
+
+def test_straddle_pairs_tell_two_surfaces_from_one_plane_at_a_grazing_angle():
+    """The pairwise rule on hits in closed form: two parallel planes 25 % apart in depth, same
+    normal (only the tangent-plane test sees them); one plane at a grazing angle, whose depths
+    within the pixel spread far more than 5 % (the plane test passes it); one plane seen head-on."""
+    o, d = _rays_through_one_pixel()
+    back = np.array([0.0, 0.0, -1.0])
+    grazing = np.array([0.0, np.cos(np.radians(0.3)), -np.sin(np.radians(0.3))])  # 89.7° from the view
+    half = (np.arange(16) >= 8).astype(int)
+    cases = {"two parallel planes": ([(back, -2.0), (back, -2.5)], half, True),
+             "a grazing plane": ([(grazing, grazing @ np.array([0.0, 0.0, 3.0]))], np.zeros(16, int), False),
+             "one plane": ([(back, -2.0)], np.zeros(16, int), False)}
+    for name, (planes, which, two) in cases.items():
+        n, t = _hits_on(planes, which, o, d)
+        assert np.all(t > 0), name
+        assert dg._two_surfaces(n, o, d, t)[0] == two, name
+        assert dg._on_first_plane(n, o, d, t)[0] == (not two), name
+    n, t = _hits_on(cases["a grazing plane"][0], np.zeros(16, int), o, d)
+    assert np.log(t.max() / t.min()) > 0.05  # a depth-spread rule would have flagged it
+
+
+def test_straddle_marks_the_edges_of_patches_floating_before_the_sky():
+    """The validation chart's patches hang in front of nothing: their border pixels' rays partly
+    miss, the only rule that marks them (same normal, same depth); their insides are never marked."""
+    from scipy.ndimage import binary_dilation, binary_erosion
+
+    from renderer_jobs.mitsuba_trace import Tracer
+
+    s = demo.validation_chart()
+    flags = dg.straddle(Tracer(s, "head-on", None, None))
+    hit = render_aovs(s, "head-on", RenderSettings(spp=16, seed=1, denoise=None))["mask"]
+    inside = np.any([binary_erosion(m, np.ones((3, 3), bool)) for m in patch_masks(s)], axis=0)
+    assert flags.sum() > 100 and not (flags & inside).any()
+    assert not (flags & ~binary_dilation(~hit, np.ones((3, 3), bool))).any()  # only next to a miss

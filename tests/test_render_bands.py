@@ -77,6 +77,7 @@ def test_bands_per_path_changes_the_noise_not_the_cube(box):
     assert one.stats["samples_per_band_rendered"] == 35 and one.stats["paths_per_pixel_rendered"] == 35
     assert four.stats["samples_per_band_rendered"] == 8 and four.stats["paths_per_pixel_rendered"] == 32
     assert one.stats["paths_per_pixel"] == 32  # what was asked, as before
+    assert_same_within_noise(one.cube, four.cube)
     assert_same_within_noise(one.illumination, four.illumination)
 
 

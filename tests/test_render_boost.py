@@ -115,6 +115,41 @@ def test_the_extra_pass_estimates_the_film_renders_cube(renders):
         assert err_b < 0.75 * err_p, (kind, err_b, err_p)
 
 
+def test_a_mask_of_another_size_is_a_clear_error():
+    from test_render import box_scene
+
+    from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.scene_load import scene_from_dict
+
+    with pytest.raises(SceneError, match="boost mask"):
+        mr.render_cube(scene_from_dict(box_scene()), "cam", "lamp", RenderSettings(spp=16, resolution=RES),
+                       boost_mask=np.ones((RES[1], RES[0] + 1), bool))
+
+
+def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
+    """Multijitter renders 35 paths of the 32 a band set asks for (128 spp over 4 sets). With the
+    extra paths' sums forced to zero, a boosted pixel is exactly the film's estimate × 35 / (35 + 7 × 32):
+    the film is weighted by what it rendered, not by what was asked."""
+    from test_render import box_scene
+
+    from renderer_jobs import mitsuba_band_render as mb
+    from renderer_jobs import mitsuba_render as mr
+    from renderer_jobs.scene_load import scene_from_dict
+
+    box = scene_from_dict(box_scene())
+    s = RenderSettings(spp=128, seed=3, resolution=RES)
+    mask = np.zeros(RES[::-1], bool)
+    mask[5:9, 8:14] = True
+    plain = mr.render_cube(box, "cam", "lamp", s)
+    assert plain.stats["samples_per_band_rendered"] == 35
+    monkeypatch.setattr(mb, "extra_path_sums", lambda ms, sensor, integrator, pix, *a: np.zeros(
+        (len(pix), len(integrator.aov_names()))))
+    boosted = mr.render_cube(box, "cam", "lamp", s, boost_mask=mask)
+    for kind in ("cube", "illumination"):
+        np.testing.assert_allclose(getattr(boosted, kind)[mask], getattr(plain, kind)[mask] * 35 / (35 + 7 * 32),
+                                   rtol=1e-5, atol=1e-9)
+
+
 def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path, monkeypatch):
     from test_render import box_scene
 
@@ -135,5 +170,4 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     tp = meta.render_stats["targeted_paths"]
     assert tp["paths_per_pixel"] == 128 and tp["pixels"] > 0 and 0 < tp["pixel_fraction"] < 1  # some, not all
     passes = meta.denoised.model_extra["guide_passes"]["direct"]
-    glass = any(getattr(m, "kind", None) == "dielectric" for m in box.materials.values())
-    assert passes["samples_per_pixel"] == dg.DIRECT_SAMPLES and passes["behind_glass"] is glass  # traced only with glass
+    assert passes["samples_per_pixel"] == dg.DIRECT_SAMPLES and passes["behind_glass"] is False  # the box has no glass

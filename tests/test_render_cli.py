@@ -72,7 +72,7 @@ def test_render_demo_then_nothing_to_do(tmp_path, capsys):
             assert meta.denoised.model_extra["guide_passes"]["direct"]["samples_per_pixel"] > 0
             # targeted extra paths (default x8 where the denoiser cannot reach), recorded
             tp = meta.render_stats["targeted_paths"]
-            assert 0 <= tp["pixels"] <= 24 * 16 and tp["paths_per_pixel"] == 8 * 16
+            assert 0 < tp["pixels"] < 24 * 16 and tp["paths_per_pixel"] == 8 * 16  # some pixels, not all
             assert meta.renderer.settings["targeted_paths"]["spp_factor"] == 8
             for kind in ("transport", "illumination"):
                 dn = st.read_cube(scene, view, g, kind=kind, denoised=True)
@@ -140,6 +140,8 @@ def test_changed_description_is_a_conflict(tmp_path, capsys):
     (["render", "--demo", "--boost-factor", "0"], "boost factor 0 must be a whole number >= 1"),
     (["render", "--demo", "--boost-factor", "4", "--denoise", "none"], "use --boost-factor 1"),
     (["render", "--demo", "--boost-reach", "1.5"], "boost reach 1.5 must lie in (0, 1]"),
+    (["render", "--demo", "--boost-factor", "1", "--boost-reach", "0.5"], "--boost-reach chooses where"),
+    (["render", "--demo", "--denoise", "none", "--boost-reach", "0.5"], "drop it"),
     (["render"], "either a scene file"),
 ])
 def test_bad_arguments_exit_2_and_write_nothing(tmp_path, capsys, argv, needle):
