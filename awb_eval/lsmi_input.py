@@ -24,6 +24,7 @@ unless given. The CCM used for the ΔE00 rendering is the DNG's colour matrix ma
 from __future__ import annotations
 
 import json
+import math
 import random
 import re
 from collections.abc import Iterator
@@ -236,6 +237,9 @@ class LsmiCases:
             if black is not None or white is not None:
                 levels.black = levels.black if black is None else float(black)
                 levels.white = levels.white if white is None else float(white)
+        if not (math.isfinite(levels.white) and math.isfinite(levels.black)):
+            raise SpectralError(f"{dng.name} / --black-level, --white-level: levels must be finite, got black "
+                                f"{levels.black:g}, white {levels.white:g}")
         if not levels.white > levels.black:  # given or read: every pixel would clip to nothing
             raise SpectralError(f"{dng.name} / --black-level, --white-level: white level {levels.white:g} is not above "
                                 f"the black level {levels.black:g}")
@@ -297,7 +301,7 @@ class LsmiCases:
         for i in item.lights:
             light = self.meta[item.place].get(f"Light{i}")
             try:
-                values = [float(v) for v in light]
+                values = [float(v) for v in light] if isinstance(light, (list, tuple)) else []
             except (TypeError, ValueError):
                 values = []
             if len(values) != 3 or not all(v > 0 for v in values):  # NaN fails v > 0 too
@@ -327,6 +331,8 @@ def _load_npy(path: Path, shape: tuple[int, int, int]) -> np.ndarray:
         raise SpectralError(f"{path}: not a readable .npy ({exc})") from None
     if a.shape != shape:
         raise SpectralError(f"{path}: shape {a.shape}, expected {shape} (the image's H × W × channels)")
+    if a.dtype.kind not in "biuf":
+        raise SpectralError(f"{path}: dtype {a.dtype}, expected numbers (float32)")
     return np.asarray(a, np.float32)
 
 

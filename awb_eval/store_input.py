@@ -147,9 +147,9 @@ class StoreCases:
         try:
             arrays, meta = build_sample(spec, self.ctx)
         except ServiceError as exc:
-            raise SpectralError(f"{job.name}: {exc.detail}") from None
+            raise SpectralError(exc.detail) from None  # the image is named beside it (Unusable)
         except StoreError as exc:
-            raise SpectralError(f"{job.name}: store problem: {exc}; run `illumix store verify`") from None
+            raise SpectralError(f"store problem: {exc}; run `illumix store verify`") from None
         lit = [i for i, g in enumerate(meta["illuminants"]) if g["illuminant"] is not None and g["intensity"] > 0]
         wps = np.array([meta["illuminants"][i]["white_point_rgb"] for i in range(len(meta["illuminants"]))])
         raw = np.minimum(arrays["raw"], np.float32(1))  # the white level

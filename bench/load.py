@@ -290,7 +290,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--max-requests", type=int, default=20000, help="request cap")
     ap.add_argument("--cache-mb", type=int, default=256)
-    ap.add_argument("--rss-margin-mb", type=int, default=300, help="the goal: RSS <= cache + this")
+    ap.add_argument("--rss-margin-mb", type=int, default=300, help="the goal: RSS <= the cube and projection caches + this")
     ap.add_argument("--max-request-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
     ap.add_argument("--inflight-mb", type=int, default=None, help="illumix serve's flag (default: its own)")
     ap.add_argument("--projection-cache-mb", type=int, default=None, help="illumix serve's flag (default: its own)")

@@ -47,9 +47,8 @@ def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
         if on_progress:
             on_progress(1, rel)
     journal.write_json("cubes.json", index)
-    splits = {name: [n for n in names if n in {p.name for p in places}] for name, names in summary["splits"].items()}
-    journal.write_json("split.json", splits)
-    summary |= {"splits": splits, "counts": {"views": len(places), "spectral EXR files": len(jobs),
+    journal.write_json("split.json", summary["splits"])  # the exported places only (run.export_dataset)
+    summary |= {"counts": {"views": len(places), "spectral EXR files": len(jobs),
                                              "bands": len(wl), "values clipped to float16": clipped},
                 "layout": (f"`<place>/<place>_<group>.exr` (transport) and `<place>_<group>_illumination.exr`, one "
                            f"`S0.<λ>nm` channel per band ({o.exr_dtype}, Fichet et al. 2021), `cubes.json`, `split.json`. "

@@ -47,6 +47,27 @@ def _check_out(out: Path) -> None:
         raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); choose a writable folder") from None
 
 
+#: options a format ignores (set to anything but their default, they are refused), as the CLI names them
+_CAMERA_FLAGS = (("--sensors", "sensors"), ("--pairs", "pairs"), ("--illuminants", "illuminants"),
+                 ("--noise", "noise"), ("--gt", "gt"), ("--bayer", "bayer"))
+
+
+def _check_flags(o: ExportOptions, fmt) -> None:
+    """Refuse an option ``fmt`` would ignore: the cubes (``exr``) take no camera, illuminant, sensor
+    model, ground truth or mosaic; frames take no ``--exr-dtype``; only ``dng`` frames a mosaic."""
+    default = ExportOptions(store="", out="")
+    if fmt.raw_ext is None:
+        ignored = [flag for flag, name in _CAMERA_FLAGS if getattr(o, name) != getattr(default, name)]
+        why = "writes the store's spectral cubes, which no camera, illuminant or sensor model changes"
+    else:
+        ignored = [flag for flag, name in (("--exr-dtype", "exr_dtype"), ("--bayer", "bayer"))
+                   if getattr(o, name) != getattr(default, name) and (name != "bayer" or not fmt.bayer)]
+        why = "writes camera frames" + ("" if fmt.bayer else " without a mosaic")
+    if ignored:
+        raise ExportError(f"--format {fmt.name} {why}, so {', '.join(ignored)} would change nothing; "
+                          f"drop {', '.join(ignored)}")
+
+
 def _check_size(size: tuple[int, int] | None) -> None:
     """Frames (and resampled cubes) within the service's limits on an output (its ``Limits``: side and
     pixels), checked before anything is written."""
@@ -99,8 +120,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     views = _views(st)
     if not views:
         raise ExportError(f"store {o.store} has no complete view; render some with `illumix render`")
-    if fmt.raw_ext is None and (o.pairs or o.illuminants):
-        raise ExportError("--format exr writes the store's cubes, which no illuminant changes; drop --pairs/--illuminants")
+    _check_flags(o, fmt)
     lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
     places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
     warnings = []

@@ -113,8 +113,8 @@ def evaluate(
         res = run(source, chosen, maps=maps if out is not None else 0,
                   on_case=lambda case, name: prog.update(task, advance=1, last=name))
     if not res.images:
-        why = res.skipped[0]["why"] if res.skipped else "no images"
-        raise UserError(f"{data}: no image could be scored ({len(res.skipped)} skipped: {why})")
+        why = f"{res.skipped[0]['name']}: {res.skipped[0]['why']}" if res.skipped else "no images"
+        raise UserError(f"{data}: no image could be scored ({len(res.skipped)} skipped; {why})")
     summary = aggregate(res, labels)
     doc = {"input": source.describe(), "settings": {"methods": labels, "grid": list(_grid(grid)),
                                                    "interpolation": interpolation},

@@ -72,14 +72,6 @@ def export(
     from service.spec import parse_noise
 
     name = EXPORT_FORMATS.canonical(fmt)
-    if name == "exr":  # the cubes: no camera, sensor model, ground truth or mosaic applies
-        given = [f for f, v in (("--sensors", sensors), ("--noise", noise), ("--gt", gt), ("--bayer", bayer))
-                 if v is not None]
-        if given:
-            raise UserError(f"--format exr writes the store's spectral cubes, which {', '.join(given)} does not "
-                            f"change; drop {', '.join(given)}")
-    sensors = "Nikon 5100 (NPL)" if sensors is None else sensors
-    bayer = "RGGB" if bayer is None else bayer
     if gt is not None and gt.lower() not in ("physical", "formula"):
         raise UserError(f"--gt {gt!r}: choose physical or formula")
     if exr_dtype not in ("float32", "float16"):
@@ -87,14 +79,16 @@ def export(
     noise = None if noise is None or noise.strip().lower() == "none" else noise
     if noise is not None:
         parse_noise(noise)
-    names = [s.strip() for s in sensors.split(",") if s.strip()]
-    if not names:
-        raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
-    opts = ExportOptions(store=store, out=out, format=name, sensors=names, pairs=pairs, illuminants=illuminants,
+    given = {}  # the rest keep ExportOptions' defaults (export_dataset refuses what a format ignores)
+    if sensors is not None:
+        given["sensors"] = [s.strip() for s in sensors.split(",") if s.strip()]
+        if not given["sensors"]:
+            raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
+    if bayer is not None:
+        given["bayer"] = None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer)
+    opts = ExportOptions(store=store, out=out, format=name, pairs=pairs, illuminants=illuminants,
                          count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
-                         split=parse_fractions(split), noise=noise,
-                         bayer=None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer),
-                         exr_dtype=exr_dtype)
+                         split=parse_fractions(split), noise=noise, exr_dtype=exr_dtype, **given)
     quiet = as_json and not console.is_terminal
     with progress_bar(console, disable=quiet) as prog:
         task = None

@@ -25,9 +25,14 @@ extras="render"
 # "blender": what the main environment needs to read Cycles' multilayer EXRs (OpenEXR).
 [ "$blender" = 1 ] && extras="${extras},blender"
 # Debian's libllvm19 puts libLLVM-19.so under /usr/lib/<triplet>/, LLVM's own packages under /usr/lib/llvm-N/.
-if ! ls /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* \
-        /usr/lib/*-linux-gnu/libLLVM-1[6-9]*.so* /usr/lib/*-linux-gnu/libLLVM-2*.so* \
-        /usr/lib/*-linux-gnu/libLLVM.so.1[6-9]* /usr/lib/*-linux-gnu/libLLVM.so.2* >/dev/null 2>&1; then
+# (a loop: `ls` of several patterns fails when any one of them matches nothing)
+have_llvm=0
+for f in /usr/lib/llvm-1[6-9]/lib/libLLVM*.so* /usr/lib/llvm-2*/lib/libLLVM*.so* \
+         /usr/lib/*-linux-gnu/libLLVM-1[6-9]*.so* /usr/lib/*-linux-gnu/libLLVM-2*.so* \
+         /usr/lib/*-linux-gnu/libLLVM.so.1[6-9]* /usr/lib/*-linux-gnu/libLLVM.so.2*; do
+  [ -e "$f" ] && have_llvm=1 && break
+done
+if [ "$have_llvm" = 0 ]; then
   if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "install: adding libllvm19 (Mitsuba LLVM backend)" >&2
     (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19) >&2 \

@@ -145,6 +145,8 @@ def test_lsmi_levels_and_errors(lsmi, tmp_path):
     np.testing.assert_array_equal(src.ccm, np.eye(3))  # no colour matrix: identity
     with pytest.raises(SpectralError, match="is not above the black level"):  # given levels are checked too
         LsmiCases(bare, black_level=64, white_level=10)
+    with pytest.raises(SpectralError, match="must be finite"):  # inf would switch the saturation mask off
+        LsmiCases(bare, black_level=64, white_level=float("inf"))
     with pytest.raises(UnknownName, match="did you mean 'cam'"):
         LsmiCases(lsmi, camera="cma")
     with pytest.raises(SpectralError, match="no split 'dev'"):
@@ -223,6 +225,7 @@ def test_lsmi_reads_dng_exports(tmp_path):
 def test_damaged_lsmi_files_are_one_line_errors(tmp_path):
     """A Light that is not three numbers, a mixture .npy that is not an array: SpectralErrors
     (one line from the CLI), not tracebacks."""
+    import io
     import json
 
     root = make_lsmi(tmp_path / "d")
@@ -233,10 +236,15 @@ def test_damaged_lsmi_files_are_one_line_errors(tmp_path):
     np.save(npy, np.array([{"x": 1}], dtype=object), allow_pickle=True)
     with pytest.raises(SpectralError, match="not a readable .npy"):
         src.load(item)
+    shape = np.load(io.BytesIO(good)).shape
+    np.save(npy, np.full(shape, "abc"))  # an array of the right shape, of strings
+    with pytest.raises(SpectralError, match="expected numbers"):
+        src.load(item)
     npy.write_bytes(good)
     meta = root / "cam" / "meta.json"
     doc = json.loads(meta.read_text())
-    doc[item.place]["Light1"] = ["a", 1, 1]
-    meta.write_text(json.dumps(doc))
-    with pytest.raises(SpectralError, match="must be 3 positive"):
-        LsmiCases(root, pairs="12", split="train").load(item)
+    for bad in (["a", 1, 1], "123"):  # a string is not three values, though it has three characters
+        doc[item.place]["Light1"] = bad
+        meta.write_text(json.dumps(doc))
+        with pytest.raises(SpectralError, match="must be 3 positive"):
+            LsmiCases(root, pairs="12", split="train").load(item)

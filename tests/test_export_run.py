@@ -109,6 +109,10 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--noise", "black_level:64.6"], "whole digital numbers"),  # a DNG's BlackLevel, a TIFF's DN offset
     (["--format", "dng", "--size", "10x8"], "at least 22x22"),  # libraw refuses smaller DNGs
     (["--format", "exr", "--sensors", "XYZ", "--bayer", "BGGR"], "drop --sensors, --bayer"),
+    (["--format", "exr", "--gt", "formula", "--noise", "phone"], "drop --noise, --gt"),
+    (["--format", "lsmi", "--exr-dtype", "float16"], "drop --exr-dtype"),
+    (["--format", "lsmi", "--bayer", "BGGR"], "drop --bayer"),
+    (["--format", "dng", "--exr-dtype", "float16"], "drop --exr-dtype"),
 ])
 def test_cli_errors(store, tmp_path, capsys, args, says):
     line = assert_one_line_error(*run_cli(capsys, "export", store, str(tmp_path / "o"), *args))
@@ -164,6 +168,18 @@ def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
     Journal(tmp_path, {"a": 1})
     assert real.read_bytes() == b"x" and (tmp_path / "Cam" / "demo.part-2.npy").is_file()
     assert not leftover.exists() and (tmp_path / "Cam" / ".d.illumix-tmp.tiff").is_dir()
+
+
+def test_options_a_format_ignores_are_refused_by_the_library_too(store, tmp_path):
+    """Not only the command line: ``export_dataset`` itself refuses what the format would drop."""
+    from dataset_export.errors import ExportError
+    from dataset_export.run import ExportOptions, export_dataset
+
+    for kw in ({"format": "exr", "gt": "physical"}, {"format": "exr", "sensors": ["XYZ"]},
+               {"format": "lsmi", "bayer": None}, {"format": "dng", "exr_dtype": "float16"}):
+        with pytest.raises(ExportError, match="would change nothing"):
+            export_dataset(ExportOptions(store=store, out=str(tmp_path / "o"), **kw))
+        assert not (tmp_path / "o").exists()
 
 
 def test_service_refusal_is_an_export_error(store):
