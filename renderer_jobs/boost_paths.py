@@ -39,7 +39,8 @@ def reach(guides, method: str) -> np.ndarray:
     name, p = method_params(method)
     if name != "dt-irradiance":
         raise ValueError(f"targeted extra paths need the dt-irradiance denoiser (its reach), not {name!r}")
-    joint = irradiance_guide_image(guides, p["sigma_normal"], p["sigma_depth"], p["sigma_direct"], p["albedo_floor"])
+    joint = irradiance_guide_image(guides, p["sigma_normal"], p["sigma_depth"], p["sigma_direct"], p["albedo_floor"],
+                                   sigma_spatial=p["sigma_spatial"], iterations=int(p["iterations"]))
     noise = np.random.default_rng(REACH_SEED).standard_normal((*guides.shape, REACH_CHANNELS)).astype(np.float32)
     out = dt_filter(noise, joint, p["sigma_spatial"], int(p["iterations"]))
     return np.sqrt(np.mean(np.square(out, dtype=np.float64), axis=-1)).astype(np.float32)

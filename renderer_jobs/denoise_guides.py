@@ -28,6 +28,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -172,26 +173,54 @@ def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarr
     return np.asarray(wavelengths, np.float64)[np.minimum(idx, len(e) - 1)]
 
 
-def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
-                 samples: int = DIRECT_SAMPLES, behind_glass: bool = False):
+@dataclass(frozen=True)
+class DirectGuide:
+    """One group's direct-light guide of a view: ``direct`` ``(H, W)`` float32 (:func:`direct_light`),
+    ``behind`` the light glass keeps from each pixel (or None), ``noise`` the standard error of
+    ``direct`` from its samples' spread (the direct-light test's noise allowance)."""
+
+    direct: np.ndarray
+    behind: np.ndarray | None
+    noise: np.ndarray
+
+
+def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, samples: int = DIRECT_SAMPLES,
+                 behind_glass: bool = False) -> DirectGuide:
     """The direct-light guide ``(H, W)`` float32 of ``group`` in ``view`` (module docstring): the
-    mean over four wavelengths (:func:`guide_wavelengths`) and ``samples`` sub-pixel positions.
-    ``behind_glass``: also the light the same samples' shadow rays would bring if the dielectrics
-    (glass) that block them were not there, ``(H, W)`` float32 — where glass may focus or bend the
-    group's light (a caustic) that the first image shows as shadow: returns ``(direct, behind)``."""
+    mean over four wavelengths (:func:`guide_wavelengths`), ``samples`` sub-pixel positions and two
+    light samples at each, with its standard error (from the two light samples' differences). ``behind_glass``:
+    also the light the same samples' shadow rays would bring if the dielectrics (glass) that block
+    them were not there — where glass may focus or bend the group's light (a caustic) that the
+    first image shows as shadow."""
     from renderer_jobs.mitsuba_scene import group_emission
 
     tracer = Tracer(scene, view, [group], resolution)
     lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
 
-    def one(pix, jit):  # a batch's seed: its first pixel
-        out = tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
-                                       mix_seed(seed, _DIRECT_SEED, int(pix[0])), behind_dielectric=behind_glass)
-        return np.stack([o.mean(axis=1) for o in out], -1) if behind_glass else out.mean(axis=1, keepdims=True)
+    def one(pix, jit):  # a batch's seed: its first pixel; two light samples per position
+        a, b = (tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
+                                         mix_seed(seed, _DIRECT_SEED ^ k, int(pix[0])), behind_dielectric=behind_glass)
+                for k in (0, 1))
+        da, db = ((o[0] if behind_glass else o).mean(axis=1).astype(np.float64) for o in (a, b))
+        cols = [(da + db) / 2, (da - db) ** 2]
+        if behind_glass:
+            cols.append((a[1].mean(axis=1) + b[1].mean(axis=1)) / 2)
+        return np.stack(cols, -1)
 
     img = _per_pixel(tracer, samples, one)
-    return (img[..., 0], img[..., 1]) if behind_glass else img[..., 0]
+    # the spread of the two light samples at each position: the light sampling's error alone (the
+    # positions are stratified, so at a shadow edge their spread is coverage, not noise)
+    noise = np.sqrt(np.maximum(img[..., 1], 0.0) / (4 * samples))
+    return DirectGuide(img[..., 0], img[..., 2] if behind_glass else None, noise.astype(np.float32))
 
 
-__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "STRADDLE_RAYS", "albedo_bands", "direct_light", "guide_wavelengths",
+def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,
+                 samples: int = DIRECT_SAMPLES, behind_glass: bool = False):
+    """:func:`direct_guide`'s image alone ``(H, W)``, or ``(direct, behind)`` with ``behind_glass``."""
+    g = direct_guide(scene, view, group, resolution, seed, samples, behind_glass)
+    return (g.direct, g.behind) if behind_glass else g.direct
+
+
+__all__ = ["ALBEDO_RAYS", "DIRECT_SAMPLES", "STRADDLE_RAYS", "DirectGuide", "albedo_bands", "direct_guide",
+           "direct_light", "guide_wavelengths",
            "guides_needed", "hammersley", "straddle", "uses_straddle"]

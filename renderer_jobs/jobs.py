@@ -336,10 +336,9 @@ def denoise_guides(st, scene, job, settings) -> tuple:
         # the light glass keeps from each pixel: traced only where the scene has glass (0.1-0.25 s
         # CPU a group otherwise spent finding none)
         glass = any(isinstance(m, Dielectric) for m in scene.materials.values())
-        traced = dg.direct_light(scene, job.view, job.group, settings.resolution, settings.seed, behind_glass=glass)
-        direct, behind = traced if glass else (traced, None)
-        guides = guides.with_direct(direct, behind)
-        extra["direct"] = {"samples_per_pixel": dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": glass}
+        traced = dg.direct_guide(scene, job.view, job.group, settings.resolution, settings.seed, behind_glass=glass)
+        guides = guides.with_direct(traced.direct, traced.behind, traced.noise)
+        extra["direct"] = {"samples_per_pixel": 2 * dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": glass}
     return guides, extra
 
 

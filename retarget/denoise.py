@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from retarget.denoise_classes import irradiance_classes
+from retarget.denoise_classes import DIRECT_ROUNDS, direct_test, irradiance_classes, isolate
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
 from retarget.errors import SpectralError
 
@@ -71,7 +71,8 @@ class Guides:
     behind_glass ``(H, W)`` the share of that group's direct light that only glass (a dielectric,
     crossed straight) keeps from the pixel, in [0, 1], or None: where the glass may focus the light
     (a caustic) the direct guide shows a shadow, so there it tells nothing; straddle ``(H, W)`` bool
-    the pixel's sub-pixel rays hit more than one surface (the ``straddle`` AOV), or None.
+    the pixel's sub-pixel rays hit more than one surface (the ``straddle`` AOV), or None;
+    direct_noise ``(H, W)`` the standard error of ``direct`` (same unit), or None (taken as 0).
     """
 
     albedo: np.ndarray
@@ -83,6 +84,7 @@ class Guides:
     direct: np.ndarray | None = None
     behind_glass: np.ndarray | None = None
     straddle: np.ndarray | None = None
+    direct_noise: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
@@ -100,17 +102,20 @@ class Guides:
         return cls(np.asarray(aovs["albedo"], np.float32), np.asarray(aovs["normal"], np.float32),
                    depth, hit, emitter, bands, straddle=straddle)
 
-    def with_direct(self, direct: np.ndarray, behind_glass: np.ndarray | None = None) -> Guides:
+    def with_direct(self, direct: np.ndarray, behind_glass: np.ndarray | None = None,
+                    noise: np.ndarray | None = None) -> Guides:
         """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0) and, when
         given, the light that glass keeps from each pixel ``(H, W)`` (finite, ≥ 0, same unit as
         ``direct``: ``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), stored as
-        the share ``behind / (behind + direct)``."""
+        the share ``behind / (behind + direct)``, and the direct image's standard error ``noise``
+        ``(H, W)`` (finite, ≥ 0, same unit: ``direct_light(noise=True)``)."""
         d = _checked_image(direct, self.shape, "direct-light guide")
+        n = None if noise is None else _checked_image(noise, self.shape, "direct-light guide's noise")
         if behind_glass is None:
-            return replace(self, direct=d, behind_glass=None)
+            return replace(self, direct=d, behind_glass=None, direct_noise=n)
         b = _checked_image(behind_glass, self.shape, "behind-glass guide")
         share = np.divide(b, b + d, out=np.zeros_like(b), where=(b + d) > 0)
-        return replace(self, direct=d, behind_glass=share)
+        return replace(self, direct=d, behind_glass=share, direct_noise=n)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -150,17 +155,30 @@ def _dt(cube: np.ndarray, guides: Guides, *, sigma_spatial: float = 4.0, sigma_a
 
 
 def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: float, sigma_direct: float,
-                           albedo_floor: float = 0.01, kind: str = "transport") -> np.ndarray:
+                           albedo_floor: float = 0.01, kind: str = "transport", *, sigma_spatial: float = 4.0,
+                           iterations: int = 3) -> np.ndarray:
     """``dt-irradiance``'s joint image ``(H, W, 3)`` float32 for a ``kind`` of cube: the normal's
     component along a fixed axis with the classes of :func:`irradiance_classes` pushed apart,
     ``log depth`` (a relative step) and ``log(direct + 10⁻³·max)`` (a shadow edge is a step in it),
-    each over its sigma."""
+    each over its sigma. Then, for up to ``DIRECT_ROUNDS`` rounds, the filter (``sigma_spatial``,
+    ``iterations``) is applied to the direct-light guide itself and the pixels it would move
+    (:func:`retarget.denoise_classes.direct_test`) are left as rendered: a guide-only test, so the
+    filter stays linear in the cube."""
     g = np.empty((*guides.shape, 3), np.float32)
     classes = irradiance_classes(guides, albedo_floor, kind)
-    g[..., 0] = (guides.normal @ _NORMAL_AXIS) / sigma_normal + _FAR * classes
+    axis = (guides.normal @ _NORMAL_AXIS) / sigma_normal
+    g[..., 0] = axis + _FAR * classes
     g[..., 1] = np.log(np.maximum(guides.depth, 1e-3)) / sigma_depth
     d = guides.direct
     g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
+    free = classes < 4  # pixels the filter may still average
+    for _ in range(DIRECT_ROUNDS):
+        moved = direct_test(guides, dt_filter(d[..., None], g, sigma_spatial, iterations)[..., 0]) & free
+        if not moved.any():
+            break
+        isolate(classes, moved)
+        free &= ~moved
+        g[..., 0] = axis + _FAR * classes
     return g
 
 
@@ -171,7 +189,8 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     ``ρ = max(albedo_bands, albedo_floor)`` (the floor keeps metal and glass, with no diffuse
     reflectance, from dividing by zero: any fixed positive ρ keeps the filter linear; the joint
     image leaves them as rendered, so their ``cube / ρ`` never mixes with another pixel's)."""
-    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor, kind)
+    joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor, kind,
+                                   sigma_spatial=sigma_spatial, iterations=iterations)
     if kind == "illumination":
         return dt_filter(cube, joint, sigma_spatial, iterations)
     rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))

@@ -30,6 +30,18 @@ GLASS_MARGIN = 1
 #: bulb's envelope, a lamp cover, a glazed window) rather than throwing a caustic somewhere, and
 #: leaving that much as rendered (and tracing it with the targeted paths' 8× the spp) would not pay
 GLASS_MAX_COVER = 0.25
+#: The direct-light test (:func:`direct_test`): a surface pixel is left as rendered when the filter,
+#: applied to the group's own direct-light guide ``G``, moves it by more than
+#: ``DIRECT_TOLERANCE × (G + DIRECT_FLOOR × mean G) + DIRECT_NOISE_Z × σ_G``: the filter would move
+#: the cube's direct light there as much (a spot cone's rim, a hard shadow's edge, a sun patch).
+#: ``DIRECT_FLOOR × mean G`` stands in for the light the guide does not show (bounce light), so a
+#: leak into a shadow counts against the light there; ``σ_G`` is the guide's own standard error
+#: (area lights), so its noise flags nothing. Chosen on the demo rooms (bench/FIDELITY.md).
+DIRECT_TOLERANCE = 0.02
+DIRECT_FLOOR = 0.1
+DIRECT_NOISE_Z = 3.0
+#: Rounds of the direct-light test: a pixel left as rendered changes its neighbours' weights.
+DIRECT_ROUNDS = 2
 
 
 def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
@@ -43,9 +55,8 @@ def _dilate(mask: np.ndarray, radius: int) -> np.ndarray:
 def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transport") -> np.ndarray:
     """``(H, W)`` float32 class codes of ``dt-irradiance``'s joint image (the filter never averages
     across codes) for a ``kind`` ``"transport"`` or ``"illumination"`` cube: 0 a diffuse surface,
-    1 background, 2 emitter, 3 metal and glass in an illumination cube, and 4–8 surface pixels the
-    filter must leave as rendered, each with a code none of its eight neighbours has, so nothing
-    flows in or out:
+    3 metal and glass in an illumination cube, and 4–8 pixels the filter must leave as rendered,
+    each with a code none of its eight neighbours has, so nothing flows in or out:
 
     - metal and glass (no diffuse reflectance) in a transport cube: what they show is the rest of
       the scene, reflected or refracted, which no guide describes (filtered among themselves, a glass
@@ -64,6 +75,11 @@ def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transpo
       passes it only with its targeted extra paths): its sub-pixel rays hit two surfaces, so its
       light is a mix of theirs that no neighbour has, and its averaged normal and depth look like
       neither side's, or like the side with the larger share, which it would be averaged with.
+
+    Emitter and background pixels are left as rendered too (codes 4–8): a light seen in frame is a
+    radiance the guides do not describe (a lamp's pixels range over 100× from its rim to its
+    centre); averaged among themselves they inflated a visible fixture 20× (bench/FIDELITY.md).
+    :func:`direct_test` adds the pixels where the filter would move the group's direct light.
 
     The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
     them more paths."""
@@ -85,9 +101,32 @@ def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transpo
     if guides.straddle is not None:
         near |= guides.straddle
     near &= surface
+    return isolate(cls, near | ~surface)
+
+
+def isolate(cls: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``cls`` with the pixels of ``mask`` given codes 4–8, each unlike all its eight neighbours'
+    (the filter leaves them as rendered); in place, returned."""
     y, x = np.indices(cls.shape)
-    cls[near] = 4 + ((x + 2 * y) % 5)[near]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
+    cls[mask] = 4 + ((x + 2 * y) % 5)[mask]  # 8-neighbours differ by ±1, ±2, ±3 (mod 5): never equal
     return cls
 
 
-__all__ = ["GLASS_MARGIN", "GLASS_MAX_COVER", "GLASS_SHARE", "LAMP_RING", "irradiance_classes"]
+def direct_test(guides: Guides, filtered: np.ndarray) -> np.ndarray:
+    """``(H, W)`` bool: surface pixels where ``filtered`` — the filter applied to the group's
+    direct-light guide ``G`` with the joint image it would use for the cube — differs from ``G``
+    by more than ``DIRECT_TOLERANCE × (G + DIRECT_FLOOR × mean G) + DIRECT_NOISE_Z × σ_G``
+    (module constants). The filter is linear and the guide's light is the cube's direct light up
+    to a factor, so where it cannot keep ``G`` it cannot keep the cube: such a pixel is left as
+    rendered. Reads the guides only (never the cube): the choice stays independent of the served
+    samples, and the filter linear. ``σ_G``: ``guides.direct_noise`` (0 when absent)."""
+    g = guides.direct
+    surface = guides.hit & ~guides.emitter
+    lit = g[surface]
+    scale = g + DIRECT_FLOOR * (float(lit.mean()) if lit.size else 0.0)
+    noise = 0.0 if guides.direct_noise is None else DIRECT_NOISE_Z * guides.direct_noise
+    return surface & (np.abs(filtered - g) > DIRECT_TOLERANCE * scale + noise) & (scale > 0)
+
+
+__all__ = ["DIRECT_FLOOR", "DIRECT_NOISE_Z", "DIRECT_ROUNDS", "DIRECT_TOLERANCE", "GLASS_MARGIN", "GLASS_MAX_COVER",
+           "GLASS_SHARE", "LAMP_RING", "direct_test", "irradiance_classes", "isolate"]

@@ -159,8 +159,8 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     from store import CubeStore
 
     calls = []
-    real = dg.direct_light
-    monkeypatch.setattr(dg, "direct_light", lambda *a, **k: calls.append(a[2]) or real(*a, **k))
+    real = dg.direct_guide
+    monkeypatch.setattr(dg, "direct_guide", lambda *a, **k: calls.append(a[2]) or real(*a, **k))
     box = jobs.apply_resolution(scene_from_dict(box_scene()), RES)
     store = str(tmp_path / "st")
     settings = RenderSettings(spp=16, resolution=RES, skip_dark=False)
@@ -170,4 +170,4 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     tp = meta.render_stats["targeted_paths"]
     assert tp["paths_per_pixel"] == 128 and tp["pixels"] > 0 and 0 < tp["pixel_fraction"] < 1  # some, not all
     passes = meta.denoised.model_extra["guide_passes"]["direct"]
-    assert passes["samples_per_pixel"] == dg.DIRECT_SAMPLES and passes["behind_glass"] is False  # the box has no glass
+    assert passes["samples_per_pixel"] == 2 * dg.DIRECT_SAMPLES and passes["behind_glass"] is False  # the box has no glass

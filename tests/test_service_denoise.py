@@ -65,8 +65,10 @@ def test_stored_copies_equal_an_independent_denoising(client):
     _, dn, _ = get(c)
     _, raw, meta = get(c, denoise="none")
     assert meta["denoise"] == {"method": "none", "why": "asked for (denoise=none)"}
-    # the copies are smoother: neighbour differences on the flat gray right half shrink
-    right = (slice(4, 40), slice(40, 62))
+    # the copies are smoother: neighbour differences on the flat gray right half shrink (short of
+    # the frame's right edge, where the falloffs' curvature would bias the filter by more than the
+    # direct-light test allows: there the copies are the cubes as rendered)
+    right = (slice(4, 40), slice(40, 56))
     rough = [np.std(np.diff(x["raw"][right][..., 1], axis=1)) for x in (raw, dn)]
     assert rough[1] < rough[0] / 2
 
