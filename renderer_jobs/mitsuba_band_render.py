@@ -69,8 +69,9 @@ def band_sets(live: np.ndarray, max_quads: int) -> list[np.ndarray]:
 
 
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
-                     emission: np.ndarray, boost: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None, dict]:
-    """``(cube (H, W, n_bands), illumination cube or None, stats)`` float32 of ``view`` lit by ``groups``
+                     emission: np.ndarray, boost: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None]:
+    """``(cube (H, W, n_bands), illumination cube or None, stats, noise)`` float32 of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba_render.emitter_passes`), with ``settings``
     (a :class:`renderer_jobs.mitsuba_render.RenderSettings`).
 
@@ -78,7 +79,12 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     bands; the pixel's ``settings.spp`` paths are shared equally among the sets (:func:`set_spp`), so
     every band's value averages ``spp / sets`` paths. ``boost``: flat pixel indices that get
     ``settings.boost_factor`` × the paths (:mod:`renderer_jobs.boost_paths`: the film's estimate and
-    the extra paths' combined by path counts; every other pixel exactly as without it). Fewer bands per path make a path cheaper (raw
+    the extra paths' combined by path counts; every other pixel exactly as without it).
+
+    ``noise`` ``(H, W, 2)``: the cube's band sum weighted by the emission and its variance, from the
+    spread of the band sets' own estimates of it (each set spans the spectrum with its own paths:
+    :func:`set_noise`); None with one set. The denoiser reads it to weigh its bias against the noise
+    (:func:`retarget.denoise.relative_noise`). Fewer bands per path make a path cheaper (raw
     noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
@@ -100,6 +106,8 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     boost = np.asarray([] if boost is None else boost, np.int64)
     extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
     t_boost = 0.0
+    e_live = np.where(np.asarray(emission, np.float64) > 0, emission, 0.0) if flat else np.ones(nb)
+    noise = np.zeros((2,), np.float64) if len(sets) > 1 else None
     for k, portals in enumerate(passes):
         t1 = time.perf_counter()
         ms, sensor = load_mitsuba_scene(scene, view, groups, settings.resolution, portals=portals, flat_emission=flat,
@@ -109,6 +117,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
         # renders (multijitter rounds some counts up, e.g. 32 -> 35: the stats state both)
         n_film = int(sensor.sampler().sample_count())
         t_load += time.perf_counter() - t1
+        estimates: list[np.ndarray] = []  # this pass's band sets' estimates of the band sum
         if cube is None:
             cube = np.zeros((h, w, nb), np.float64)
             illum = np.zeros((h, w, nb), np.float64) if settings.illumination else None
@@ -139,6 +148,10 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
             if illum is not None:
                 illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
+            if noise is not None:
+                estimates.append(_set_estimate(aov[..., :len(lanes)][..., on], lanes[on], e_live, sets))
+        if noise is not None:
+            noise = noise + set_noise(np.stack(estimates))
     if flat:
         cube *= emission
         if illum is not None:
@@ -158,4 +171,22 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     if illum is not None:
         stats["illumination"] = {"samples": int(round(kinds.sum())), "demodulated": int(round(kinds[0])),
                                  "in_path": int(round(kinds[1])), "traced": int(round(kinds[2]))}
-    return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats)
+    return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats,
+            None if noise is None else noise.astype(np.float32))
+
+
+def _set_estimate(values: np.ndarray, lanes: np.ndarray, weight: np.ndarray, sets: list[np.ndarray]) -> np.ndarray:
+    """``(H, W)``: one band set's estimate of the weighted sum over every live band — its own
+    bands' sum scaled by the weight they carry of the whole."""
+    all_live = float(weight[np.concatenate(sets)].sum())
+    own = float(weight[lanes].sum())
+    return (values.astype(np.float64) @ weight[lanes]) * (all_live / own if own > 0 else 0.0)
+
+
+def set_noise(estimates: np.ndarray) -> np.ndarray:
+    """``(H, W, 2)``: from ``k`` band sets' independent estimates ``(k, H, W)`` of one pass's
+    weighted band sum, that sum (their mean, which is how the cube adds its sets up to their
+    spectral detail) and its variance, ``s²/k`` (each set has its own paths and seed; a set's
+    bands differ from another's only as the spectrum does, which a smooth one hardly does)."""
+    k = estimates.shape[0]
+    return np.stack([estimates.mean(0), estimates.var(0, ddof=1) / k], -1)

@@ -101,6 +101,9 @@ class CubeResult:
     renderer: dict
     stats: dict = field(default_factory=dict)
     illumination: np.ndarray | None = None  # (H, W, n_bands) float32, when RenderSettings.illumination
+    #: (H, W, 2) float32: the cube's band sum and its variance from the band sets' spread, or None
+    #: (renderer_jobs.mitsuba_band_render.set_noise; the denoiser weighs its bias against it)
+    noise: np.ndarray | None = None
 
 
 def group_list(scene: Scene, group: str | list[str] | None) -> list[str]:
@@ -388,12 +391,12 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
         if np.shape(boost_mask) != (h, w):
             raise SceneError(f"boost mask {np.shape(boost_mask)} does not match view {view!r}'s ({h}, {w}) (H, W)")
         boost = np.flatnonzero(np.asarray(boost_mask, bool).ravel())
-    cube, illum, stats = render_all_bands(scene, view, groups, passes, settings, np.asarray(emission, np.float64),
-                                          boost)
+    cube, illum, stats, noise = render_all_bands(scene, view, groups, passes, settings,
+                                                 np.asarray(emission, np.float64), boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})
     info = renderer_info(scene, settings, passes)
     info["settings"]["targeted_paths"] = ({"spp_factor": settings.boost_factor, "reach": settings.boost_reach,
                                            "mask": "dt-irradiance reach of unit white noise > reach (guides only)"}
                                           if boost is not None else None)
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
-                      renderer=info, stats=stats, illumination=illum)
+                      renderer=info, stats=stats, illumination=illum, noise=noise)

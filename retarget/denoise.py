@@ -72,7 +72,9 @@ class Guides:
     crossed straight) keeps from the pixel, in [0, 1], or None: where the glass may focus the light
     (a caustic) the direct guide shows a shadow, so there it tells nothing; straddle ``(H, W)`` bool
     the pixel's sub-pixel rays hit more than one surface (the ``straddle`` AOV), or None;
-    direct_noise ``(H, W)`` the standard error of ``direct`` (same unit), or None (taken as 0).
+    direct_noise ``(H, W)`` the standard error of ``direct`` (same unit), or None (taken as 0);
+    cube_noise ``(H, W)`` the relative noise of the cube being denoised (:func:`relative_noise`,
+    set with :meth:`with_cube_noise`), or None: then the direct-light test's tolerance is fixed.
     """
 
     albedo: np.ndarray
@@ -85,6 +87,7 @@ class Guides:
     behind_glass: np.ndarray | None = None
     straddle: np.ndarray | None = None
     direct_noise: np.ndarray | None = None
+    cube_noise: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
@@ -117,6 +120,17 @@ class Guides:
         share = np.divide(b, b + d, out=np.zeros_like(b), where=(b + d) > 0)
         return replace(self, direct=d, behind_glass=share, direct_noise=n)
 
+    def with_cube_noise(self, noise: np.ndarray | None) -> Guides:
+        """These guides with the noise of the cube they will denoise: ``noise`` ``(H, W, 2)``, its
+        band sum and that sum's variance (``renderer_jobs.mitsuba_band_render.set_noise``), or None."""
+        if noise is None:
+            return replace(self, cube_noise=None)
+        a = np.asarray(noise, np.float32)
+        if a.shape != (*self.shape, 2) or not np.isfinite(a).all():
+            raise SpectralError(f"denoise: the cube's noise has shape {a.shape} or non-finite values; "
+                                f"it must be finite, (H, W, 2) = {(*self.shape, 2)}")
+        return replace(self, cube_noise=relative_noise(a[..., 0], a[..., 1]))
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.depth.shape[:2]
@@ -124,6 +138,23 @@ class Guides:
     def pixel_class(self) -> np.ndarray:
         """``(H, W)`` int8: 0 surface, 1 background (no hit), 2 emitter. Filters never mix classes."""
         return np.where(self.emitter, 2, np.where(self.hit, 0, 1)).astype(np.int8)
+
+
+#: The window (pixels, square side 2r+1) over which a cube's noise is pooled: the band sets give
+#: each pixel's variance from a few degrees of freedom (3 with the default 4 sets), 25 pixels 75.
+NOISE_RADIUS = 2
+
+
+def relative_noise(total: np.ndarray, var: np.ndarray, radius: int = NOISE_RADIUS) -> np.ndarray:
+    """``(H, W)`` float32: ``√(mean var) / mean |total|`` over each pixel's (2r+1)² window — the
+    relative noise of a cube's band sum, pooled (the windows' means are OpenCV box filters)."""
+    import cv2  # noqa: PLC0415 - heavy; only the filters need it
+
+    k = (2 * radius + 1, 2 * radius + 1)
+    v = cv2.blur(np.maximum(var, 0).astype(np.float32), k, borderType=cv2.BORDER_REPLICATE)
+    t = cv2.blur(np.abs(total).astype(np.float32), k, borderType=cv2.BORDER_REPLICATE)
+    floor = np.float32(1e-6 * max(float(t.max()), 1e-30))
+    return (np.sqrt(v) / np.maximum(t, floor)).astype(np.float32)
 
 
 def _checked_image(image: np.ndarray, shape: tuple[int, int], what: str) -> np.ndarray:
@@ -172,8 +203,9 @@ def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: flo
     d = guides.direct
     g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
     free = classes < 4  # pixels the filter may still average
+    shade = shading(guides)[..., 0]
     for _ in range(DIRECT_ROUNDS):
-        moved = direct_test(guides, dt_filter(d[..., None], g, sigma_spatial, iterations)[..., 0]) & free
+        moved = direct_test(guides, dt_filter((d / shade)[..., None], g, sigma_spatial, iterations)[..., 0] * shade) & free
         if not moved.any():
             break
         isolate(classes, moved)
@@ -191,10 +223,30 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     image leaves them as rendered, so their ``cube / ρ`` never mixes with another pixel's)."""
     joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor, kind,
                                    sigma_spatial=sigma_spatial, iterations=iterations)
-    if kind == "illumination":
-        return dt_filter(cube, joint, sigma_spatial, iterations)
-    rho = np.maximum(guides.albedo_bands, np.float32(albedo_floor))
-    return dt_filter(cube / rho, joint, sigma_spatial, iterations) * rho
+    mod = shading(guides)
+    if kind == "transport":
+        mod = mod * np.maximum(guides.albedo_bands, np.float32(albedo_floor))
+    return dt_filter(cube / mod, joint, sigma_spatial, iterations) * mod
+
+
+#: ``shading``'s floor, as a share of the direct-light guide's mean over the surface: it stands in
+#: for the bounce light the guide does not show (bench/FIDELITY.md).
+SHADE_FLOOR = 0.25
+
+
+def shading(guides: Guides) -> np.ndarray:
+    """``(H, W, 1)`` float32 > 0: the light ``dt-irradiance`` divides out before it filters (and
+    multiplies back after), ``G + SHADE_FLOOR · mean G`` with ``G`` the group's direct-light guide
+    (the mean over the surface pixels). Where the direct light dominates, what is filtered is then
+    nearly flat — a spot's falloff, a point light's ``cos/r²`` — so averaging it is unbiased to first
+    order (dividing by the albedo alone left those ramps in, and the filter bent them at every
+    border it stops at). A fixed per-pixel factor from the guides: the filter stays linear."""
+    g = guides.direct
+    surface = guides.hit & ~guides.emitter
+    mean = float(g[surface].mean()) if surface.any() else 0.0
+    if not mean > 0:
+        return np.ones((*guides.shape, 1), np.float32)
+    return (np.maximum(g, 0.0) + np.float32(SHADE_FLOOR * mean))[..., None].astype(np.float32)
 
 
 def dt_filter(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int = 3) -> np.ndarray:

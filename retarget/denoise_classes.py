@@ -31,15 +31,23 @@ GLASS_MARGIN = 1
 #: leaving that much as rendered (and tracing it with the targeted paths' 8× the spp) would not pay
 GLASS_MAX_COVER = 0.25
 #: The direct-light test (:func:`direct_test`): a surface pixel is left as rendered when the filter,
-#: applied to the group's own direct-light guide ``G``, moves it by more than
-#: ``DIRECT_TOLERANCE × (G + DIRECT_FLOOR × mean G) + DIRECT_NOISE_Z × σ_G``: the filter would move
-#: the cube's direct light there as much (a spot cone's rim, a hard shadow's edge, a sun patch).
-#: ``DIRECT_FLOOR × mean G`` stands in for the light the guide does not show (bounce light), so a
-#: leak into a shadow counts against the light there; ``σ_G`` is the guide's own standard error
-#: (area lights), so its noise flags nothing. Chosen on the demo rooms (bench/FIDELITY.md).
+#: applied to the group's own direct-light guide ``G``, moves it by more than ``tolerance × (G +
+#: DIRECT_FLOOR × mean G)``: it would move the cube's direct light there as much (a spot cone's rim,
+#: a hard shadow's edge, a sun patch). ``DIRECT_FLOOR × mean G`` stands in for the light the guide
+#: does not show (bounce light), so a leak into a shadow counts against the light there. With the
+#: cube's own noise known (``Guides.cube_noise``, relative), the tolerance is ``BIAS_SHARE`` of it,
+#: within ``TOLERANCE_RANGE``: a bias under the noise it removes; else ``DIRECT_TOLERANCE``, with
+#: ``DIRECT_NOISE_Z × σ_G`` added (the guide's own standard error: its noise flags nothing).
+#: Chosen on the demo rooms, measured on the held-out corpus (bench/FIDELITY.md).
 DIRECT_TOLERANCE = 0.02
 DIRECT_FLOOR = 0.1
 DIRECT_NOISE_Z = 3.0
+BIAS_SHARE = 1.0
+TOLERANCE_RANGE = (0.002, 0.05)
+#: ... and, with the cube's noise known, where the guide's own noise exceeds ``GUIDE_NOISE_SHARE``
+#: of the cube's: the filter divides the guide's light out and multiplies it back
+#: (:func:`retarget.denoise.shading`), so the guide's noise is printed on the result.
+GUIDE_NOISE_SHARE = 0.7
 #: Rounds of the direct-light test: a pixel left as rendered changes its neighbours' weights.
 DIRECT_ROUNDS = 2
 
@@ -115,18 +123,26 @@ def isolate(cls: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def direct_test(guides: Guides, filtered: np.ndarray) -> np.ndarray:
     """``(H, W)`` bool: surface pixels where ``filtered`` — the filter applied to the group's
     direct-light guide ``G`` with the joint image it would use for the cube — differs from ``G``
-    by more than ``DIRECT_TOLERANCE × (G + DIRECT_FLOOR × mean G) + DIRECT_NOISE_Z × σ_G``
-    (module constants). The filter is linear and the guide's light is the cube's direct light up
-    to a factor, so where it cannot keep ``G`` it cannot keep the cube: such a pixel is left as
-    rendered. Reads the guides only (never the cube): the choice stays independent of the served
-    samples, and the filter linear. ``σ_G``: ``guides.direct_noise`` (0 when absent)."""
+    by more than the tolerance (module constants), or, with the cube's noise known, where the
+    guide is noisier than the cube. The filter is linear and the guide's light is the cube's direct
+    light up to a factor, so where it cannot keep ``G`` it cannot keep the cube: such a pixel is
+    left as rendered. Reads the guides and the cube's pooled noise *level* only, never the cube's
+    values: the choice stays independent of the served samples (the band sets' spread is
+    independent of their mean), and the filter linear. ``σ_G``: ``guides.direct_noise`` (0 when
+    absent)."""
     g = guides.direct
     surface = guides.hit & ~guides.emitter
     lit = g[surface]
     scale = g + DIRECT_FLOOR * (float(lit.mean()) if lit.size else 0.0)
-    noise = 0.0 if guides.direct_noise is None else DIRECT_NOISE_Z * guides.direct_noise
-    return surface & (np.abs(filtered - g) > DIRECT_TOLERANCE * scale + noise) & (scale > 0)
+    sigma_g = 0.0 if guides.direct_noise is None else guides.direct_noise
+    if guides.cube_noise is None:
+        moved = np.abs(filtered - g) > DIRECT_TOLERANCE * scale + DIRECT_NOISE_Z * sigma_g
+    else:
+        tol = np.clip(BIAS_SHARE * guides.cube_noise, *TOLERANCE_RANGE)
+        moved = (np.abs(filtered - g) > tol * scale) | (sigma_g > GUIDE_NOISE_SHARE * guides.cube_noise * scale)
+    return surface & moved & (scale > 0)
 
 
-__all__ = ["DIRECT_FLOOR", "DIRECT_NOISE_Z", "DIRECT_ROUNDS", "DIRECT_TOLERANCE", "GLASS_MARGIN", "GLASS_MAX_COVER",
-           "GLASS_SHARE", "LAMP_RING", "direct_test", "irradiance_classes", "isolate"]
+__all__ = ["BIAS_SHARE", "DIRECT_FLOOR", "DIRECT_NOISE_Z", "DIRECT_ROUNDS", "DIRECT_TOLERANCE", "GLASS_MARGIN",
+           "GLASS_MAX_COVER", "GLASS_SHARE", "GUIDE_NOISE_SHARE", "LAMP_RING", "TOLERANCE_RANGE", "direct_test",
+           "irradiance_classes", "isolate"]
