@@ -11,7 +11,7 @@ Prints one JSON object last:
 - ``n_scenes``; ``max_mean_shift_pct`` — worst change of a group's frame sum, default against
   ``denoise=none`` (goal ≤ 0.5);
 - ``biased_pixel_pct`` — pixels whose default-served output (raw, the illumination spectrum, illum,
-  gain, mixture, sRGB) is biased beyond 3σ of the render's own noise (goal ≤ 0.3), with
+  gain, mixture, weights, sRGB) is biased beyond 3σ of the render's own noise (goal ≤ 0.3), with
   ``biased_pixel_pct_plain`` (the same test on the plain render: the test's floor) and the share per
   output;
 - ``denoised_worse_pct`` — (scene, pixel class) pairs where the default's error exceeds the plain
@@ -59,7 +59,7 @@ def measure_scene(entry: fc.Entry, cache: Path, reuse: bool) -> dict:
     got = fm.fetch(clients, scene.name, view, lit_all)
     tests, shifts = {}, {}
     for req, served in got.items():
-        for out in ("raw", "illumination", "illum", "gain", "mixture", "srgb"):
+        for out in ("raw", "illumination", "illum", "gain", "mixture", "weights", "srgb"):
             if out not in served["R"]:
                 continue
             arrs = [served[k][out] for k in ("D1", "D2", "N1", "N2", "R")]

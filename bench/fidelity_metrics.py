@@ -21,7 +21,8 @@ same defaults, independent seeds) served by default (``D1``, ``D2``) and with ``
 
 Requests: each group alone (``intensities`` one-hot, illuminant D65; outputs raw and the physical
 illumination spectrum, reduced to three broad bands) and all groups together under distinct
-illuminants (raw, illum, gain, mixture, sRGB, mask) with a fixed exposure, so nothing rescales.
+illuminants (raw, illum, gain, mixture, weights, sRGB, mask) with a fixed exposure, so nothing
+rescales.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def requests(groups: list[str]) -> dict[str, dict]:
                              "intensities": ",".join("1" if j == i else "0" for j in range(len(groups))),
                              "outputs": "raw,illumination,mask"}
     out["mix"] = {"illuminants": ",".join(MIX[k % len(MIX)] for k in range(len(groups))),
-                  "outputs": "raw,illum,gain,mixture,srgb,mask"}
+                  "outputs": "raw,illum,gain,mixture,weights,srgb,mask"}
     return out
 
 
@@ -68,7 +69,7 @@ def fetch(clients: dict, scene: str, view: str, groups: list[str]) -> dict:
         for served, (store, dn) in plans.items():
             s = clients[store].sample(scene=scene, view=view, sensor=SENSOR, exposure="1", seed=0,
                                       **params, **({"denoise": dn} if dn else {}))
-            arrays = {k: getattr(s, k) for k in ("raw", "illum", "gain", "mixture", "srgb", "mask")
+            arrays = {k: getattr(s, k) for k in ("raw", "illum", "gain", "mixture", "weights", "srgb", "mask")
                       if getattr(s, k, None) is not None}
             if getattr(s, "illumination", None) is not None:
                 arrays["illumination"] = _bands3(s.illumination)

@@ -16,16 +16,21 @@ the domain transform's edges come from the guides.
 Methods (case-insensitive registry :data:`retarget.denoise_methods.DENOISE_METHODS`, ``method="DT Guides"``):
 
 - ``"dt-irradiance"`` (default, aliases ``"demodulated"``, ``"dt-demodulated"``): the transport
-  cube divided band by band by the first hit's diffuse reflectance (the ``albedo_bands`` AOV), so
-  what is filtered is the irradiance, smooth across material and texture edges (no colour can
-  bleed: each pixel gets its own reflectance back after); the domain transform's joint image is
-  the normal, log depth and log of the group's *direct* light (``Guides.direct``): it stops at
-  geometric edges and at the edges of shadows and sunlit patches, which no albedo or normal shows.
-  Illumination cubes are irradiance already: filtered the same way without the division
-  (``kind="illumination"``). Surface pixels next to a light source or the sky behind a window,
-  those glass shades from the group's light (a caustic may lie there), those straddling a
-  geometric edge (the ``straddle`` AOV) and, in transport cubes, metal and glass are left as
-  rendered (:func:`retarget.denoise_classes.irradiance_classes`). Measured in ``bench/DENOISE.md``.
+  cube divided band by band by the first hit's diffuse reflectance (the ``albedo_bands`` AOV) and
+  by the group's direct light plus a floor for bounce light (:func:`retarget.denoise_shading.shading`),
+  so what is filtered is nearly flat — smooth across material and texture edges (no colour can
+  bleed: each pixel gets its own reflectance back after) and across a spot's falloff or a point
+  light's ``cos/r²`` (a normalised filter bends a ramp where it stops); the domain transform's
+  joint image is the normal, log depth and log of the group's *direct* light (``Guides.direct``):
+  it stops at geometric edges and at the edges of shadows and sunlit patches, which no albedo or
+  normal shows. Illumination cubes are irradiance already: filtered the same way without the
+  albedo (``kind="illumination"``). Emitter and background pixels, surface pixels next to a light
+  source or the sky behind a window, those glass shades from the group's light (a caustic may lie
+  there), those straddling a geometric edge (the ``straddle`` AOV), in transport cubes metal and
+  glass, and the pixels where the filter would move the guide's own light by more than the cube's
+  noise (:func:`retarget.denoise_classes.direct_test`) are left as rendered
+  (:func:`retarget.denoise_classes.irradiance_classes`). Measured in ``bench/DENOISE.md`` and, on
+  scenes nobody tuned it on, ``bench/FIDELITY.md``.
 - ``"dt-guides"`` (alias ``"dt"``): the domain-transform recursive filter (Gastal & Oliveira
   2011, "Domain Transform for Edge-Aware Image and Video Processing", eq. 21, three iterations) via
   OpenCV ``ximgproc.dtFilter``, joint image = 4 guide channels: albedo R, G, B / ``sigma_albedo`` and
@@ -50,6 +55,7 @@ from typing import Any
 import numpy as np
 
 from retarget.denoise_classes import DIRECT_ROUNDS, direct_test, irradiance_classes, isolate
+from retarget.denoise_shading import relative_noise, shading
 from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
 from retarget.errors import SpectralError
 
@@ -140,23 +146,6 @@ class Guides:
         return np.where(self.emitter, 2, np.where(self.hit, 0, 1)).astype(np.int8)
 
 
-#: The window (pixels, square side 2r+1) over which a cube's noise is pooled: the band sets give
-#: each pixel's variance from a few degrees of freedom (3 with the default 4 sets), 25 pixels 75.
-NOISE_RADIUS = 2
-
-
-def relative_noise(total: np.ndarray, var: np.ndarray, radius: int = NOISE_RADIUS) -> np.ndarray:
-    """``(H, W)`` float32: ``√(mean var) / mean |total|`` over each pixel's (2r+1)² window — the
-    relative noise of a cube's band sum, pooled (the windows' means are OpenCV box filters)."""
-    import cv2  # noqa: PLC0415 - heavy; only the filters need it
-
-    k = (2 * radius + 1, 2 * radius + 1)
-    v = cv2.blur(np.maximum(var, 0).astype(np.float32), k, borderType=cv2.BORDER_REPLICATE)
-    t = cv2.blur(np.abs(total).astype(np.float32), k, borderType=cv2.BORDER_REPLICATE)
-    floor = np.float32(1e-6 * max(float(t.max()), 1e-30))
-    return (np.sqrt(v) / np.maximum(t, floor)).astype(np.float32)
-
-
 def _checked_image(image: np.ndarray, shape: tuple[int, int], what: str) -> np.ndarray:
     a = np.asarray(image, np.float32)
     if a.shape != shape:
@@ -227,26 +216,6 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     if kind == "transport":
         mod = mod * np.maximum(guides.albedo_bands, np.float32(albedo_floor))
     return dt_filter(cube / mod, joint, sigma_spatial, iterations) * mod
-
-
-#: ``shading``'s floor, as a share of the direct-light guide's mean over the surface: it stands in
-#: for the bounce light the guide does not show (bench/FIDELITY.md).
-SHADE_FLOOR = 0.25
-
-
-def shading(guides: Guides) -> np.ndarray:
-    """``(H, W, 1)`` float32 > 0: the light ``dt-irradiance`` divides out before it filters (and
-    multiplies back after), ``G + SHADE_FLOOR · mean G`` with ``G`` the group's direct-light guide
-    (the mean over the surface pixels). Where the direct light dominates, what is filtered is then
-    nearly flat — a spot's falloff, a point light's ``cos/r²`` — so averaging it is unbiased to first
-    order (dividing by the albedo alone left those ramps in, and the filter bent them at every
-    border it stops at). A fixed per-pixel factor from the guides: the filter stays linear."""
-    g = guides.direct
-    surface = guides.hit & ~guides.emitter
-    mean = float(g[surface].mean()) if surface.any() else 0.0
-    if not mean > 0:
-        return np.ones((*guides.shape, 1), np.float32)
-    return (np.maximum(g, 0.0) + np.float32(SHADE_FLOOR * mean))[..., None].astype(np.float32)
 
 
 def dt_filter(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int = 3) -> np.ndarray:

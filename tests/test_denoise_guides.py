@@ -223,3 +223,21 @@ def test_straddle_marks_the_edges_of_patches_floating_before_the_sky():
     inside = np.any([binary_erosion(m, np.ones((3, 3), bool)) for m in patch_masks(s)], axis=0)
     assert flags.sum() > 100 and not (flags & inside).any()
     assert not (flags & ~binary_dilation(~hit, np.ones((3, 3), bool))).any()  # only next to a miss
+
+
+def test_the_direct_guide_states_its_own_noise():
+    """``direct_guide``'s standard error (from two light samples at each position) is what two
+    guides traced with other seeds differ by: √2 of it, pixel for pixel on average, under an area
+    light; a point light's guide has no sampling noise, and says so."""
+    from test_render import box_scene
+
+    from renderer_jobs.scene_load import scene_from_dict
+
+    box = scene_from_dict(box_scene())
+    res = (32, 24)
+    a, b = (dg.direct_guide(box, "cam", "lamp", res, seed=s) for s in (1, 2))
+    lit = (a.direct > 0.05 * a.direct.max()) & (a.noise > 0)
+    spread = np.sqrt(np.mean((a.direct - b.direct)[lit] ** 2) / 2)
+    assert spread == pytest.approx(np.sqrt(np.mean(a.noise[lit] ** 2)), rel=0.25)
+    point = dg.direct_guide(box, "cam", "bulb", res, seed=1)
+    assert point.noise.max() <= 1e-6 * point.direct.max()
