@@ -1,7 +1,7 @@
 """Fidelity gate: is what ``/sample`` serves by default ever worse than the plain render, on scenes
 nobody tuned the defaults on?
 
-    python bench/fidelity.py [--quick] [--scenes a,b] [--cache DIR] [--reuse] [--figures DIR]
+    python bench/fidelity.py [--quick | --tuning] [--scenes a,b] [--cache DIR] [--reuse] [--figures DIR]
 
 Renders the held-out corpus (:mod:`fidelity_corpus`: adversarial scene files, the example scene at
 640×480, procedural rooms from unused seeds, an OBJ import) with the defaults twice and once at
@@ -86,7 +86,7 @@ def measure_scene(entry: fc.Entry, cache: Path, reuse: bool) -> dict:
             "classes": worse,
             "rg_bg": {"default": {"median": pct(e_def, 50), "p99_3": pct(e_def, 99.3)},
                       "plain": {"median": pct(e_plain, 50), "p99_3": pct(e_plain, 99.3)}},
-            "_maps": {"bias_raw": tests["mix/raw"]["map"], "ref_srgb": mix["R"]["srgb"], "def_srgb": mix["D1"]["srgb"],
+            "_maps": {"bias_raw": tests["mix/raw"]["map"], "ref_raw": mix["R"]["raw"], "def_raw": mix["D1"]["raw"],
                       "err_def": _rel(mix["D1"]["raw"], mix["R"]["raw"]), "err_plain": _rel(mix["N1"]["raw"], mix["R"]["raw"])},
             "_errors": (e_def, e_plain), "seconds": round(time.perf_counter() - t0, 1)}
 
@@ -139,11 +139,11 @@ def figure(scene: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     m = scene["_maps"]
+    top = max(float(np.percentile(m["ref_raw"], 99)), 1e-30)  # one display scale for both: raw, gamma 1/2.2
     fig, ax = plt.subplots(1, 5, figsize=(15, 2.8))
-    ax[0].imshow(np.clip(m["ref_srgb"], 0, 1))
-    ax[0].set_title("reference sRGB")
-    ax[1].imshow(np.clip(m["def_srgb"], 0, 1))
-    ax[1].set_title("served by default")
+    for k, (key, title) in enumerate((("ref_raw", "reference raw"), ("def_raw", "served by default"))):
+        ax[k].imshow(np.clip(m[key] / top, 0, 1) ** (1 / 2.2))
+        ax[k].set_title(title)
     im = ax[2].imshow(m["bias_raw"], vmin=0, vmax=6, cmap="magma")
     ax[2].set_title("|bias| / sigma, raw (>3: biased)")
     fig.colorbar(im, ax=ax[2], fraction=0.046)
@@ -164,6 +164,7 @@ def figure(scene: dict, path: Path) -> None:
 def parse(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="the suite's two small scenes only")
+    ap.add_argument("--tuning", action="store_true", help="the demo room's views the defaults were chosen on, instead")
     ap.add_argument("--scenes", default=None, help="comma-separated corpus names (default: all)")
     ap.add_argument("--cache", default=str(Path.home() / ".cache" / "illumix" / "fidelity"),
                     help="where the stores are kept (the references are reused between runs)")
@@ -174,10 +175,10 @@ def parse(argv):
 
 def main(argv: list[str] | None = None) -> dict:
     args = parse(argv)
-    entries = fc.QUICK if args.quick else fc.ENTRIES
+    entries = fc.QUICK if args.quick else fc.TUNING if args.tuning else fc.ENTRIES
     if args.scenes:
         entries = tuple(fc.entry_named(n.strip(), entries) for n in args.scenes.split(","))
-    cache = Path(args.cache) / ("quick" if args.quick else "corpus")
+    cache = Path(args.cache) / ("quick" if args.quick else "tuning" if args.tuning else "corpus")
     scenes = [measure_scene(e, cache, args.reuse) for e in entries]
     if args.figures:
         for s in scenes:

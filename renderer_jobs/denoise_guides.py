@@ -177,21 +177,29 @@ def guide_wavelengths(emission: np.ndarray, wavelengths: np.ndarray) -> np.ndarr
 class DirectGuide:
     """One group's direct-light guide of a view: ``direct`` ``(H, W)`` float32 (:func:`direct_light`),
     ``behind`` the light glass keeps from each pixel (or None), ``noise`` the standard error of
-    ``direct`` from its samples' spread (the direct-light test's noise allowance)."""
+    ``direct`` from its samples' spread (the direct-light test's noise allowance), ``seen`` the same
+    light as the camera sees it through each surface's own BSDF, per unit of its diffuse
+    reflectance, over the pixel's surface hits (``direct`` on a Lambertian surface; a glossy
+    highlight on top elsewhere; 0 where the surface has no diffuse reflectance)."""
 
     direct: np.ndarray
     behind: np.ndarray | None
     noise: np.ndarray
+    seen: np.ndarray | None = None
+
+
+SEEN_ALBEDO_MIN = 0.01  # below this diffuse reflectance (metal, glass) ``seen`` is 0: left as rendered anyway
 
 
 def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, samples: int = DIRECT_SAMPLES,
                  behind_glass: bool = False) -> DirectGuide:
     """The direct-light guide ``(H, W)`` float32 of ``group`` in ``view`` (module docstring): the
     mean over four wavelengths (:func:`guide_wavelengths`), ``samples`` sub-pixel positions and two
-    light samples at each, with its standard error (from the two light samples' differences). ``behind_glass``:
-    also the light the same samples' shadow rays would bring if the dielectrics (glass) that block
-    them were not there — where glass may focus or bend the group's light (a caustic) that the
-    first image shows as shadow."""
+    light samples at each, with its standard error (from the two light samples' differences) and
+    the light as the camera sees it (:class:`DirectGuide`). ``behind_glass``: also the light the
+    same samples' shadow rays would bring if the dielectrics (glass) that block them were not there
+    — where glass may focus or bend the group's light (a caustic) that the first image shows as
+    shadow."""
     from renderer_jobs.mitsuba_scene import group_emission
 
     tracer = Tracer(scene, view, [group], resolution)
@@ -199,10 +207,11 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
 
     def one(pix, jit):  # a batch's seed: its first pixel; two light samples per position
         a, b = (tracer.direct_irradiance(pix, jit, np.tile(lam, (len(pix), 1)),
-                                         mix_seed(seed, _DIRECT_SEED ^ k, int(pix[0])), behind_dielectric=behind_glass)
+                                         mix_seed(seed, _DIRECT_SEED ^ k, int(pix[0])), behind_dielectric=behind_glass,
+                                         seen=True)
                 for k in (0, 1))
-        da, db = ((o[0] if behind_glass else o).mean(axis=1).astype(np.float64) for o in (a, b))
-        cols = [(da + db) / 2, (da - db) ** 2]
+        da, db = (o[0].mean(axis=1).astype(np.float64) for o in (a, b))
+        cols = [(da + db) / 2, (da - db) ** 2, (a[-2].mean(axis=1) + b[-2].mean(axis=1)) / 2, a[-1].mean(axis=1)]
         if behind_glass:
             cols.append((a[1].mean(axis=1) + b[1].mean(axis=1)) / 2)
         return np.stack(cols, -1)
@@ -211,7 +220,10 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     # the spread of the two light samples at each position: the light sampling's error alone (the
     # positions are stratified, so at a shadow edge their spread is coverage, not noise)
     noise = np.sqrt(np.maximum(img[..., 1], 0.0) / (4 * samples))
-    return DirectGuide(img[..., 0], img[..., 2] if behind_glass else None, noise.astype(np.float32))
+    albedo = img[..., 3]
+    seen = np.divide(img[..., 2], albedo, out=np.zeros_like(albedo), where=albedo >= SEEN_ALBEDO_MIN)
+    return DirectGuide(img[..., 0], img[..., 4] if behind_glass else None, noise.astype(np.float32),
+                       np.maximum(seen, 0.0).astype(np.float32))
 
 
 def direct_light(scene: Scene, view: str, group: str, resolution, seed: int,

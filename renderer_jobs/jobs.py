@@ -337,7 +337,7 @@ def denoise_guides(st, scene, job, settings) -> tuple:
         # CPU a group otherwise spent finding none)
         glass = any(isinstance(m, Dielectric) for m in scene.materials.values())
         traced = dg.direct_guide(scene, job.view, job.group, settings.resolution, settings.seed, behind_glass=glass)
-        guides = guides.with_direct(traced.direct, traced.behind, traced.noise)
+        guides = guides.with_direct(traced.direct, traced.behind, traced.noise, traced.seen)
         extra["direct"] = {"samples_per_pixel": 2 * dg.DIRECT_SAMPLES, "seed": settings.seed, "behind_glass": glass}
     return guides, extra
 
@@ -348,7 +348,7 @@ def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = No
     method = settings.denoise
     if method is None:
         return None
-    from retarget.denoise import denoise, describe
+    from retarget.denoise import as_rendered, denoise, describe
     from store.schema import DenoisedInfo
 
     t = time.perf_counter()
@@ -361,6 +361,11 @@ def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = No
     info = describe(method)
     if guides.straddle is None:  # optional: used only with the targeted extra paths
         info["guides"] = [g for g in info["guides"] if g != "straddle"]
+    kept = {k: as_rendered(guides, method, k) for k in out}
+    if all(v is not None for v in kept.values()):  # what a user sees served as rendered, and why
+        info["as_rendered_fraction"] = {k: round(float(v.mean()), 5) for k, v in kept.items()}
+        info["tolerance"] = ("the cube's own noise (band sets' spread, pooled 5x5)" if guides.cube_noise is not None
+                             else "fixed (no noise estimate for this cube)")
     meta.denoised = DenoisedInfo(**info, cost_ms=round(1e3 * (time.perf_counter() - t), 2),
                                  **({"guide_passes": extra} if extra else {}))
     return out

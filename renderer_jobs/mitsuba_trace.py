@@ -146,15 +146,18 @@ class Tracer:
         return out[:, :len(lam)]
 
     def direct_irradiance(self, pix: np.ndarray, jitter: np.ndarray, wavelengths: np.ndarray, seed: int,
-                          behind_dielectric: bool = False):
+                          behind_dielectric: bool = False, seen: bool = False):
         """One next-event sample per ray of the *direct* light a white Lambertian surface at the
         first hit sends back, ``(n, 4)`` float32 (``E_direct/π``, the direct part of
         :meth:`white_lambertian`): light sampling with visibility, no bounce. 0 where nothing is hit
         and on emitting surfaces. Shadows and lit patches have sharp, noise-free edges in its mean
         over a few dozen samples: the illumination-edge guide of :mod:`retarget.denoise`.
 
-        ``behind_dielectric``: returns ``(direct, behind)``, ``behind (n, 4)`` the same sample where
-        only surfaces that transmit (glass) block its shadow ray, else 0 (:meth:`_blocked_by_dielectrics_only`)."""
+        ``behind_dielectric``: also ``behind (n, 4)``, the same sample where only surfaces that
+        transmit (glass) block its shadow ray, else 0 (:meth:`_blocked_by_dielectrics_only`).
+        ``seen``: also the same sample's light as the camera sees it, through the surface's own
+        BSDF (a glossy highlight included), ``(n, 4)``, and the surface's diffuse reflectance
+        ``(n, 4)``. Returns the image alone, or a tuple: ``(direct[, behind][, seen, albedo])``."""
         mi, dr = self.mi, self.dr
         n = len(pix)
         sampler = self.sensor.sampler().clone()
@@ -167,15 +170,19 @@ class Tracer:
         # without behind_dielectric, Mitsuba's own shadow test (the guide as it always was)
         ds, weight = self.ms.sample_emitter_direction(si, sampler.next_2d(hit), not behind_dielectric, hit)
         u = mi.unpolarized_spectrum(dr.select(hit, weight * dr.maximum(dr.dot(normal, ds.d), 0.0) / dr.pi, 0.0))
-        if not behind_dielectric:
-            dr.eval(u)
-            return _numpy4(u)
-        shadow = si.spawn_ray_to(ds.p)
-        visible = hit & (ds.pdf != 0) & ~self.ms.ray_test(shadow, hit)
-        glass = self._blocked_by_dielectrics_only(shadow, ds.p, hit & ~visible)
-        lit, behind = dr.select(visible, u, 0.0), dr.select(glass, u, 0.0)
-        dr.eval(lit, behind)
-        return _numpy4(lit), _numpy4(behind)
+        out, visible = [u], hit
+        if behind_dielectric:
+            shadow = si.spawn_ray_to(ds.p)
+            visible = hit & (ds.pdf != 0) & ~self.ms.ray_test(shadow, hit)
+            glass = self._blocked_by_dielectrics_only(shadow, ds.p, hit & ~visible)
+            out = [dr.select(visible, u, 0.0), dr.select(glass, u, 0.0)]
+        if seen:
+            bsdf = si.bsdf(ray)
+            f = mi.unpolarized_spectrum(bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), hit))
+            out += [dr.select(visible, weight * f, 0.0), bsdf.eval_diffuse_reflectance(si, hit)]
+        dr.eval(*out)
+        arrays = [_numpy4(a) for a in out]
+        return arrays[0] if len(arrays) == 1 else tuple(arrays)
 
     def _blocked_by_dielectrics_only(self, shadow, target, active, max_crossings: int = 4):
         """Mask of the shadow rays in ``active`` (the blocked ones) whose every blocker before

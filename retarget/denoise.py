@@ -80,7 +80,9 @@ class Guides:
     the pixel's sub-pixel rays hit more than one surface (the ``straddle`` AOV), or None;
     direct_noise ``(H, W)`` the standard error of ``direct`` (same unit), or None (taken as 0);
     cube_noise ``(H, W)`` the relative noise of the cube being denoised (:func:`relative_noise`,
-    set with :meth:`with_cube_noise`), or None: then the direct-light test's tolerance is fixed.
+    set with :meth:`with_cube_noise`), or None: then the direct-light test's tolerance is fixed;
+    direct_seen ``(H, W)`` the group's direct light as the camera sees it through each surface's
+    BSDF, per unit diffuse reflectance (a glossy highlight shows in it), or None.
     """
 
     albedo: np.ndarray
@@ -94,6 +96,7 @@ class Guides:
     straddle: np.ndarray | None = None
     direct_noise: np.ndarray | None = None
     cube_noise: np.ndarray | None = None
+    direct_seen: np.ndarray | None = None
 
     @classmethod
     def from_aovs(cls, aovs: Mapping[str, np.ndarray]) -> Guides:
@@ -112,19 +115,21 @@ class Guides:
                    depth, hit, emitter, bands, straddle=straddle)
 
     def with_direct(self, direct: np.ndarray, behind_glass: np.ndarray | None = None,
-                    noise: np.ndarray | None = None) -> Guides:
+                    noise: np.ndarray | None = None, seen: np.ndarray | None = None) -> Guides:
         """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0) and, when
         given, the light that glass keeps from each pixel ``(H, W)`` (finite, ≥ 0, same unit as
         ``direct``: ``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), stored as
         the share ``behind / (behind + direct)``, and the direct image's standard error ``noise``
-        ``(H, W)`` (finite, ≥ 0, same unit: ``direct_light(noise=True)``)."""
+        ``(H, W)`` (finite, ≥ 0, same unit) and the light as the camera sees it ``seen`` ``(H, W)``
+        (same unit: ``renderer_jobs.denoise_guides.direct_guide``)."""
         d = _checked_image(direct, self.shape, "direct-light guide")
         n = None if noise is None else _checked_image(noise, self.shape, "direct-light guide's noise")
+        v = None if seen is None else _checked_image(seen, self.shape, "direct-light guide as seen")
         if behind_glass is None:
-            return replace(self, direct=d, behind_glass=None, direct_noise=n)
+            return replace(self, direct=d, behind_glass=None, direct_noise=n, direct_seen=v)
         b = _checked_image(behind_glass, self.shape, "behind-glass guide")
         share = np.divide(b, b + d, out=np.zeros_like(b), where=(b + d) > 0)
-        return replace(self, direct=d, behind_glass=share, direct_noise=n)
+        return replace(self, direct=d, behind_glass=share, direct_noise=n, direct_seen=v)
 
     def with_cube_noise(self, noise: np.ndarray | None) -> Guides:
         """These guides with the noise of the cube they will denoise: ``noise`` ``(H, W, 2)``, its
@@ -192,9 +197,12 @@ def irradiance_guide_image(guides: Guides, sigma_normal: float, sigma_depth: flo
     d = guides.direct
     g[..., 2] = np.log(np.maximum(d, 0.0) + 1e-3 * max(float(d.max()), 1e-30)) / sigma_direct
     free = classes < 4  # pixels the filter may still average
-    shade = shading(guides)[..., 0]
+    shade = shading(guides, kind)[..., 0]
+    # the light the filter must keep: in a transport cube as the camera sees it (a highlight included)
+    light = guides.direct_seen if kind == "transport" and guides.direct_seen is not None else d
     for _ in range(DIRECT_ROUNDS):
-        moved = direct_test(guides, dt_filter((d / shade)[..., None], g, sigma_spatial, iterations)[..., 0] * shade) & free
+        moved = free & direct_test(guides, dt_filter((light / shade)[..., None], g, sigma_spatial, iterations)[..., 0]
+                                   * shade, None if light is d else light)
         if not moved.any():
             break
         isolate(classes, moved)
@@ -212,7 +220,7 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     image leaves them as rendered, so their ``cube / ρ`` never mixes with another pixel's)."""
     joint = irradiance_guide_image(guides, sigma_normal, sigma_depth, sigma_direct, albedo_floor, kind,
                                    sigma_spatial=sigma_spatial, iterations=iterations)
-    mod = shading(guides)
+    mod = shading(guides, kind)
     if kind == "transport":
         mod = mod * np.maximum(guides.albedo_bands, np.float32(albedo_floor))
     return dt_filter(cube / mod, joint, sigma_spatial, iterations) * mod
@@ -394,6 +402,19 @@ def _flush_tails(out: np.ndarray) -> np.ndarray:
     return out
 
 
+def as_rendered(guides: Guides, method: str = DEFAULT_METHOD, kind: str = "transport", **params: Any) -> np.ndarray | None:
+    """``(H, W)`` bool: the pixels ``method`` leaves as rendered with these guides (every class code
+    of ``dt-irradiance``'s joint image from 4 up: emitters, background, the direct-light test's…);
+    None for a method that keeps no pixel apart by rule."""
+    name, full = method_params(method, **params)
+    if name != "dt-irradiance":
+        return None
+    joint = irradiance_guide_image(guides, full["sigma_normal"], full["sigma_depth"], full["sigma_direct"],
+                                   full["albedo_floor"], kind, sigma_spatial=full["sigma_spatial"],
+                                   iterations=int(full["iterations"]))
+    return joint[..., 0] > 3.5 * _FAR  # codes ≥ 4 (the normal's part is at most 1/sigma_normal ≪ _FAR/2)
+
+
 def method_guides(method: str) -> tuple[str, ...]:
     """The guides ``method`` reads: AOV names, and ``direct`` for a per-group direct-light guide
     (:meth:`Guides.with_direct`)."""
@@ -407,5 +428,5 @@ def describe(method: str, **params: Any) -> dict[str, Any]:
             "linear": True, "reference": IMPLEMENTATIONS[name].reference}
 
 
-__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "denoise", "describe", "dt_filter", "irradiance_classes",
+__all__ = ["DENOISE_METHODS", "DEFAULT_METHOD", "Guides", "as_rendered", "denoise", "describe", "dt_filter", "irradiance_classes",
            "method_guides", "method_params"]

@@ -38,7 +38,8 @@ GLASS_MAX_COVER = 0.25
 #: cube's own noise known (``Guides.cube_noise``, relative), the tolerance is ``BIAS_SHARE`` of it,
 #: within ``TOLERANCE_RANGE``: a bias under the noise it removes; else ``DIRECT_TOLERANCE``, with
 #: ``DIRECT_NOISE_Z × σ_G`` added (the guide's own standard error: its noise flags nothing).
-#: Chosen on the demo rooms, measured on the held-out corpus (bench/FIDELITY.md).
+#: Set from what they mean (a bias under 1σ; a tenth of the mean direct light for bounce light),
+#: checked on the suite's two small scenes, measured on the held-out corpus (bench/FIDELITY.md).
 DIRECT_TOLERANCE = 0.02
 DIRECT_FLOOR = 0.1
 DIRECT_NOISE_Z = 3.0
@@ -46,7 +47,7 @@ BIAS_SHARE = 1.0
 TOLERANCE_RANGE = (0.002, 0.05)
 #: ... and, with the cube's noise known, where the guide's own noise exceeds ``GUIDE_NOISE_SHARE``
 #: of the cube's: the filter divides the guide's light out and multiplies it back
-#: (:func:`retarget.denoise.shading`), so the guide's noise is printed on the result.
+#: (:func:`retarget.denoise_shading.shading`), so the guide's noise is printed on the result.
 GUIDE_NOISE_SHARE = 0.7
 #: Rounds of the direct-light test: a pixel left as rendered changes its neighbours' weights.
 DIRECT_ROUNDS = 2
@@ -120,7 +121,7 @@ def isolate(cls: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return cls
 
 
-def direct_test(guides: Guides, filtered: np.ndarray) -> np.ndarray:
+def direct_test(guides: Guides, filtered: np.ndarray, light: np.ndarray | None = None) -> np.ndarray:
     """``(H, W)`` bool: surface pixels where ``filtered`` — the filter applied to the group's
     direct-light guide ``G`` with the joint image it would use for the cube — differs from ``G``
     by more than the tolerance (module constants), or, with the cube's noise known, where the
@@ -129,11 +130,13 @@ def direct_test(guides: Guides, filtered: np.ndarray) -> np.ndarray:
     left as rendered. Reads the guides and the cube's pooled noise *level* only, never the cube's
     values: the choice stays independent of the served samples (the band sets' spread is
     independent of their mean), and the filter linear. ``σ_G``: ``guides.direct_noise`` (0 when
-    absent)."""
-    g = guides.direct
+    absent). ``light``: the image ``filtered`` was filtered from, when not ``G`` itself (the same
+    light as the camera sees it, ``guides.direct_seen``: a glossy highlight the filter would
+    smear); the tolerance's scale stays ``G``'s."""
+    g = guides.direct if light is None else light
     surface = guides.hit & ~guides.emitter
-    lit = g[surface]
-    scale = g + DIRECT_FLOOR * (float(lit.mean()) if lit.size else 0.0)
+    lit = guides.direct[surface]
+    scale = np.maximum(g, guides.direct) + DIRECT_FLOOR * (float(lit.mean()) if lit.size else 0.0)
     sigma_g = 0.0 if guides.direct_noise is None else guides.direct_noise
     if guides.cube_noise is None:
         moved = np.abs(filtered - g) > DIRECT_TOLERANCE * scale + DIRECT_NOISE_Z * sigma_g

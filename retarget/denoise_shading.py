@@ -22,19 +22,24 @@ if TYPE_CHECKING:
 SHADE_FLOOR = 0.25
 
 
-def shading(guides: Guides) -> np.ndarray:
+def shading(guides: Guides, kind: str = "transport") -> np.ndarray:
     """``(H, W, 1)`` float32 > 0: the light ``dt-irradiance`` divides out before it filters (and
-    multiplies back after), ``G + SHADE_FLOOR · mean G`` with ``G`` the group's direct-light guide
-    (the mean over the surface pixels). Where the direct light dominates, what is filtered is then
-    nearly flat — a spot's falloff, a point light's ``cos/r²`` — so averaging it is unbiased to first
-    order (dividing by the albedo alone left those ramps in, and the filter bent them at every
-    border it stops at). A fixed per-pixel factor from the guides: the filter stays linear."""
+    multiplies back after), ``L + SHADE_FLOOR · mean G``: ``G`` the group's direct-light guide (the
+    mean over the surface pixels), ``L`` the same light as the camera sees it through each
+    surface's BSDF per unit diffuse reflectance (``guides.direct_seen``: a glossy highlight
+    included) for a ``"transport"`` cube, ``G`` itself for an ``"illumination"`` cube (a white
+    Lambertian surface) or when the guides lack it. Where the direct light dominates, what is
+    filtered is then nearly flat — a spot's falloff, a point light's ``cos/r²``, a sun's highlight
+    on a glossy floor — so averaging it is unbiased to first order (dividing by the albedo alone
+    left those ramps in, and the filter bent them at every border it stops at). A fixed per-pixel
+    factor from the guides: the filter stays linear."""
     g = guides.direct
     surface = guides.hit & ~guides.emitter
     mean = float(g[surface].mean()) if surface.any() else 0.0
     if not mean > 0:
         return np.ones((*guides.shape, 1), np.float32)
-    return (np.maximum(g, 0.0) + np.float32(SHADE_FLOOR * mean))[..., None].astype(np.float32)
+    light = guides.direct_seen if kind == "transport" and guides.direct_seen is not None else g
+    return (np.maximum(light, 0.0) + np.float32(SHADE_FLOOR * mean))[..., None].astype(np.float32)
 
 
 #: The window (pixels, square side 2r+1) over which a cube's noise is pooled: the band sets give

@@ -47,6 +47,11 @@ def test_emitter_and_background_pixels_are_served_as_rendered():
     out = denoise(cube, g)
     np.testing.assert_allclose(out[emitter], cube[emitter], rtol=1e-6)  # divided and multiplied back: rounding
     np.testing.assert_allclose(out[~hit], cube[~hit], rtol=1e-6)
+    from retarget.denoise import as_rendered
+
+    kept = as_rendered(g)
+    assert kept[emitter].all() and kept[~hit].all() and not kept[40:, 5:40].any()  # a lit flat wall is filtered
+    assert as_rendered(g, "dt-guides") is None
 
 
 def test_the_direct_light_is_divided_out_so_a_ramp_is_kept():
@@ -125,3 +130,23 @@ def test_the_band_sets_spread_estimates_the_variance_of_their_mean():
     out = set_noise(est)
     np.testing.assert_allclose(out[..., 0], est.mean(0))
     assert out[..., 1].mean() == pytest.approx(4.0 / 4, rel=0.02)
+
+
+def test_a_glossy_highlight_is_divided_out_of_a_transport_cube():
+    """The group's light as the camera sees it (``direct_seen``) carries a highlight the Lambertian
+    guide does not. A transport cube is divided by it, so the noise-free cube with the highlight
+    comes back within the tolerance everywhere (with the Lambertian guide alone the filter smeared
+    it by over 10 %); an illumination cube (a white Lambertian surface) has no highlight and is
+    divided by the Lambertian guide."""
+    y, x = np.indices((H, W))
+    direct = np.full((H, W), 1.0, np.float32)
+    bump = 3.0 * np.exp(-((x - 30.0) ** 2 + (y - 20.0) ** 2) / 8.0).astype(np.float32)
+    seen = direct + bump
+    truth = (0.5 * seen[..., None] * np.ones(NB, np.float32)).astype(np.float32)
+    plain = _guides(direct)
+    g = plain.with_direct(direct, seen=seen)
+    rel = np.abs(denoise(truth, g) / truth - 1)
+    assert rel.max() < 1.5 * dc.DIRECT_TOLERANCE
+    assert np.abs(denoise(truth, plain) / truth - 1).max() > 0.1  # the test can tell
+    np.testing.assert_allclose(shading(g, "illumination"), shading(plain, "illumination"))
+    assert not _isolated(g, "illumination")[seen > 1.5].any()

@@ -241,3 +241,21 @@ def test_the_direct_guide_states_its_own_noise():
     assert spread == pytest.approx(np.sqrt(np.mean(a.noise[lit] ** 2)), rel=0.25)
     point = dg.direct_guide(box, "cam", "bulb", res, seed=1)
     assert point.noise.max() <= 1e-6 * point.direct.max()
+
+
+def test_the_guide_as_seen_is_the_guide_on_a_lambertian_chart_and_more_on_a_glossy_one():
+    """``seen`` (the light through the surface's own BSDF, per unit diffuse reflectance) equals the
+    Lambertian guide on the diffuse validation chart; the same chart made glossy adds a highlight
+    on top of it somewhere."""
+    s = demo.validation_chart()
+    g = dg.direct_guide(s, "head-on", "light", None, seed=3)
+    lit = np.logical_or.reduce(patch_masks(s))  # inside the patches (``seen`` is per surface hit, not per pixel area)
+    np.testing.assert_allclose(g.seen[lit], g.direct[lit], rtol=1e-4)
+    doc = demo.validation_chart_dict()
+    for m in doc["materials"].values():
+        if m.get("kind") == "diffuse":
+            m.update(kind="roughplastic", alpha=0.05)
+    from renderer_jobs.scene_load import scene_from_dict
+
+    glossy = dg.direct_guide(scene_from_dict(doc), "head-on", "light", None, seed=3)
+    assert (glossy.seen[lit] >= 0.5 * glossy.direct[lit]).all() and np.isfinite(glossy.seen).all()

@@ -170,4 +170,7 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     tp = meta.render_stats["targeted_paths"]
     assert tp["paths_per_pixel"] == 128 and tp["pixels"] > 0 and 0 < tp["pixel_fraction"] < 1  # some, not all
     passes = meta.denoised.model_extra["guide_passes"]["direct"]
-    assert passes["samples_per_pixel"] == 2 * dg.DIRECT_SAMPLES and passes["behind_glass"] is False  # the box has no glass
+    assert passes["samples_per_pixel"] == 2 * dg.DIRECT_SAMPLES and passes["behind_glass"] is False
+    kept = meta.denoised.model_extra["as_rendered_fraction"]  # what is served as rendered, and by which rule
+    assert set(kept) == {"transport", "illumination"} and all(0 < v < 1 for v in kept.values())
+    assert "noise" in meta.denoised.model_extra["tolerance"]  # the box has no glass
