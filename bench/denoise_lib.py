@@ -139,19 +139,20 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
 
 def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int, cache: Path | None,
                   log: Callable[[str], None]) -> dict:
-    """A group's direct-light guide and the light glass keeps from each pixel
-    (``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), cached:
-    ``{"direct" (H, W), "behind" (H, W), "cpu_s"}``."""
-    from renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_light
+    """A group's direct-light guide, the light glass keeps from each pixel, the guide's own noise
+    and the light as the camera sees it (``renderer_jobs.denoise_guides.direct_guide(behind_glass=True)``),
+    cached: ``{"direct", "behind", "noise", "seen"}`` ``(H, W)`` and ``"cpu_s"``."""
+    from renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_guide
 
-    name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}_glass.npz"
+    name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}x2_glass_seen.npz"
     path = cache / name if cache is not None else None
+    keys = ("direct", "behind", "noise", "seen")
     if path is not None and path.exists():
         with np.load(path) as z:
-            return {"direct": z["direct"], "behind": z["behind"], "cpu_s": float(z["cpu_s"])}
+            return {**{k: z[k] for k in keys}, "cpu_s": float(z["cpu_s"])}
     c0 = time.process_time()
-    d, b = direct_light(scene, view, group, res, seed, behind_glass=True)
-    out = {"direct": d, "behind": b, "cpu_s": time.process_time() - c0}
+    g = direct_guide(scene, view, group, res, seed, behind_glass=True)
+    out = {"direct": g.direct, "behind": g.behind, "noise": g.noise, "seen": g.seen, "cpu_s": time.process_time() - c0}
     log(f"  traced the direct-light guide of {group}: {out['cpu_s']:.2f} s CPU")
     if path is not None:
         _save(path, out)
@@ -159,8 +160,10 @@ def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int,
 
 
 def group_guides(guides, direct: dict):
-    """``guides`` with a group's :func:`cached_direct` record (its direct light and what glass keeps)."""
-    return guides.with_direct(direct["direct"], direct.get("behind"))
+    """``guides`` with a group's :func:`cached_direct` record (its direct light, what glass keeps, the
+    guide's noise and the light as seen). No cube noise: the direct-light test's fixed tolerance
+    (the renderer's noise-aware one is measured by ``bench/fidelity.py``)."""
+    return guides.with_direct(direct["direct"], direct.get("behind"), direct.get("noise"), direct.get("seen"))
 
 
 def run_denoise(cube: np.ndarray, guides, name: str, direct: dict | None, kind: str = "transport") -> np.ndarray:
