@@ -148,18 +148,82 @@ def _complete(store: Path, scene) -> bool:
     return all(st.is_complete(scene.name, view, g) for g in scene.group_names)
 
 
-def render(scene, store: Path, settings, log: Callable[[str], None], groups=None) -> float:
-    """Render ``scene`` (its groups, or ``groups``) into ``store`` with the job runner; returns the
-    CPU seconds spent (0 when the store was complete)."""
+def render(scene, store: Path, settings, log: Callable[[str], None], groups=None, keep_guides: Path | None = None) -> float:
+    """Render ``scene`` (its groups, or ``groups``) into ``store`` with the job runner (in this
+    process); returns the CPU seconds spent. ``keep_guides``: a folder where each denoising's
+    guides are saved, ``<group>-<kind>.npz`` (the operator the store's copies were made with)."""
     import time
 
     from renderer_jobs import jobs
 
     t = time.process_time()
-    jobs.execute(jobs.plan([scene], str(store), groups=groups), str(store), settings)
+    with _keeping_guides(keep_guides):
+        jobs.execute(jobs.plan([scene], str(store), groups=groups), str(store), settings)
     cpu = time.process_time() - t
     log(f"  {store.name}: {cpu:.1f} s CPU")
     return cpu
+
+
+class _keeping_guides:
+    """Within it, every denoising the job runner does saves its guides (``retarget.denoise.denoise``
+    wrapped; the job runner imports it at call time and runs one job at a time in this process)."""
+
+    def __init__(self, folder: Path | None) -> None:
+        self.folder = folder
+
+    def __enter__(self):
+        if self.folder is None:
+            return self
+        import retarget.denoise as rd
+        from renderer_jobs import jobs
+
+        self.rd, self.jobs = rd, jobs
+        self.real, self.real_job = rd.denoise, jobs._denoise
+        self.folder.mkdir(parents=True, exist_ok=True)
+        current = {}
+
+        def job_denoise(st, scene, job, *a, **k):
+            current["group"] = job.group
+            return self.real_job(st, scene, job, *a, **k)
+
+        def keep(cube, guides, method=rd.DEFAULT_METHOD, kind="transport", **params):
+            arrays = {f: getattr(guides, f) for f in guides.__dataclass_fields__ if getattr(guides, f) is not None}
+            np.savez(self.folder / f"{current['group']}-{kind}.npz", **arrays)
+            return self.real(cube, guides, method, kind, **params)
+
+        rd.denoise, jobs._denoise = keep, job_denoise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.folder is not None:
+            self.rd.denoise, self.jobs._denoise = self.real, self.real_job
+
+
+def operator_on_reference(ref: Path, guides: Path, out: Path, scene) -> Path:
+    """A copy of the reference store whose denoised copies are the production's operator (its saved
+    guides, the cube noise included) applied to the reference's own cubes: served by default it
+    gives the default's expectation, nearly noise-free — the bias alone."""
+    from retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
+    from store import CubeStore
+    from store.schema import DenoisedInfo
+
+    shutil.rmtree(out, ignore_errors=True)
+    shutil.copytree(ref, out)
+    st, view = CubeStore.open(str(out), mode="a"), view_of(scene)
+    for g in scene.group_names:
+        if not (guides / f"{g}-transport.npz").exists():
+            continue
+        cubes = {k: st.read_cube(scene.name, view, g, kind=k) for k in ("transport", "illumination")}
+        den = {}
+        for kind, cube in cubes.items():
+            with np.load(guides / f"{g}-{kind}.npz") as z:
+                gd = Guides(**{k: z[k] for k in z.files})
+            den[kind] = denoise(cube, gd, DEFAULT_METHOD, kind)
+        meta = st.cube_meta(scene.name, view, g)
+        meta.denoised = DenoisedInfo(**describe(DEFAULT_METHOD))
+        st.write_cube(scene.name, view, g, cubes["transport"], meta, overwrite=True, illumination=cubes["illumination"],
+                      denoised=den)
+    return out
 
 
 def production_paths(store: Path, scene, group: str) -> float:
@@ -186,7 +250,8 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
     for seed, p in zip(PROD_SEEDS, prods):
         if not (reuse and _complete(p, scene)):
             shutil.rmtree(p, ignore_errors=True)
-            cpu += render(scene, p, RenderSettings(seed=seed, resolution=res), log)
+            shutil.rmtree(base / f"guides-{seed}", ignore_errors=True)
+            cpu += render(scene, p, RenderSettings(seed=seed, resolution=res), log, keep_guides=base / f"guides-{seed}")
     paths = {g: max(production_paths(p, scene, g) for p in prods) for g in scene.group_names
              if _lit(prods[0], scene, g)}
     ref = base / "ref"
@@ -201,7 +266,9 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
         if g not in have:
             cpu += render(scene, ref, RenderSettings(seed=REF_SEED, resolution=res, spp=spp, denoise=None,
                                                      boost_factor=1), log, groups=[g])
-    return {"scene": scene, "prod": prods, "ref": ref, "ref_spp": ref_spp, "prod_paths": paths, "cpu_s": cpu}
+    ref_op = operator_on_reference(ref, base / f"guides-{PROD_SEEDS[0]}", base / "ref-op", scene)
+    return {"scene": scene, "prod": prods, "ref": ref, "ref_op": ref_op, "ref_spp": ref_spp, "prod_paths": paths,
+            "cpu_s": cpu}
 
 
 def _lit(store: Path, scene, group: str) -> bool:

@@ -129,18 +129,20 @@ class Tracer:
         """Diffuse reflectance ``(n, len(wavelengths))`` float32 of each camera ray's first hit at
         every one of ``wavelengths`` (nm, e.g. the band centres; step spectra are exact there):
         one intersection, then Mitsuba's ``eval_diffuse_reflectance`` four wavelengths at a time.
-        0 where nothing is hit and for BSDFs with no diffuse lobe (metal, glass)."""
-        dr = self.dr
+        0 where nothing is hit and for BSDFs with no diffuse lobe (metal, glass): Mitsuba's
+        ``roughconductor`` answers ``eval_diffuse_reflectance`` with a view-dependent value (up to
+        2.7 on a silver mirror), so the lobe is read from the BSDF's flags."""
+        mi, dr = self.mi, self.dr
         lam = np.asarray(wavelengths, np.float64)
         quads = np.concatenate([lam, np.repeat(lam[-1:], -len(lam) % 4)]).reshape(-1, 4)
         ray = self._camera_rays(pix, jitter, np.tile(quads[0].astype(np.float32), (len(pix), 1)), False)
         si = self.ms.ray_intersect(ray)
-        hit = si.is_valid()
         bsdf = si.bsdf(ray)
+        hit = si.is_valid() & mi.has_flag(bsdf.flags(), mi.BSDFFlags.DiffuseReflection)
         out = np.empty((len(pix), quads.size), np.float32)
         for q, quad in enumerate(quads):
             si.wavelengths = type(si.wavelengths)(*[float(x) for x in quad])
-            alb = bsdf.eval_diffuse_reflectance(si, hit)
+            alb = dr.select(hit, bsdf.eval_diffuse_reflectance(si, hit), 0.0)
             dr.eval(alb)
             out[:, 4 * q:4 * q + 4] = _numpy4(alb)
         return out[:, :len(lam)]
@@ -179,7 +181,8 @@ class Tracer:
         if seen:
             bsdf = si.bsdf(ray)
             f = mi.unpolarized_spectrum(bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), hit))
-            out += [dr.select(visible, weight * f, 0.0), bsdf.eval_diffuse_reflectance(si, hit)]
+            diffuse = hit & mi.has_flag(bsdf.flags(), mi.BSDFFlags.DiffuseReflection)  # as spectral_albedo
+            out += [dr.select(visible, weight * f, 0.0), dr.select(diffuse, bsdf.eval_diffuse_reflectance(si, hit), 0.0)]
         dr.eval(*out)
         arrays = [_numpy4(a) for a in out]
         return arrays[0] if len(arrays) == 1 else tuple(arrays)

@@ -259,3 +259,19 @@ def test_the_guide_as_seen_is_the_guide_on_a_lambertian_chart_and_more_on_a_glos
 
     glossy = dg.direct_guide(scene_from_dict(doc), "head-on", "light", None, seed=3)
     assert (glossy.seen[lit] >= 0.5 * glossy.direct[lit]).all() and np.isfinite(glossy.seen).all()
+
+
+def test_metal_has_no_diffuse_albedo():
+    """Mitsuba's ``roughconductor`` answers ``eval_diffuse_reflectance`` with a view-dependent value
+    (up to 2.7 on a silver mirror, which the filter then averaged: a blurred reflection); the
+    ``albedo_bands`` AOV reads the lobe from the BSDF's flags, so metal is 0 (left as rendered)."""
+    from renderer_jobs.mitsuba_trace import Tracer
+    from renderer_jobs.scene_load import scene_from_dict
+
+    doc = demo.validation_chart_dict()
+    for m in doc["materials"].values():
+        m.clear()
+        m.update(kind="roughconductor", conductor="Ag", alpha=0.01)
+    s = scene_from_dict(doc)
+    ab = dg.albedo_bands(Tracer(s, "head-on", None, None), 4)
+    assert np.logical_or.reduce(patch_masks(s)).any() and ab.max() == 0
