@@ -50,7 +50,7 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("glass-mirror", "file", _S + "glass_mirror.yaml", "front", (120, 90), "glass ball, mirror, glossy floor highlight"),
     Entry("textures", "file", _S + "textures.yaml", "wide", (200, 150), "fine spectral textures, shaded lamp"),
     Entry("thin-grazing", "file", _S + "thin_grazing.yaml", "low", (80, 60), "slats and rods in grazing sun, sky in frame"),
-    Entry("two-lamps-640", "file", "renderer_jobs/examples/two_lamps.yaml", "close", (640, 480),
+    Entry("two-lamps-640", "file", "renderer_jobs/examples/two_lamps.yaml", "wide", (640, 480),
           "the example scene at 640x480: spot, panel, glass, chrome"),
     Entry("room-4242", "room", "4242", "view0", (160, 120), "procedural room, held-out seed"),
     Entry("room-5151", "room", "5151", "view0", (120, 90), "procedural room, held-out seed"),
@@ -109,6 +109,7 @@ def load(entry: Entry, cache: Path):
 
     if entry.kind == "file":
         scene = load_scenes(ROOT / entry.source)[0]
+        scene = scene.model_copy(update={"views": [v for v in scene.views if v.name == entry.view]})
     elif entry.kind == "demo":
         from renderer_jobs.demo import demo_room_dict
 
@@ -151,7 +152,7 @@ def _complete(store: Path, scene) -> bool:
 def render(scene, store: Path, settings, log: Callable[[str], None], groups=None, keep_guides: Path | None = None) -> float:
     """Render ``scene`` (its groups, or ``groups``) into ``store`` with the job runner (in this
     process); returns the CPU seconds spent. ``keep_guides``: a folder where each denoising's
-    guides are saved, ``<group>-<kind>.npz`` (the operator the store's copies were made with)."""
+    guides are saved, ``<view>-<group>-<kind>.npz`` (the operator the store's copies were made with)."""
     import time
 
     from renderer_jobs import jobs
@@ -183,12 +184,12 @@ class _keeping_guides:
         current = {}
 
         def job_denoise(st, scene, job, *a, **k):
-            current["group"] = job.group
+            current["group"], current["view"] = job.group, job.view
             return self.real_job(st, scene, job, *a, **k)
 
         def keep(cube, guides, method=rd.DEFAULT_METHOD, kind="transport", **params):
             arrays = {f: getattr(guides, f) for f in guides.__dataclass_fields__ if getattr(guides, f) is not None}
-            np.savez(self.folder / f"{current['group']}-{kind}.npz", **arrays)
+            np.savez(self.folder / f"{current['view']}-{current['group']}-{kind}.npz", **arrays)
             return self.real(cube, guides, method, kind, **params)
 
         rd.denoise, jobs._denoise = keep, job_denoise
@@ -211,12 +212,12 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene) -> Path:
     shutil.copytree(ref, out)
     st, view = CubeStore.open(str(out), mode="a"), view_of(scene)
     for g in scene.group_names:
-        if not (guides / f"{g}-transport.npz").exists():
+        if not (guides / f"{view}-{g}-transport.npz").exists():
             continue
         cubes = {k: st.read_cube(scene.name, view, g, kind=k) for k in ("transport", "illumination")}
         den = {}
         for kind, cube in cubes.items():
-            with np.load(guides / f"{g}-{kind}.npz") as z:
+            with np.load(guides / f"{view}-{g}-{kind}.npz") as z:
                 gd = Guides(**{k: z[k] for k in z.files})
             den[kind] = denoise(cube, gd, DEFAULT_METHOD, kind)
         meta = st.cube_meta(scene.name, view, g)
