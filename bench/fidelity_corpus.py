@@ -200,7 +200,7 @@ class _keeping_guides:
             self.rd.denoise, self.jobs._denoise = self.real, self.real_job
 
 
-def operator_on_reference(ref: Path, guides: Path, out: Path, scene) -> Path:
+def operator_on_reference(ref: Path, guides: Path, out: Path, scene, groups: list[str]) -> Path:
     """A copy of the reference store whose denoised copies are the production's operator (its saved
     guides, the cube noise included) applied to the reference's own cubes: served by default it
     gives the default's expectation, nearly noise-free — the bias alone."""
@@ -211,9 +211,10 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene) -> Path:
     shutil.rmtree(out, ignore_errors=True)
     shutil.copytree(ref, out)
     st, view = CubeStore.open(str(out), mode="a"), view_of(scene)
-    for g in scene.group_names:
+    for g in groups:  # the lit ones: each was denoised, so its guides must be there
         if not (guides / f"{view}-{g}-transport.npz").exists():
-            continue
+            raise SystemExit(f"fidelity: no saved guides of {view}/{g} in {guides}; render the production stores "
+                             "again (without --reuse)")
         cubes = {k: st.read_cube(scene.name, view, g, kind=k) for k in ("transport", "illumination")}
         den = {}
         for kind, cube in cubes.items():
@@ -267,7 +268,7 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
         if g not in have:
             cpu += render(scene, ref, RenderSettings(seed=REF_SEED, resolution=res, spp=spp, denoise=None,
                                                      boost_factor=1), log, groups=[g])
-    ref_op = operator_on_reference(ref, base / f"guides-{PROD_SEEDS[0]}", base / "ref-op", scene)
+    ref_op = operator_on_reference(ref, base / f"guides-{PROD_SEEDS[0]}", base / "ref-op", scene, list(paths))
     return {"scene": scene, "prod": prods, "ref": ref, "ref_op": ref_op, "ref_spp": ref_spp, "prod_paths": paths,
             "cpu_s": cpu}
 

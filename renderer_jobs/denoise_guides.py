@@ -205,6 +205,7 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     — where glass may focus or bend the group's light (a caustic) that the first image shows as
     shadow."""
     from renderer_jobs.mitsuba_scene import group_emission
+    from retarget.denoise_classes import DIRECT_FLOOR  # the direct-light test's scale, for the same light
 
     tracer = Tracer(scene, view, [group], resolution)
     lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
@@ -231,7 +232,7 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     # (an area light's guide; a delta light's has none): the direct-light test leaves as rendered
     # the pixels where the guide is noisier than the cube, and they would lose their denoising
     surface = img[..., 3] > 0
-    scale = img[..., 0] + 0.1 * (float(img[..., 0][surface].mean()) if surface.any() else 0.0)
+    scale = img[..., 0] + DIRECT_FLOOR * (float(img[..., 0][surface].mean()) if surface.any() else 0.0)
     noisy = np.flatnonzero(surface & (np.sqrt(var) > NOISE_GOAL * scale))
     if noisy.size:
         more = _per_pixel(tracer, samples, light_samples(MORE_PAIRS, 2), noisy).astype(np.float64)

@@ -14,6 +14,7 @@ import pytest
 
 from retarget import denoise_classes as dc
 from retarget.denoise import Guides, denoise, irradiance_guide_image, relative_noise, shading
+from retarget.errors import SpectralError
 from retarget.grid import DEFAULT_GRID
 
 H, W = 48, 64
@@ -75,10 +76,10 @@ def dc_floor(x: np.ndarray) -> float:
     return SHADE_FLOOR * float(x.mean())
 
 
-def test_a_spot_cone_s_rim_is_left_as_rendered():
-    """A spot's cone on a wall: full inside a radius, falling to nothing over two pixels. The
-    pixels whose light the filter would move by more than the tolerance are left as rendered; every
-    other pixel of the noise-free cube comes back within that tolerance of its light."""
+def test_a_spot_cone_comes_back_within_the_tolerance():
+    """A spot's cone on a wall: full inside a radius, falling to nothing over two pixels. Every
+    pixel of the noise-free cube comes back within the tolerance of its light (plus the bounce light
+    the guide does not show), and those the direct-light test left as rendered exactly."""
     y, x = np.indices((H, W))
     r = np.hypot(x - 30.0, y - 24.0)
     spot = np.clip((14.0 - r) / 2.0, 0.0, 1.0).astype(np.float32)  # 1 inside, 0 outside, a 2-pixel rim
@@ -116,7 +117,7 @@ def test_relative_noise_pools_the_variance():
     np.testing.assert_allclose(relative_noise(total, var), 0.2, rtol=1e-5)
     var[20, 20] = 4.0 + 24.0  # one noisy pixel is shared with its 5×5 window
     assert relative_noise(total, var)[20, 22] == pytest.approx(np.sqrt(4.0 + 24.0 / 25) / 10, rel=1e-5)
-    with pytest.raises(Exception, match="noise"):
+    with pytest.raises(SpectralError, match="noise"):
         Guides.with_cube_noise(_guides(np.ones((H, W))), np.zeros((H, W, 3)))
 
 
