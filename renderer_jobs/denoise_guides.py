@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from renderer_jobs.band_schedule import mix_seed
+from renderer_jobs.band_schedule import group_seed, mix_seed
 from renderer_jobs.mitsuba_trace import Tracer
 from renderer_jobs.scene_model import Scene
 
@@ -208,6 +208,7 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     from retarget.denoise_classes import DIRECT_FLOOR  # the direct-light test's scale, for the same light
 
     tracer = Tracer(scene, view, [group], resolution)
+    seed = group_seed(seed, [group])  # as the cube's: each group's guide its own light samples
     lam = guide_wavelengths(group_emission(scene, group)[0], tracer.grid.wavelengths).astype(np.float32)
 
     def light_samples(pairs: int, first: int):

@@ -74,12 +74,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from renderer_jobs import adaptive_spp
-from renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
+from renderer_jobs.band_schedule import band_counts, group_seed, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
 from renderer_jobs.mitsuba_bands import RR_DEPTH
 from renderer_jobs.mitsuba_scene import band_guard, group_emission
 from renderer_jobs.mitsuba_trace import Tracer
@@ -286,8 +286,11 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     :mod:`renderer_jobs.adaptive_spp`; with ``settings.noise_target`` each pixel gets what its noise needs.
     ``boost_mask`` ``(H, W)`` bool (``"all-bands"`` only, from the guides alone:
     :func:`renderer_jobs.boost_paths.boost_mask`): those pixels get ``settings.boost_factor`` × spp.
+    The paths' random numbers come from ``settings.seed`` mixed with the group names
+    (:func:`renderer_jobs.band_schedule.group_seed`): two groups' cubes are independent estimates.
     """
     groups = group_list(scene, group)
+    settings = replace(settings, seed=group_seed(settings.seed, groups))  # each group its own paths
     t0 = time.perf_counter()
     passes = emitter_passes(scene, groups)
     if settings.wavelengths == "all-bands":
