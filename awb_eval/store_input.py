@@ -1,6 +1,6 @@
 """Evaluation cases composed from a cube store, by EXACTLY the service's pipeline.
 
-Each case is ``service.sampling.build_sample`` of a :class:`service.spec.SampleSpec` (as ``GET
+Each case is ``engine.sampling.build_sample`` of a :class:`engine.spec.SampleSpec` (as ``GET
 /sample`` and the client's local mode compose it): the raw, the GT illumination map, mixture, mask
 and CCM map, and the per-group white points from the sample's metadata. Nothing is re-implemented.
 
@@ -70,7 +70,7 @@ class StoreCases:
 
     def __init__(self, path: str, *, sensor: str | None = None, pairs: str | None = None, count: int | None = None,
                  seed: int = 0, size: str | None = None, gt: str | None = None, cache_mb: int = 1024) -> None:
-        from service.context import make_context
+        from engine.context import make_context
         from store import CubeStore, StoreError
 
         try:
@@ -122,11 +122,11 @@ class StoreCases:
                 yield Unusable(job.name, job.pair, str(exc))
 
     def spec(self, job: Job):
-        """The :class:`service.spec.SampleSpec` of ``job``; the run's options (size, gt …) are
+        """The :class:`engine.spec.SampleSpec` of ``job``; the run's options (size, gt …) are
         checked here, with one line for a bad one."""
         from pydantic import ValidationError
 
-        from service.spec import SampleSpec
+        from engine.spec import SampleSpec
 
         n_groups = len(self.store.groups(job.scene, job.view))
         light = {"pair": list(job.lights)} if len(job.lights) == 2 else {"illuminants": list(job.lights) * n_groups}
@@ -138,16 +138,16 @@ class StoreCases:
             raise SpectralError(f"{'.'.join(str(x) for x in first.get('loc', ()))}: {first.get('msg')}") from None
 
     def compose(self, job: Job) -> Case:
-        """One sample through :func:`service.sampling.build_sample` → a :class:`Case`."""
-        from service.errors import ServiceError
-        from service.sampling import build_sample
+        """One sample through :func:`engine.sampling.build_sample` → a :class:`Case`."""
+        from engine.errors import Busy
+        from engine.sampling import build_sample
         from store import StoreError
 
         spec = self.spec(job)
         try:
             arrays, meta = build_sample(spec, self.ctx)
-        except ServiceError as exc:
-            raise SpectralError(exc.detail) from None  # the image is named beside it (Unusable)
+        except Busy as exc:
+            raise SpectralError(str(exc)) from None  # the image is named beside it (Unusable)
         except StoreError as exc:
             raise SpectralError(f"store problem: {exc}; run `illumix store verify`") from None
         lit = [i for i, g in enumerate(meta["illuminants"]) if g["illuminant"] is not None and g["intensity"] > 0]

@@ -4,7 +4,7 @@ A demo store (the procedural demo room, ``--rooms`` seeds × its 2 views, render
 ``--resolution``/``--spp`` into ``--store`` unless already there) is evaluated with every built-in
 method over ``--pairs`` through :mod:`awb_eval` exactly as the command does. Reported:
 
-- ``compose_ms``: composing one image with the service's pipeline (``service.sampling.build_sample``);
+- ``compose_ms``: composing one image with the service's pipeline (``engine.sampling.build_sample``);
 - per method ``ms`` (the method alone, per image) and ``ratio_to_gray_world`` (baseline of the same run);
 - ``score_ms``: scoring one method on one image (angular error map + ΔE00 grid);
 - the aggregate table (angular error °, ΔE00 grid worst 25 %) per method and per pair, plus the

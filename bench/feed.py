@@ -55,8 +55,8 @@ def in_process(store: str, sensor: str, repeats: int) -> dict:
     """Server-side ms (compose + npz encode), warm caches: min over ``repeats``."""
     from service.app import create_app
     from service.encoding import encode_npz
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=CACHE_MB, projection_mb=PROJECTION_MB).state.ctx

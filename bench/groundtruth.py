@@ -90,12 +90,13 @@ def control_scene(resolution: tuple[int, int]) -> dict:
 def render(docs: list[dict], store: str, spp: int, seed: int = 0) -> float:
     """Render the scenes into ``store`` (default settings); returns the wall time."""
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.scene_load import scene_from_dict
 
     t = time.perf_counter()
     scenes = [scene_from_dict(d, source=d["name"]) for d in docs]
-    jobs.execute(jobs.plan(scenes, store), store, RenderSettings(spp=spp, seed=seed))
+    execute(jobs.plan(scenes, store), store, RenderSettings(spp=spp, seed=seed))
     return time.perf_counter() - t
 
 
@@ -103,8 +104,8 @@ def noise_deg(store: str, a: str, b: str, sensor: str, params: dict) -> dict:
     """Noise of the physical white point: the angle between two renders (other seed) of one scene,
     over √2 (both are noisy), on the pixels valid in both."""
     from service.app import create_app
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=2048).state.ctx
@@ -151,8 +152,8 @@ def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def measure(store: str, scene: str, sensors: list[str], params: dict) -> dict:
     """Per (view, sensor): neutral-pixel errors under both ground truths, and their maps."""
     from service.app import create_app
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=2048).state.ctx

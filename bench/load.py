@@ -255,8 +255,8 @@ def leak_check(store: str, views, h: int, w: int, n: int, cache_mb: int, seed: i
     import tracemalloc
 
     from service.app import create_app
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=cache_mb).state.ctx
@@ -325,7 +325,7 @@ def main() -> None:
             log(f"leak check: {args.leak_check} requests in-process under tracemalloc")
             leak = leak_check(store, views, args.height, args.width, args.leak_check, args.cache_mb, args.seed)
             log(f"  retained minus cache: {leak['retained_minus_cache_mib']} MiB")
-    from service.projections import projection_share
+    from engine.projections import projection_share
 
     # the projection cache is budgeted in addition to the cube cache (its default: projection_share)
     proj_mb = args.projection_cache_mb if args.projection_cache_mb is not None else projection_share(args.cache_mb)

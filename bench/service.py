@@ -39,8 +39,8 @@ def log(msg: str) -> None:
 
 def in_process_ms(store_path: str, params: dict, repeats: int) -> float:
     from service.app import create_app
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     ctx = create_app(CubeStore.open(store_path, mode="r"), cache_mb=2048).state.ctx

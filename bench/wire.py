@@ -100,7 +100,7 @@ SERVER = """
 import sys, uvicorn
 from service import arrays_format
 from service.app import create_app
-from service.limits import Limits
+from engine.limits import Limits
 from store import CubeStore
 store, port, join = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "join"
 if join:  # the same body, joined into one bytes before it is sent

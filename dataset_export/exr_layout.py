@@ -17,7 +17,7 @@ from imagefiles.spectral_exr import spectrum_attribute, write_spectral_exr
 
 def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     """Write the spectral EXRs (module docstring); fills ``summary``."""
-    from service.extra_outputs import resize_image
+    from engine.extra_outputs import resize_image
 
     # one place per view: the plan never repeats a view under the same (empty) lighting
     jobs = [(p, g, kind) for p in places for g in p.groups for kind in ("transport", "illumination")

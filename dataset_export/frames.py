@@ -1,7 +1,7 @@
 """One place's frames, composed in-process by the service's own pipeline.
 
-Each frame is ``service.sampling.build_sample(SampleSpec(**params), ctx)`` over a
-``service.context.make_context`` of the store — what the client's local mode does — so its arrays
+Each frame is ``engine.sampling.build_sample(SampleSpec(**params), ctx)`` over a
+``engine.context.make_context`` of the store — what the client's local mode does — so its arrays
 are exactly what ``GET /sample?<params>`` answers; ``params`` is recorded in the manifest. A place
 lit by ``k`` lights yields LSMI's capture set (:func:`light_sets`: ``_1``; ``_1, _12``;
 ``_1, _12, _13, _123``), one frame per subset of lit groups (the others at intensity 0), all at
@@ -80,7 +80,7 @@ class Composer:
 
     def __init__(self, store, *, gt: str | None, size: tuple[int, int] | None, noise: str | None, levels,
                  bayer: str | None, cache_mb: int = 1024) -> None:
-        from service.context import make_context
+        from engine.context import make_context
 
         self.ctx = make_context(store, cache_mb=cache_mb)
         self.gt, self.size, self.noise, self.levels, self.bayer = gt, size, noise, levels, bayer
@@ -105,16 +105,17 @@ class Composer:
         return p
 
     def compose(self, params: dict) -> tuple[dict[str, np.ndarray], dict]:
-        """The sample's arrays and metadata; a refusal of the service's (its ``ServiceError``, an HTTP
-        answer there) becomes an :class:`ExportError`, which stops the export with one line."""
-        from service.errors import ServiceError
-        from service.sampling import build_sample
-        from service.spec import SampleSpec
+        """The sample's arrays and metadata; a refusal of the engine's (:mod:`engine.errors`: an HTTP
+        answer in the service) becomes an :class:`ExportError` naming the place, which stops the
+        export with one line."""
+        from engine.errors import Busy, TooLarge
+        from engine.sampling import build_sample
+        from engine.spec import SampleSpec
 
         try:
             return build_sample(SampleSpec(**params), self.ctx)
-        except ServiceError as exc:
-            raise ExportError(f"{params['scene']}/{params['view']}: {exc.detail}") from None
+        except (TooLarge, Busy) as exc:
+            raise ExportError(f"{params['scene']}/{params['view']}: {exc}") from None
 
     def capture(self, place: Place, sensor: str) -> Capture:
         """Every frame of ``place`` seen by ``sensor`` (module docstring)."""

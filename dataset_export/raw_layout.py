@@ -32,11 +32,11 @@ def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
 
 def _levels(noise: str | None):
     """The sensor model of the raw frames; its black and white levels must be whole digital numbers
-    (a TIFF's DN and a DNG's ``BlackLevel``/``WhiteLevel``; :func:`service.file_downloads.dng_levels`)."""
+    (a TIFF's DN and a DNG's ``BlackLevel``/``WhiteLevel``; :func:`imagefiles.dng.dng_levels`)."""
+    from engine.spec import parse_noise
+    from imagefiles.dng import dng_levels
     from retarget.errors import SpectralError
     from retarget.sensor_model import NoiseModel
-    from service.file_downloads import dng_levels
-    from service.spec import parse_noise
 
     model = (parse_noise(noise) if noise else None) or NoiseModel()
     try:
@@ -51,14 +51,14 @@ def _levels(noise: str | None):
 def check_frames(st, places, o, fmt) -> None:
     """Refusals of the raw-frame options before anything is written: levels that are not whole
     digital numbers (:func:`_levels`); a DNG frame smaller than libraw reads
-    (:data:`service.file_downloads.DNG_MIN_SIDE`)."""
+    (:data:`imagefiles.dng.DNG_MIN_SIDE`)."""
     _levels(o.noise)
     if fmt.name == "dng":
         _check_dng_sizes(st, places, o.size)
 
 
 def _check_dng_sizes(st, places, size: tuple[int, int] | None) -> None:
-    from service.file_downloads import DNG_MIN_SIDE
+    from imagefiles.dng import DNG_MIN_SIDE
 
     for place in places:
         if size is None:

@@ -71,7 +71,7 @@ def _check_flags(o: ExportOptions, fmt) -> None:
 def _check_size(size: tuple[int, int] | None) -> None:
     """Frames (and resampled cubes) within the service's limits on an output (its ``Limits``: side and
     pixels), checked before anything is written."""
-    from service.limits import Limits
+    from engine.limits import Limits
 
     if size is None:
         return
@@ -95,7 +95,7 @@ def _open_store(url: str):
 
 def _check_names(st, sensors, illuminants, place) -> None:
     """Unknown or unusable sensor / illuminant names: one line with the close matches, before any work."""
-    from service.library import Library
+    from engine.library import Library
 
     lib = Library(st)
     grid = st.cube_meta(place.scene, place.view, place.groups[0]).spectral_grid

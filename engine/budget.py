@@ -19,9 +19,9 @@ import threading
 import time
 from collections.abc import Iterable
 
+from engine.errors import Busy, TooLarge
+from engine.spec import SPECTRAL_OUTPUTS as SPECTRAL  # one float32 per band each
 from retarget.compose import GT_OUTPUTS
-from service.errors import fail
-from service.spec import SPECTRAL_OUTPUTS as SPECTRAL  # one float32 per band each
 
 #: bytes per output pixel of each output as returned (float32; ccm 3×3; mask bool; weights per group)
 OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1, "illum": 12, "albedo": 12, "normal": 12,
@@ -136,18 +136,17 @@ class MemoryBudget:
     def acquire(self, nbytes: int, what: str) -> Reservation:
         nbytes = max(0, int(nbytes))
         if nbytes > self.per_request:
-            raise fail(413, f"{what} needs about {mib(nbytes)} of working memory; the service allows "
-                            f"{mib(self.per_request)} per request: ask for fewer outputs (ccm is 36 bytes per "
-                            "pixel), a smaller crop= or size=, or fewer batch items", code="too_large")
+            raise TooLarge(f"{what} needs about {mib(nbytes)} of working memory; the service allows "
+                           f"{mib(self.per_request)} per request: ask for fewer outputs (ccm is 36 bytes per "
+                           "pixel), a smaller crop= or size=, or fewer batch items")
         deadline = time.monotonic() + self.timeout
         with self._cond:
             while self._used + nbytes > self.capacity:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     self.refused_busy += 1
-                    raise fail(503, f"the service is busy ({mib(self._used)} of {mib(self.capacity)} working "
-                                    "memory in use); retry after the Retry-After seconds", code="busy",
-                               headers={"Retry-After": "1"})
+                    raise Busy(f"the service is busy ({mib(self._used)} of {mib(self.capacity)} working "
+                               "memory in use); retry after the Retry-After seconds", retry_after=1)
                 self._cond.wait(left)
             self._used += nbytes
             self.peak = max(self.peak, self._used)

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from service import budget
-from service.library import Library
-from service.limits import Limits
-from service.projections import ProjectionCache, projection_share
+from engine import budget
+from engine.library import Library
+from engine.limits import Limits
+from engine.projections import ProjectionCache, projection_share
 from store.lru import LRUCache, nbytes_cost
 
 
@@ -22,7 +22,7 @@ class Context:
     limits: Limits
     memory: budget.MemoryBudget
     projections: ProjectionCache | None = None
-    torch: object | None = None  # a service.torch_sampling.TorchComposer when composing on a device
+    torch: object | None = None  # a engine.torch_sampling.TorchComposer when composing on a device
 
 
 def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = None,
@@ -30,7 +30,7 @@ def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = Non
     """The composition context over an open store: ``cache_mb`` bounds the decoded cubes,
     ``projection_mb`` (in addition) the whole-frame projections (default: a quarter of ``cache_mb``,
     at most 512 MiB; 0 turns them off). ``device``: compose eligible requests with torch there
-    (:mod:`service.torch_sampling`), with up to ``device_cache_mb`` of cubes on it. Used by the
+    (:mod:`engine.torch_sampling`), with up to ``device_cache_mb`` of cubes on it. Used by the
     service and by the client's local mode."""
     limits = limits or Limits()
     projection_mb = projection_share(cache_mb) if projection_mb is None else projection_mb
@@ -39,7 +39,7 @@ def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = Non
                                  per_request=limits.max_request_mb * 2**20)
     composer = None
     if device is not None:
-        from service.torch_sampling import TorchComposer
+        from engine.torch_sampling import TorchComposer
 
         composer = TorchComposer(device, device_cache_mb)
     return Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,

@@ -19,7 +19,7 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from service.errors import fail
+from retarget.errors import SpectralError
 
 MASK_REASONS = {"no_geometry": "the pixel sees no surface (sky or background)",
                 "emitter": "the pixel sees a light source's own surface",
@@ -59,14 +59,14 @@ def view_validity(read_aov: Callable[[str], np.ndarray | None], out_w: int, out_
 
 def aov_outputs(read_aov: Callable[[str], np.ndarray | None], names: set[str], out_w: int, out_h: int
                 ) -> dict[str, np.ndarray]:
-    """The requested AOVs (:data:`service.spec.AOV_OUTPUTS`), resampled; normals renormalised."""
+    """The requested AOVs (:data:`engine.spec.AOV_OUTPUTS`), resampled; normals renormalised."""
     out = {}
     for name in ("albedo", "normal", "depth"):
         if name not in names:
             continue
         a = read_aov(name)
         if a is None:
-            raise fail(422, f"this view has no {name!r} AOV stored; re-render the view to get it")
+            raise SpectralError(f"this view has no {name!r} AOV stored; re-render the view to get it")
         a = resize_image(a, out_w, out_h).astype(np.float32)
         if name == "normal":
             norm = np.linalg.norm(a, axis=-1, keepdims=True)

@@ -29,7 +29,6 @@ from retarget.denoise_methods import DENOISE_CHOICES
 from retarget.errors import SpectralError, UnknownName
 from retarget.exposure import EXPOSURE_METHODS
 from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
-from service.encoding import IMAGE_OUTPUTS
 
 FORMATS = ("npz", "arrays", "png", "tiff", "dng", "exr")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
@@ -39,6 +38,10 @@ SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spect
 DEFAULT_OUTPUTS = (*(o for o in OUTPUTS if o != "ccm"), "meta")
 ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, "reflectance", "illumination", "meta")
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
+
+#: The outputs each single-image format can carry (one per answer).
+IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights"),
+                 "dng": ("raw",)}
 
 
 def _items(v: Any, what: str) -> list[str] | None:

@@ -18,10 +18,11 @@ import warnings
 
 import numpy as np
 
+from engine import cubes
+from engine.sample_meta import sample_meta
 from retarget.errors import SpectralError
 from retarget.finite import all_finite
 from retarget.groundtruth import lit_white_points
-from service.sample_meta import sample_meta
 from store.lru import LRUCache
 
 
@@ -68,19 +69,17 @@ class TorchComposer:
         return t.clone() if copy else t
 
     def _window(self, ctx, p, group: str, kind: str):
-        from service import sampling  # sampling imports this module
-
         x, y, w, h = p.window
 
-        nbytes = sampling.cube_bytes(p)
+        nbytes = cubes.cube_bytes(p)
         if nbytes > ctx.cache.max_cost or nbytes > self.cubes.max_cost:
-            return self._to_device(sampling.read_cube(ctx, p, group, kind))  # the window, uncached
+            return self._to_device(cubes.read_cube(ctx, p, group, kind))  # the window, uncached
 
         def load():
             # a copy on "cpu" too: the device cache then owns its memory, within device_cache_mb
-            return self._to_device(sampling.whole_cube(ctx, p, group, kind), copy=self.device.type == "cpu")
+            return self._to_device(cubes.whole_cube(ctx, p, group, kind), copy=self.device.type == "cpu")
 
-        full = self.cubes.get(sampling.plan_cube_key(p, group, kind), load, expected_cost=nbytes)
+        full = self.cubes.get(cubes.plan_cube_key(p, group, kind), load, expected_cost=nbytes)
         return full[y:y + h, x:x + w]
 
     def compose(self, ctx, p, unit: list, white_points: np.ndarray, valid: np.ndarray | None) -> dict:

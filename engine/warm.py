@@ -3,7 +3,7 @@
 A cold service decodes a whole cube on the first request that touches it (tens to hundreds of ms
 per cube), so the first epoch of a training feed runs far slower than the next (issue 19). Warming
 fills the cache with exactly the entries a default ``GET /sample`` of each view reads — the keys come
-from :func:`service.sampling.plan` and :func:`service.sampling.cube_key` / :func:`aov_key`, so a
+from :func:`engine.plan.plan` and :func:`engine.cubes.cube_key` / :func:`aov_key`, so a
 warmed entry is a hit, never a look-alike:
 
 - the view's ``mask`` and ``emitter`` AOVs (every sample reads them for its validity mask);
@@ -28,13 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.context import Context
+from engine.cubes import aov_key, cube_key
+from engine.errors import Busy
+from engine.plan import plan
+from engine.spec import SampleSpec
 from retarget.errors import SpectralError
-from service.errors import ServiceError
-from service.sampling import Context, aov_key, cube_key, plan
-from service.spec import SampleSpec
 from store import StoreError
 
-#: the AOVs every sample reads (service.extra_outputs.view_validity)
+#: the AOVs every sample reads (engine.extra_outputs.view_validity)
 VALIDITY_AOVS = ("mask", "emitter")
 
 
@@ -56,7 +58,7 @@ def _entries(ctx: Context, log: Callable[[str], None]) -> tuple[list[_Entry], in
             try:
                 # a 1x1 crop: the window does not change what is read, and a full frame could exceed max_side
                 p = plan(SampleSpec(scene=scene, view=view, crop=[0, 0, 1, 1], seed=0), ctx)
-            except (SpectralError, ServiceError, StoreError) as exc:
+            except (SpectralError, Busy, StoreError) as exc:
                 log(f"warm: skipping {scene}/{view}: {str(exc).splitlines()[0]}")
                 skipped += 1
                 continue
@@ -136,14 +138,15 @@ def _size(n: int) -> str:
 def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                      log: Callable[[str], None] | None = None) -> dict:
     """Project every view's lit groups through each sensor × illuminant into ``ctx.projections``
-    (:mod:`service.projections`), until it is full, so a feed drawing from that pool slices crops
+    (:mod:`engine.projections`), until it is full, so a feed drawing from that pool slices crops
     from its first sample on. Returns ``{"projections", "bytes", "seconds", "skipped"}``.
 
-    The keys are the ones :func:`service.sampling.group_inputs` asks for (the cubes a default
+    The keys are the ones :func:`engine.sampling.group_inputs` asks for (the cubes a default
     ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
     sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
     """
-    from service.sampling import frame_bytes, projection_key, unit_weights, whole_cube
+    from engine.cubes import frame_bytes, projection_key, whole_cube
+    from engine.sampling import unit_weights
 
     log = log or (lambda _msg: None)
     pc, t0 = ctx.projections, time.perf_counter()
@@ -154,7 +157,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
         for view in ctx.store.views(scene):
             try:
                 p = plan(SampleSpec(scene=scene, view=view, crop=[0, 0, 1, 1], seed=0), ctx)
-            except (SpectralError, ServiceError, StoreError):
+            except (SpectralError, Busy, StoreError):
                 skipped += 1
                 continue
             grid, frame = p.metas[0].spectral_grid, frame_bytes(p)

@@ -69,7 +69,7 @@ def export(
     from dataset_export.splits import parse_fractions
     from illumix.progress import progress_bar
     from retarget.sensor_model import BAYER_PATTERNS
-    from service.spec import parse_noise
+    from engine.spec import parse_noise
 
     name = EXPORT_FORMATS.canonical(fmt)
     if gt is not None and gt.lower() not in ("physical", "formula"):

@@ -96,7 +96,7 @@ def serve(
 
     from illumix.allocator import tune_for_service
     from service.app import create_app
-    from service.limits import Limits
+    from engine.limits import Limits
 
     tune_for_service()
     limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
@@ -112,7 +112,7 @@ def serve(
             raise
         raise UserError(f"--device {device}: {exc}; leave out --device to compose on the CPU") from None
     if warm:  # before uvicorn binds: once the port answers, the cache is warm
-        from service.warm import warm_cache
+        from engine.warm import warm_cache
 
         warm_cache(app.state.ctx, log=lambda line: print(f"illumix: {line}", file=sys.stderr, flush=True))
     uvicorn.run(app, host=host, port=port, log_level="info")

@@ -29,9 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
+from retarget.errors import SpectralError
 from retarget.global_wb import frame_white_point
+from retarget.sensor_model import NoiseModel
 
 DENOMINATOR = 1_000_000
+DNG_MIN_SIDE = 22  # libraw refuses smaller DNGs ("Unsupported file format")
+DNG_LEVELS = NoiseModel()  # the default levels of noise-free frames (black 64, white 4095)
 
 
 def color_matrix(sensor_weights: np.ndarray, spd_d65: np.ndarray, ccm_d65: np.ndarray) -> np.ndarray:
@@ -121,3 +125,13 @@ def template_bytes(*, black: int, white: int, pattern: str | None, matrix: np.nd
 
 def write_dng(path: Path, image: np.ndarray, **kw) -> None:
     Path(path).write_bytes(dng_bytes(image, **kw))
+
+
+def dng_levels(noise: NoiseModel | None) -> tuple[int, int]:
+    """``(black, white)`` the DNG states: the noise model's, else :data:`DNG_LEVELS`'s; whole numbers."""
+    model = noise or DNG_LEVELS
+    black, white = float(model.black_level), float(model.white)
+    if not (black.is_integer() and white.is_integer()):
+        raise SpectralError(f"format=dng states whole black and white levels; noise= gives {black:g} and {white:g}: "
+                            "give noise=black_level:<integer>;white_level:<integer>")
+    return int(black), int(white)

@@ -4,7 +4,7 @@ Reads are open; writes (uploading or deleting sensors and illuminants) need
 ``Authorization: Bearer TOKEN`` when the app has a token. Bad input is a 4xx whose body
 (:class:`service.errors.ErrorBody`) says what to fix — never a 500 — and no response carries NaN or
 inf (pixels with no light are flagged in ``mask``). Memory is bounded per request and in flight
-(:mod:`service.budget`); request bodies are bounded in size and time (:mod:`service.body_guard`).
+(:mod:`engine.budget`); request bodies are bounded in size and time (:mod:`service.body_guard`).
 
 Routers (one per resource): :mod:`service.routes.samples` (``/sample``, ``/batch``),
 :mod:`service.routes.registries` (``/sensors``, ``/illuminants``), :mod:`service.routes.status`
@@ -19,12 +19,12 @@ import logging
 
 from fastapi import FastAPI
 
+from engine.context import make_context
+from engine.limits import Limits
 from service import errors
 from service.body_guard import BodyGuard
-from service.limits import Limits
 from service.metrics import Metrics, RequestMetrics
 from service.routes import explore, metrics, registries, samples, status, web
-from service.sampling import make_context
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file
@@ -37,9 +37,9 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
 
     ``token``: bearer token required for writes (``None`` or empty: writes are open, with a warning
     in the log). ``cache_mb``: bound of the decoded-cube cache; ``projection_mb``: of the whole-frame
-    projections, in addition (:mod:`service.projections`; default a quarter of ``cache_mb``, at most
+    projections, in addition (:mod:`engine.projections`; default a quarter of ``cache_mb``, at most
     512; 0 turns them off). ``limits``: :class:`Limits`. ``device``: compose eligible requests with torch there
-    (:mod:`service.torch_sampling`, e.g. ``"cuda"``; the rest on the CPU), keeping up to
+    (:mod:`engine.torch_sampling`, e.g. ``"cuda"``; the rest on the CPU), keeping up to
     ``device_cache_mb`` of cubes there.
     """
     limits = limits or Limits()

@@ -7,8 +7,8 @@ from typing import Annotated
 
 from fastapi import Depends, Header, Request
 
+from engine.context import Context
 from service.errors import fail
-from service.sampling import Context
 
 
 async def get_ctx(request: Request) -> Context:

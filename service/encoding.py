@@ -39,12 +39,11 @@ import cv2
 import numpy as np
 import tifffile
 
+from engine.spec import IMAGE_OUTPUTS
 from retarget.errors import SpectralError
 
 GAIN_PNG_SCALE = 4096.0
 RAW_PNG_WHITE = 65535
-IMAGE_OUTPUTS = {"png": ("raw", "gain", "srgb", "mask"), "tiff": ("raw", "gain", "srgb", "mask", "weights"),
-                 "dng": ("raw",)}
 MEDIA = {"npz": "application/octet-stream", "arrays": "application/x-illumix-arrays", "png": "image/png",
          "tiff": "image/tiff", "dng": "image/x-adobe-dng", "exr": "image/x-exr"}
 #: float16 scaling puts each output's largest magnitude in [2^(HALF_TOP-1), 2^HALF_TOP) as stored

@@ -24,6 +24,7 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
+from engine.errors import Busy, NotFound, TooLarge
 from retarget.errors import SpectralError, UnknownName
 from store import StoreError, StoreKeyError
 
@@ -46,10 +47,6 @@ class ServiceError(Exception):
                  headers: dict[str, str] | None = None) -> None:
         super().__init__(detail)
         self.status, self.code, self.detail, self.loc, self.headers = status, code, detail, loc, headers
-
-
-class NotFound(SpectralError):
-    """A scene or view that is not in the store (HTTP 404)."""
 
 
 _DESCRIPTIONS = {
@@ -191,6 +188,14 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(StoreKeyError)
     async def _not_found(request: Request, exc: Exception):
         return error_response(404, "not_found", str(exc))
+
+    @app.exception_handler(TooLarge)
+    async def _too_large(request: Request, exc: TooLarge):
+        return error_response(413, "too_large", str(exc))
+
+    @app.exception_handler(Busy)
+    async def _busy(request: Request, exc: Busy):
+        return error_response(503, "busy", str(exc), headers={"Retry-After": str(exc.retry_after)})
 
     @app.exception_handler(StoreError)
     async def _store(request: Request, exc: StoreError):

@@ -26,17 +26,16 @@ import importlib.util
 
 import numpy as np
 
+from engine import budget
+from engine.spec import SampleSpec
+from imagefiles.dng import DNG_LEVELS, DNG_MIN_SIDE, dng_levels
 from retarget.errors import SpectralError
-from retarget.sensor_model import NoiseModel, simulate_raw
-from service import budget
+from retarget.sensor_model import simulate_raw
 from service.errors import fail
-from service.spec import SampleSpec
 
 FILE_FORMATS = ("dng", "exr")
 MODULES = {"dng": "pidng", "exr": "OpenEXR"}
 DNG_OUTPUTS = ("raw", "mixture", "mask", "meta")  # composed for a DNG: the mixture and mask give its neutral
-DNG_MIN_SIDE = 22  # libraw refuses smaller DNGs ("Unsupported file format")
-DNG_LEVELS = NoiseModel()  # the export's default levels for noise-free frames (black 64, white 4095)
 
 
 def require(fmt: str) -> None:
@@ -70,7 +69,7 @@ def check(p) -> None:
 
 
 def extra_bytes(p) -> int:
-    """Memory beyond :func:`service.sampling.price`: an EXR holds a float32 copy of every output's
+    """Memory beyond :func:`engine.sampling.price`: an EXR holds a float32 copy of every output's
     planes while its file is written."""
     if p.spec.format != "exr":
         return 0
@@ -88,16 +87,6 @@ def headers(meta: dict, fmt: str) -> dict[str, str]:
                    for c in f"{meta['scene']}-{meta['view']}-{meta['seed']}")
     about = {k: meta[k] for k in ("scene", "view", "seed", "size", "exposure_gain", "encoding") if k in meta}
     return {"Content-Disposition": f'attachment; filename="{stem}.{fmt}"', "X-Illumix-Meta": meta_json(about)}
-
-
-def dng_levels(noise: NoiseModel | None) -> tuple[int, int]:
-    """``(black, white)`` the DNG states: the noise model's, else :data:`DNG_LEVELS`'s; whole numbers."""
-    model = noise or DNG_LEVELS
-    black, white = float(model.black_level), float(model.white)
-    if not (black.is_integer() and white.is_integer()):
-        raise SpectralError(f"format=dng states whole black and white levels; noise= gives {black:g} and {white:g}: "
-                            "give noise=black_level:<integer>;white_level:<integer>")
-    return int(black), int(white)
 
 
 def encode(p, ctx, arrays: dict[str, np.ndarray], meta: dict, with_meta: bool) -> tuple[bytes, dict[str, str]]:

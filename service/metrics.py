@@ -45,7 +45,7 @@ class Metrics:
 
 
 class ServiceCollector(Collector):
-    """The cube cache and working-memory figures of a :class:`service.sampling.Context`, read live."""
+    """The cube cache and working-memory figures of a :class:`engine.context.Context`, read live."""
 
     def __init__(self, ctx) -> None:
         self.ctx = ctx

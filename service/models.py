@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.spec import SampleSpec
+from engine.spec import SampleSpec
 
 
 class CacheStats(BaseModel):

@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 import synthetic_store as synth
 from retarget.grid import DEFAULT_GRID
 from service.app import create_app
-from service.limits import Limits
+from engine.limits import Limits
 from store import CubeMeta, CubeStore, ViewMeta
 
 TOKEN = "stress-token"

@@ -29,9 +29,9 @@ def lsmi(tmp_path_factory):
 
 
 def test_store_cases_are_the_service_samples(store):
-    from service.context import make_context
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.context import make_context
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     src = StoreCases(store, pairs="A,D65;D50", sensor="Nikon 5100 (NPL)")

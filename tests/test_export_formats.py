@@ -31,10 +31,10 @@ def test_dng_single_illuminant(store, tmp_path):
     from retarget.illuminants import illuminant_spd
     from retarget.sensor_model import NoiseModel, mosaic, simulate_raw
     from retarget.sensors import get_sensor
-    from service.context import make_context
-    from service.library import Library
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.context import make_context
+    from engine.library import Library
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     out = tmp_path / "dng"
@@ -72,9 +72,9 @@ def test_dng_linear(store, tmp_path):
     the camera's template is linear too."""
     from dataset_export.run import ExportOptions, export_dataset
     from retarget.sensor_model import NoiseModel, simulate_raw
-    from service.context import make_context
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.context import make_context
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     out = tmp_path / "linear"

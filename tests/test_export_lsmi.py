@@ -90,9 +90,9 @@ def test_frames_are_the_samples_served(exported):
     """The tiff is what /sample answers for the recorded parameters (composed again here), in DN;
     ``_12 − _1`` is light 2 alone (one exposure for the place)."""
     from retarget.sensor_model import NoiseModel, simulate_raw
-    from service.context import make_context
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.context import make_context
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     store, out, _ = exported
@@ -115,9 +115,9 @@ def test_physical_ground_truth_file(exported):
     truth is defined, -1 elsewhere; LSMI's model Σ mixture·Light differs from it (the bounce light),
     by the angles meta.json records."""
     from retarget.metrics import angular_error
-    from service.context import make_context
-    from service.sampling import build_sample
-    from service.spec import SampleSpec
+    from engine.context import make_context
+    from engine.sampling import build_sample
+    from engine.spec import SampleSpec
     from store import CubeStore
 
     store, out, _ = exported

@@ -24,7 +24,7 @@ from schemathesis.specs.openapi.checks import positive_data_acceptance  # noqa: 
 
 import synthetic_store as synth  # noqa: E402
 from service.app import create_app  # noqa: E402
-from service.limits import Limits  # noqa: E402
+from engine.limits import Limits  # noqa: E402
 from store import CubeStore  # noqa: E402
 
 TOKEN = "fuzz-token"

@@ -1,4 +1,4 @@
-"""``GET /metrics`` (Prometheus text) and ``serve --warm``'s :func:`service.warm.warm_cache`.
+"""``GET /metrics`` (Prometheus text) and ``serve --warm``'s :func:`engine.warm.warm_cache`.
 
 /metrics must count requests by route template (unknown paths as ``other``), time them, and show
 the cube cache's hits and misses exactly as ``/health`` does. Warming must fill the cache with
@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
 from service.app import create_app
-from service.warm import warm_cache
+from engine.warm import warm_cache
 from store import CubeStore
 
 

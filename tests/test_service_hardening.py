@@ -181,7 +181,7 @@ def test_upload_on_a_full_disk_is_507_and_writes_nothing(client, store_path, mon
 
 
 def test_one_upload_limit_for_store_and_service(client):
-    from service.limits import Limits
+    from engine.limits import Limits
     from store.registry import DEFAULT_MAX_BYTES
 
     assert Limits().max_upload_bytes == DEFAULT_MAX_BYTES

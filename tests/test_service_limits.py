@@ -20,13 +20,13 @@ from fastapi.testclient import TestClient
 
 import synthetic_store as synth
 from server_testutil import ThreadServer
+from engine.budget import MemoryBudget
+from engine.errors import Busy, TooLarge
+from engine.limits import Limits
+from engine.sampling import build, plan, price
+from engine.spec import SampleSpec
 from service.app import create_app
-from service.budget import MemoryBudget
 from service.encoding import encode_npz
-from service.errors import ServiceError
-from service.limits import Limits
-from service.sampling import build, plan, price
-from service.spec import SampleSpec
 from store import CubeMeta, CubeStore
 
 H, W = 96, 128
@@ -114,13 +114,15 @@ def test_oversized_request_and_batch_are_413_with_a_hint(store_path):
         assert c.get("/health").json()["memory"]["inflight_bytes"] == 0  # every reservation released
 
 
-def test_memory_budget_queues_then_answers_503_with_retry_after():
+def test_memory_budget_queues_then_refuses_busy_with_retry_after():
+    """The engine's budget raises its own errors (Busy, TooLarge); the service answers them 503 with
+    Retry-After and 413 (test_busy_and_too_large_map_to_503_and_413)."""
     budget = MemoryBudget(capacity=100, timeout=0.3)
     first = budget.acquire(80, "a")
     t = time.monotonic()
-    with pytest.raises(ServiceError) as exc:
+    with pytest.raises(Busy) as exc:
         budget.acquire(30, "b")
-    assert exc.value.status == 503 and exc.value.headers["Retry-After"] == "1"
+    assert exc.value.retry_after == 1
     assert 0.25 <= time.monotonic() - t < 5
     threading.Timer(0.1, first.release).start()
     second = budget.acquire(30, "c")  # waits for the first to finish, then runs
@@ -128,9 +130,33 @@ def test_memory_budget_queues_then_answers_503_with_retry_after():
     second.release()
     second.release()  # idempotent
     assert budget.used == 0 and budget.peak == 80 and budget.refused_busy == 1
-    with pytest.raises(ServiceError) as exc:
+    with pytest.raises(TooLarge, match="working memory"):
         budget.acquire(101, "d")
-    assert exc.value.status == 413
+
+
+def test_busy_and_too_large_map_to_503_and_413():
+    """The service maps the engine's errors to status codes, in the common error shape."""
+    from fastapi import FastAPI
+    from fastapi.testclient import TestClient
+
+    from service import errors
+
+    app = FastAPI()
+    errors.install(app)
+
+    @app.get("/busy")
+    def busy():
+        raise Busy("the service is busy", retry_after=3)
+
+    @app.get("/large")
+    def large():
+        raise TooLarge("output 9999x9999 exceeds the limits")
+
+    with TestClient(app) as c:
+        r = c.get("/busy")
+        assert r.status_code == 503 and r.headers["Retry-After"] == "3" and r.json()["code"] == "busy"
+        r = c.get("/large")
+        assert r.status_code == 413 and r.json()["code"] == "too_large" and "exceeds" in r.json()["detail"]
 
 
 # -- request bodies bounded in size and time (real sockets) ----------------------------------------

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from service.context import make_context
-from service.errors import NotFound
-from service.sampling import plan
-from service.spec import SampleSpec
+from engine.context import make_context
+from engine.errors import NotFound
+from engine.sampling import plan
+from engine.spec import SampleSpec
 from store import CubeStore
 
 

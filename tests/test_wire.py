@@ -20,7 +20,7 @@ from server_testutil import ThreadServer
 from service import arrays_format as enc
 from service.app import create_app
 from service.encoding import half_precision
-from service.spec import DEFAULT_OUTPUTS
+from engine.spec import DEFAULT_OUTPUTS
 from store import CubeStore
 
 V0 = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "FL11,D65", "intensities": "1,0.5", "seed": 3}

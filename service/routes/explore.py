@@ -20,6 +20,8 @@ from fastapi import APIRouter, Query
 from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from engine.sampling import build, plan, price
+from engine.spec import MAX_NAME, SampleSpec
 from retarget import global_wb
 from retarget.grid import DEFAULT_GRID
 from retarget.groundtruth import white_point
@@ -29,8 +31,6 @@ from service.deps import CtxDep
 from service.errors import error_responses, fail, refuses
 from service.models import IlluminantCurve, LocusPoint, Spectra
 from service.routes.samples import HeldResponse
-from service.sampling import build, plan, price
-from service.spec import MAX_NAME, SampleSpec
 
 router = APIRouter(prefix="/explore", tags=["explore"])
 #: what a frame is composed with (meta carries each group's white point and CCM for the baseline)

@@ -11,14 +11,15 @@ from typing import Annotated
 
 from fastapi import APIRouter, File, Form, UploadFile
 
+from engine import catalogue
+from engine.library import check_upload_name, parse_illuminant, parse_sensor
 from retarget import illuminants as ill
 from retarget import sensors as sen
 from retarget.errors import SpectralError, unknown_name
 from retarget.grid import DEFAULT_GRID
 from service.deps import CtxDep, TokenDep
 from service.errors import error_responses, fail
-from service.library import check_upload_name, parse_illuminant, parse_sensor
-from service.models import Deleted, IlluminantList, KelvinRange, SensorDetail, SensorList, Uploaded
+from service.models import Deleted, IlluminantList, SensorDetail, SensorList, Uploaded
 from store import StoreError
 
 router = APIRouter()
@@ -30,8 +31,7 @@ _DELETE_ERRORS = error_responses(401, 403, 404, 422, 503)
 @router.get("/sensors", response_model=SensorList, tags=["sensors"])
 def sensors(ctx: CtxDep) -> SensorList:
     """Built-in sensors usable on the default grid, the unusable ones with the reason, and uploads."""
-    usable, unusable = sen.availability(DEFAULT_GRID)
-    return SensorList(builtin=usable, unavailable=unusable, uploaded=ctx.library.uploaded_sensors())
+    return SensorList.model_validate(catalogue.sensors(ctx))
 
 
 @router.get("/sensors/{name}", response_model=SensorDetail, tags=["sensors"], responses=error_responses(404, 422))
@@ -68,9 +68,7 @@ def delete_sensor(name: str, ctx: CtxDep) -> Deleted:
 @router.get("/illuminants", response_model=IlluminantList, tags=["illuminants"])
 def illuminants(ctx: CtxDep) -> IlluminantList:
     """Built-in, parametric (``blackbody:K``, ``daylight:K``) and uploaded illuminants."""
-    return IlluminantList(builtin=ill.builtin_names(),
-                          parametric={k: KelvinRange(min_kelvin=lo, max_kelvin=hi) for k, (lo, hi) in ill.PARAMETRIC.items()},
-                          uploaded=ctx.library.uploaded_illuminants())
+    return IlluminantList.model_validate(catalogue.illuminants(ctx))
 
 
 @router.post("/illuminants", status_code=201, response_model=Uploaded, tags=["illuminants"],

@@ -8,7 +8,10 @@ import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
-from service import arrays_format, budget
+from engine import budget
+from engine.sampling import build, plan, price
+from engine.spec import SampleSpec
+from service import arrays_format
 from service import file_downloads as files
 from service.deps import CtxDep
 from service.encoding import (
@@ -22,8 +25,6 @@ from service.encoding import (
 )
 from service.errors import error_responses, fail
 from service.models import BatchRequest
-from service.sampling import build, plan, price
-from service.spec import SampleSpec
 
 router = APIRouter(tags=["samples"])
 #: an arrays body is sent in slices of at most this many bytes (views, not copies): the server's

@@ -4,17 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
+from engine import catalogue
 from service.deps import CtxDep
 from service.errors import error_responses
-from service.models import (
-    CacheStats,
-    GroupInfo,
-    Health,
-    MemoryStats,
-    SceneInfo,
-    Scenes,
-    ViewInfo,
-)
+from service.models import CacheStats, Health, MemoryStats, Scenes
 
 router = APIRouter(tags=["status"])
 
@@ -43,17 +36,4 @@ def _stats(c) -> CacheStats:
 def scenes(ctx: CtxDep) -> Scenes:
     """Every scene, view and light group the store holds. A damaged view is a 503 (run
     `illumix store verify`), never silently left out."""
-    store = ctx.store
-    out = []
-    for s in store.scenes():
-        views = []
-        for v in store.views(s):
-            vm = store.view_meta(s, v)
-            metas = [(g, store.cube_meta(s, v, g)) for g in store.groups(s, v)]
-            groups = [GroupInfo(name=g, emission=m.emission_name,
-                                illumination=m.illumination is not None and m.illumination.storage is not None,
-                                denoised=m.denoised.method if m.denoised is not None and m.denoised.storage else None)
-                      for g, m in metas]
-            views.append(ViewInfo(name=v, width=vm.width, height=vm.height, groups=groups))
-        out.append(SceneInfo(name=s, views=views))
-    return Scenes(scenes=out)
+    return Scenes.model_validate({"scenes": catalogue.scenes(ctx)})

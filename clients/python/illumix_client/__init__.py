@@ -15,10 +15,25 @@ from __future__ import annotations
 from illumix_client._protocol import RetryPolicy
 from illumix_client.aio import AsyncClient
 from illumix_client.client import Client
-from illumix_client.draw import CIE_FLUORESCENT, CIE_LED, CIE_STANDARD, IlluminantPool, ViewInfo
-from illumix_client.errors import (AuthError, ConflictError, ConnectionFailed, ForbiddenError, IllumixError,
-                                   InvalidRequestError, NotFoundError, RequestTimeoutError,
-                                   RequestTooLargeError, ServerError)
+from illumix_client.draw import (
+    CIE_FLUORESCENT,
+    CIE_LED,
+    CIE_STANDARD,
+    IlluminantPool,
+    ViewInfo,
+)
+from illumix_client.errors import (
+    AuthError,
+    ConflictError,
+    ConnectionFailed,
+    ForbiddenError,
+    IllumixError,
+    InvalidRequestError,
+    NotFoundError,
+    RequestTimeoutError,
+    RequestTooLargeError,
+    ServerError,
+)
 from illumix_client.sample import OUTPUTS, Sample
 
 __version__ = "0.1.0"

@@ -1,7 +1,7 @@
 """``LocalClient``: the client's interface composed in-process from a store, with no HTTP.
 
 For single-machine training: ``IllumixDataset(store="./illumix-store")`` composes each sample here,
-with the service's own code (:mod:`service.sampling`), so a sample is identical to what
+with the service's own code (:mod:`engine.sampling`), so a sample is identical to what
 ``GET /sample`` answers for the same parameters. Needs the physics core: ``pip install
 "illumix-client[local]"`` (or the illumix package itself); ``import illumix_client`` alone still
 imports no server code.
@@ -18,21 +18,25 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from illumix_client.errors import IllumixError, InvalidRequestError, NotFoundError
+from illumix_client.errors import (
+    IllumixError,
+    InvalidRequestError,
+    NotFoundError,
+    RequestTooLargeError,
+    ServerError,
+)
 from illumix_client.sample import Sample, as_specs, encode_spec
 
 try:
     from pydantic import ValidationError
 
+    from engine import catalogue
+    from engine.context import make_context
+    from engine.errors import Busy, NotFound, TooLarge
+    from engine.sampling import build, plan, price
+    from engine.spec import SampleSpec
+    from engine.torch_sampling import refusal as torch_refusal
     from retarget.errors import SpectralError, UnknownName
-    from service.context import make_context
-    from service.errors import NotFound, ServiceError
-    from service.routes.registries import illuminants as _illuminants
-    from service.routes.registries import sensors as _sensors
-    from service.routes.status import scenes as _scenes
-    from service.sampling import build, plan, price
-    from service.spec import SampleSpec
-    from service.torch_sampling import refusal as torch_refusal
     from store import CubeStore, StoreError, StoreKeyError
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError(f"the local mode needs the illumix physics core ({exc}); install it with "
@@ -45,7 +49,7 @@ class LocalClient:
 
     cache_mb, projection_mb : the cache bounds (see ``illumix serve``).
     device, device_cache_mb : compose with torch on ``device`` (``"cuda"``, ``"cpu"``;
-    :mod:`service.torch_sampling`: outputs raw, gain, mask, weights, illum, mixture; arrays are
+    :mod:`engine.torch_sampling`: outputs raw, gain, mask, weights, illum, mixture; arrays are
     tensors on the device) with up to ``device_cache_mb`` of cubes kept there; ``None`` (default):
     the service's numpy path.
     """
@@ -68,13 +72,13 @@ class LocalClient:
 
     # -- what the store holds ------------------------------------------------------------------
     def scenes(self) -> dict:
-        return _call(lambda: _scenes(self.ctx).model_dump()["scenes"])
+        return _call(lambda: catalogue.scenes(self.ctx))
 
     def sensors(self) -> dict:
-        return _call(lambda: _sensors(self.ctx).model_dump())
+        return _call(lambda: catalogue.sensors(self.ctx))
 
     def illuminants(self) -> dict:
-        return _call(lambda: _illuminants(self.ctx).model_dump())
+        return _call(lambda: catalogue.illuminants(self.ctx))
 
     # -- samples -------------------------------------------------------------------------------
     def sample(self, **spec: Any) -> Sample:
@@ -105,8 +109,8 @@ class LocalClient:
         """Decode every cube /sample reads by default into the cache (until it is full); with
         ``sensors`` and ``illuminants`` also project every view through each pair into the
         projection cache, so crops drawn from that pool are slices from the first one on.
-        Returns :func:`service.warm.warm_cache`'s counts plus ``"projections"``."""
-        from service.warm import warm_cache, warm_projections
+        Returns :func:`engine.warm.warm_cache`'s counts plus ``"projections"``."""
+        from engine.warm import warm_cache, warm_projections
 
         log = print if progress else None
         out = warm_cache(self.ctx, log=log)
@@ -138,11 +142,12 @@ def _call(fn):
         raise InvalidRequestError(f"{where}: {first.get('msg')}", 422, code="invalid_parameter") from None
     except (UnknownName, NotFound, StoreKeyError) as exc:
         raise NotFoundError(str(exc), 404, code="not_found") from None
+    except TooLarge as exc:
+        raise RequestTooLargeError(str(exc), 413, code="too_large") from None
     except SpectralError as exc:
         raise InvalidRequestError(str(exc), 422, code="invalid_parameter") from None
-    except ServiceError as exc:
-        cls = InvalidRequestError if 400 <= exc.status < 500 else IllumixError
-        raise cls(exc.detail, exc.status, code=exc.code) from None
+    except Busy as exc:
+        raise ServerError(str(exc), 503, code="busy") from None
     except StoreError as exc:
         raise IllumixError(f"store problem: {exc}; run `illumix store verify`", 503, code="store_damaged") from None
 

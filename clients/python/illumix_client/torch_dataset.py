@@ -93,7 +93,7 @@ class IllumixDataset(IterableDataset):
     device
         Local mode only: compose with torch on this device (``"cuda"``; items are then tensors on
         it; use ``num_workers=0``). Serves raw, gain, mask, weights, illum and mixture at the crop
-        size (:mod:`service.torch_sampling`); raw_norm ``"max"`` or ``"none"``.
+        size (:mod:`engine.torch_sampling`); raw_norm ``"max"`` or ``"none"``.
     scenes
         Which views to draw from: ``None`` (all), scene names, ``"scene/view"`` keys or fnmatch
         patterns, or a predicate on :class:`illumix_client.draw.ViewInfo`. Views smaller than
