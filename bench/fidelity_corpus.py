@@ -157,9 +157,11 @@ def render(scene, store: Path, settings, log: Callable[[str], None], groups=None
 
     from renderer_jobs import jobs
 
+    from renderer_jobs.execute import execute
+
     t = time.process_time()
     with _keeping_guides(keep_guides):
-        jobs.execute(jobs.plan([scene], str(store), groups=groups), str(store), settings)
+        execute(jobs.plan([scene], str(store), groups=groups), str(store), settings)
     cpu = time.process_time() - t
     log(f"  {store.name}: {cpu:.1f} s CPU")
     return cpu

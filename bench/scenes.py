@@ -129,11 +129,12 @@ def _plots(fracs: np.ndarray, scenes) -> None:
 
 def _render(scenes, store: str, workers: int, views=None, groups=None) -> tuple[list[dict], float]:
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.mitsuba_render import RenderSettings
 
     p = jobs.plan(scenes, store, views=views, groups=groups)
     t0 = time.perf_counter()
-    done = jobs.execute(p, store, RenderSettings(), workers=workers)
+    done = execute(p, store, RenderSettings(), workers=workers)
     return done, time.perf_counter() - t0
 
 

@@ -2,7 +2,7 @@
 
 Renders every scene of a dataset config (:mod:`illumix.dataset_config`: generated rooms and scene
 files) × its views × its light groups into a cube store through the render jobs
-(:func:`renderer_jobs.jobs.plan` / :func:`~renderer_jobs.jobs.execute`, process pool or Ray as the
+(:func:`renderer_jobs.jobs.plan` / :func:`~renderer_jobs.execute.execute`, process pool or Ray as the
 config says). Resumable: generated rooms are cached as scene files (:mod:`illumix.scene_corpus`) and
 a rerun renders only the cubes not yet complete. A job that fails is reported and the others go on
 (local executor); the run then exits 1 after its summary.
@@ -42,6 +42,7 @@ def dataset(
     from illumix.progress import progress_bar
     from illumix.render_options import check_executor, render_settings
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.scene_schema import SceneError
     from scenegen import GENERATOR_VERSION
     from store import StoreError
@@ -143,7 +144,7 @@ def dataset(
                     prog.console.print(f"[red]failed[/red] {job.label}: {line}", markup=True, highlight=False)
 
             try:
-                jobs.execute(p, store, settings, executor=executor, workers=r.workers, address=r.address,
+                execute(p, store, settings, executor=executor, workers=r.workers, address=r.address,
                              on_done=on_done, overwrite=overwrite, keep_going=True)
             except SceneError as exc:
                 raise UserError(str(exc)) from None

@@ -115,6 +115,7 @@ def render(
     from illumix.progress import progress_bar
     from illumix.scene_files import load_scene_file
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.scene_schema import SceneError
 
     try:
@@ -196,7 +197,7 @@ def render(
                 prog.update(task, last=f"[red]{job.label} failed")
 
         try:
-            jobs.execute(p, store, settings, executor=executor, workers=workers, address=address,
+            execute(p, store, settings, executor=executor, workers=workers, address=address,
                          on_done=on_done, overwrite=overwrite, on_pass=on_pass)
         except SceneError as exc:
             raise UserError(str(exc)) from None

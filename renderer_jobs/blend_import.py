@@ -26,7 +26,7 @@ Conventions
   given inline. Metallic > 0.5 → ``roughconductor`` (Al, α = roughness²), transmission > 0.5 →
   ``dielectric`` (the Principled IOR), a Principled BSDF with roughness < 0.999 → ``roughplastic``
   (α = roughness², IOR; an upsampled base colour divided by
-  :func:`renderer_jobs.cycles_job.plastic_diffuse_scale`, so it renders as bright as in Blender —
+  :func:`renderer_jobs.plastic_scale.plastic_diffuse_scale`, so it renders as bright as in Blender —
   Mitsuba's rough plastic loses 7–27 % of its diffuse light in the coating, the Principled BSDF
   does not), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
   inputs, other shader nodes, no material) is replaced by a stated value with a ``UserWarning``.
@@ -54,7 +54,6 @@ from pathlib import Path
 import numpy as np
 
 from renderer_jobs.cycles_env import find_blender_python
-from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_schema import SceneError
 
 WORKER = Path(__file__).with_name("blend_worker.py")
@@ -178,8 +177,8 @@ def material_doc(info: dict, what: str) -> dict | None:
     elif plastic:
         # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
         # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
-        # Cycles backend's mapping, renderer_jobs.cycles_job.plastic_diffuse_scale).
-        from renderer_jobs.cycles_job import plastic_diffuse_scale
+        # Cycles backend's mapping, renderer_jobs.plastic_scale.plastic_diffuse_scale).
+        from renderer_jobs.plastic_scale import plastic_diffuse_scale
 
         base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
         if np.any(base > 1):
@@ -383,19 +382,17 @@ def export_blend(path: Path, cache_dir: Path | None = None) -> Path:
     return out
 
 
-def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list[Scene]:
-    """The scene of a ``.blend`` file (one, named after the file's stem): see the module docstring.
+def blend_doc(path: str | Path, *, cache_dir: str | Path | None = None) -> tuple[dict, Path]:
+    """``(scene document, its base folder)`` of a ``.blend`` file (one scene, named after the file's
+    stem): see the module docstring. :func:`renderer_jobs.scene_load.load_blend` validates it.
 
     ``cache_dir``: where the worker's output goes (default: the cache described above).
     Problems that have a stated substitute are ``UserWarning`` s; the rest raise :class:`SceneError`.
     """
-    from renderer_jobs.scene_load import scene_from_dict
-
     p = Path(path)
     if not p.is_file():
         what = "is a directory" if p.is_dir() else "does not exist"
         raise SceneError(f"blend file {str(p)!r} {what}")
     out = export_blend(p, None if cache_dir is None else Path(cache_dir))
     data = json.loads((out / "scene.json").read_text())
-    doc = scene_doc(data, out.resolve(), p.stem, str(p))
-    return [scene_from_dict(doc, source=str(p), base=out.resolve())]
+    return scene_doc(data, out.resolve(), p.stem, str(p)), out.resolve()

@@ -10,7 +10,7 @@ Everything spectral is resolved here, on the scene grid, so the worker only copi
   roughness ``√α`` — Blender squares it —, IOR ``η = int/ext``) with base colour ``c ρ``: Mitsuba's
   roughplastic darkens its diffuse term by the rough-interface transmittances,
   ``ρ t(θ_i) t(θ_o) / (η² (1 − F_int))``, which the Principled BSDF does not, so ``c`` is fitted to
-  Mitsuba's own term (:func:`plastic_diffuse_scale`: 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08).
+  Mitsuba's own term (:func:`renderer_jobs.plastic_scale.plastic_diffuse_scale`: 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08).
   Measured on the probe scene: without ``c`` Cycles is 43 % brighter; with it, within 1.3 % on the
   lit floor. (A Fresnel-weighted mix of Diffuse and Glossy was 4–16 % off: its specular weight
   ``F(n·ω_o)`` overshoots at grazing views.) ``roughconductor`` → Metallic BSDF with the
@@ -36,7 +36,6 @@ Shapes become triangle meshes in world space (spheres, cylinders and disks tesse
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 from pathlib import Path
@@ -45,6 +44,7 @@ import numpy as np
 
 from renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
 from renderer_jobs.mitsuba_scene import group_emission
+from renderer_jobs.plastic_scale import plastic_diffuse_scale
 from renderer_jobs.scene_model import Scene
 from renderer_jobs.scene_textures import is_texture
 from renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
@@ -60,57 +60,6 @@ def band_passes(n_bands: int) -> list[list[int]]:
     """Bands carried by each pass's R, G, B slots (−1: unused): pass ``p`` → ``p, p+P, p+2P``."""
     per = math.ceil(n_bands / 3)
     return [[b if b < n_bands else -1 for b in (p, p + per, p + 2 * per)] for p in range(per)]
-
-
-def _fresnel(cos_i: np.ndarray, eta: float) -> np.ndarray:
-    """Unpolarised Fresnel reflectance of a smooth dielectric interface (relative IOR ``eta``)."""
-    sin_t2 = (1 - cos_i ** 2) / eta ** 2
-    cos_t = np.sqrt(np.clip(1 - sin_t2, 0, None))
-    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    return np.where(sin_t2 >= 1, 1.0, (rs ** 2 + rp ** 2) / 2)
-
-
-def diffuse_fresnel(eta: float, n: int = 200_000) -> float:
-    """Cosine-weighted hemispherical average ``∫ F(θ) 2 cosθ sinθ dθ`` (Mitsuba's
-    ``fresnel_diffuse_reflectance``); ``eta < 1`` from inside (total internal reflection included)."""
-    mu = (np.arange(n) + 0.5) / n  # cos θ; 2 cosθ sinθ dθ = d(cos²θ)
-    return float(np.sum(_fresnel(mu, eta) * 2 * mu) / n)
-
-
-@functools.lru_cache(maxsize=64)
-def plastic_diffuse_scale(alpha: float, eta: float, n: int = 32) -> float:
-    """The base-colour scale ``c`` of the roughplastic mapping: Cycles' diffuse lobe, modelled as
-    ``c ρ (1 − F(θ_o)) cosθ_o / π``, fitted to Mitsuba's own diffuse term
-    ``ρ t(θ_i) t(θ_o) cosθ_o / (η² (1 − F_int) π)`` (rough transmittance tables; measured by
-    evaluating Mitsuba's ``roughplastic`` at ρ = 1 and 0) in the least-squares sense over incident and
-    outgoing directions, both cosine-weighted. Without Mitsuba: the smooth-interface value."""
-    try:
-        from renderer_jobs.mitsuba_variant import import_mitsuba, select_variant
-
-        select_variant()
-        mi, dr = import_mitsuba()
-    except Exception:  # noqa: BLE001 — no renderer extra: the smooth-interface formula
-        f0 = ((eta - 1) / (eta + 1)) ** 2
-        return (1 - f0) / (eta ** 2 * (1 - diffuse_fresnel(1 / eta)))
-    mu = (np.arange(n) + 0.5) / n
-    ci, co = (a.ravel() for a in np.meshgrid(mu, mu, indexing="ij"))
-    vals = []
-    for rho in (1.0, 0.0):
-        b = mi.load_dict({"type": "roughplastic", "alpha": alpha, "int_ior": eta, "ext_ior": 1.0,
-                          "distribution": "ggx", "diffuse_reflectance": {"type": "uniform", "value": rho}})
-        si = dr.zeros(mi.SurfaceInteraction3f, len(ci))
-        si.n = mi.Normal3f(0, 0, 1)
-        si.sh_frame = mi.Frame3f(si.n)
-        if "spectral" in mi.variant():
-            si.wavelengths = mi.Spectrum(550.0, 550.0, 550.0, 550.0)
-        si.wi = mi.Vector3f(mi.Float(np.sqrt(1 - ci ** 2)), 0, mi.Float(ci))
-        wo = mi.Vector3f(mi.Float(-np.sqrt(1 - co ** 2)), 0, mi.Float(co))
-        vals.append(np.asarray(b.eval(mi.BSDFContext(), si, wo))[0])
-    mitsuba = (vals[0] - vals[1]) * np.pi / co  # Mitsuba's diffuse factor on ρ
-    cycles = 1 - _fresnel(co, eta)
-    w = ci * co
-    return float(np.sum(w * mitsuba * cycles) / np.sum(w * cycles ** 2))
 
 
 def conductor_constants(name: str, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -309,7 +258,7 @@ def _grey_map(path: Path) -> bool:
     """True when every pixel of the environment map has R = G = B (within 0.1 %)."""
     try:
         if path.suffix.lower() == ".exr":
-            from renderer_jobs.cycles_render import read_exr
+            from renderer_jobs.cycles_exr import read_exr
 
             layers = read_exr(path)
             img = next(iter(layers.values())) if len(layers) == 1 else np.concatenate(

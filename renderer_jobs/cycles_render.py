@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from renderer_jobs.cycles_env import find_blender_python
+from renderer_jobs.cycles_exr import read_exr
 from renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
 from renderer_jobs.mitsuba_render import CubeResult, RenderSettings
 from renderer_jobs.mitsuba_scene import group_emission
@@ -56,22 +57,6 @@ def run_worker(job_dir: Path, progress: Progress | None = None) -> dict:
         raise RenderError(f"Cycles worker failed (exit {rc}): {' | '.join(errors[-3:])[:600]}")
     out = json.loads((job_dir / "done.json").read_text())
     out.update(wall_s=time.perf_counter() - t0, cpu_s=_children_cpu() - c0)
-    return out
-
-
-def read_exr(path: Path) -> dict[str, np.ndarray]:
-    """Layers of a multilayer EXR by name (``ViewLayer.`` stripped): ``(H, W, C)`` float32."""
-    import OpenEXR
-
-    out: dict[str, np.ndarray] = {}
-    with OpenEXR.File(str(path), separate_channels=False) as f:
-        for part in f.parts:
-            for name, ch in part.channels.items():
-                px = np.asarray(ch.pixels, dtype=np.float32)
-                name = name.split(".", 1)[1] if name.startswith("ViewLayer.") else name
-                if px.ndim == 2:  # a one-channel layer comes as "<layer>.X"
-                    name, px = name.rsplit(".", 1)[0], px[..., None]
-                out[name] = px
     return out
 
 

@@ -378,42 +378,4 @@ def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = No
 ProgressFn = Callable[[Job, dict | None, BaseException | None], None]
 
 
-def execute(plan_: Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,
-            address: str | None = None, on_done: ProgressFn | None = None,
-            ray_init: dict | None = None, overwrite: bool = False,
-            on_pass: Callable[[int, int, str], None] | None = None, keep_going: bool = False) -> list[dict]:
-    """Run every job of ``plan_`` (view jobs first, then cubes) and return per-job summaries.
-    ``on_pass(done, total, label)``: the Cycles backend's progress through a view's passes.
-    ``keep_going`` (local executor): a failed job is reported to ``on_done`` (with its exception)
-    and the others go on (the cubes of a failed view are reported failed without running);
-    default: the first failure stops the run with :class:`JobError`. The Ray and Cycles executors
-    always stop at the first failure."""
-    if executor not in EXECUTORS:
-        raise SceneError(str(EXECUTORS.unknown(executor)))
-    executor = EXECUTORS.canonical(executor)
-    settings_dict = settings.to_dict() if hasattr(settings, "to_dict") else dict(settings)
-    cb = on_done or (lambda job, r, exc: None)
-    if not plan_.jobs:
-        return []
-    if plan_.replace_views:
-        st = _open_store(store_path, mode="a")
-        for scene, view in plan_.replace_views:
-            st.delete(scene, view)
-    if settings_dict.get("backend", "mitsuba") == "cycles":
-        if executor != "local":
-            raise SceneError("the cycles backend runs on this machine (Blender uses every core): "
-                             "leave out --executor ray")
-        from renderer_jobs.cycles_jobs import run_cycles
-
-        return run_cycles(plan_, store_path, settings_dict, cb, overwrite, on_pass)
-    if executor == "ray":
-        from renderer_jobs.ray_executor import run_ray
-
-        return run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)
-    from renderer_jobs.local_executor import run_local
-
-    return run_local(plan_, store_path, settings_dict, workers, cb, overwrite, keep_going)
-
-
-__all__ = ["EXECUTORS", "Job", "JobError", "Plan", "apply_resolution", "execute", "parse_resolution", "plan",
-           "run_job"]
+__all__ = ["EXECUTORS", "Job", "JobError", "Plan", "apply_resolution", "parse_resolution", "plan", "run_job"]

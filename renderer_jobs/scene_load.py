@@ -78,14 +78,21 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
     return scene
 
 
+def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list[Scene]:
+    """The scene of a Blender ``.blend`` file (:func:`renderer_jobs.blend_import.blend_doc`: read by
+    Blender in a worker process, ``cache_dir`` its output), validated."""
+    from renderer_jobs.blend_import import blend_doc
+
+    doc, base = blend_doc(path, cache_dir=cache_dir)
+    return [scene_from_dict(doc, source=str(path), base=base)]
+
+
 def load_scenes(path: str | Path, *, check: bool = True) -> list[Scene]:
     """Load a YAML or JSON file holding one scene or ``{scenes: [...]}``, or a Blender ``.blend`` file
-    (:func:`renderer_jobs.blend_import.load_blend`)."""
+    (:func:`load_blend`)."""
     p = Path(path)
     if p.suffix.lower() == ".blend":
-        from renderer_jobs import blend_import
-
-        return blend_import.load_blend(p)
+        return load_blend(p)
     if not p.is_file():
         what = "is a directory; give a YAML or JSON file" if p.is_dir() else "does not exist"
         raise SceneError(f"scene file {str(p)!r} {what}")

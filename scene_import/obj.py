@@ -131,7 +131,7 @@ def _material(b: SceneBuilder, base: Path, name: str, m: dict) -> tuple[str, tup
     plastic = not metal and ks.max() > 0 and alpha < 0.999
     scale = 1.0
     if plastic:
-        from renderer_jobs.cycles_job import plastic_diffuse_scale
+        from renderer_jobs.plastic_scale import plastic_diffuse_scale
 
         scale = plastic_diffuse_scale(alpha, 1.5)
         if np.ptp(ks) > 1e-6:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer_jobs import blend_import
+from renderer_jobs import blend_import, scene_load
 from renderer_jobs.scene_schema import LibrarySpectrum, SceneError, TableSpectrum
 
 try:
@@ -42,7 +42,7 @@ def imported(blend, tmp_path_factory):
     cache = tmp_path_factory.mktemp("blend-cache") / "out"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        scenes = blend_import.load_blend(blend, cache_dir=cache)
+        scenes = scene_load.load_blend(blend, cache_dir=cache)
     assert len(scenes) == 1
     return scenes[0], [str(w.message) for w in caught if issubclass(w.category, UserWarning)], cache
 
@@ -119,7 +119,7 @@ def test_materials_kinds(imported):
     floor = scene.materials[_shape(scene, "Floor").material]
     assert floor.kind == "roughplastic" and floor.alpha == pytest.approx(0.25)  # roughness 0.5 squared
     # A grey upsamples to a flat spectrum, divided by the rough-plastic scale that keeps Blender's look
-    from renderer_jobs.cycles_job import plastic_diffuse_scale
+    from renderer_jobs.plastic_scale import plastic_diffuse_scale
 
     assert np.allclose(floor.reflectance.values, 0.5 / plastic_diffuse_scale(0.25, floor.int_ior), atol=3e-3)
 
@@ -175,7 +175,7 @@ def test_cache_reused(blend, imported):
     before = (cache / "scene.json").stat().st_mtime_ns
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        again = blend_import.load_blend(blend, cache_dir=cache)[0]
+        again = scene_load.load_blend(blend, cache_dir=cache)[0]
     assert (cache / "scene.json").stat().st_mtime_ns == before
     assert again.scene_hash == imported[0].scene_hash
 
@@ -196,7 +196,7 @@ def test_load_scenes_hook(blend, tmp_path, monkeypatch):
 
 def _one_line_error(path, **kw) -> str:
     with pytest.raises(SceneError) as exc:
-        blend_import.load_blend(path, **kw)
+        scene_load.load_blend(path, **kw)
     msg = str(exc.value)
     assert "\n" not in msg
     return msg

@@ -104,6 +104,7 @@ def test_any_registry_spelling_is_accepted_and_canonical(tmp_path, capsys):
 
 def test_render_settings_and_executor_accept_registry_spellings():
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.modes import WAVELENGTH_MODES
     from renderer_jobs.scene_schema import SceneError
@@ -113,8 +114,8 @@ def test_render_settings_and_executor_accept_registry_spellings():
     with pytest.raises(SceneError, match=r"unknown wavelength sampling 'rand'; did you mean 'random'\?"):
         RenderSettings(wavelengths="rand")
     with pytest.raises(SceneError, match=r"unknown executor 'slurm' \(valid: local, ray\)"):
-        jobs.execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="slurm")
-    assert jobs.execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="RAY") == []
+        execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="slurm")
+    assert execute(jobs.Plan(scenes={}, jobs=[]), "unused", RenderSettings(), executor="RAY") == []
 
 
 def test_demo_passes_every_render_option():

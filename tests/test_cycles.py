@@ -13,7 +13,8 @@ import pytest
 
 from cli_testutil import run_cli
 from renderer_jobs.cycles_env import find_blender_python
-from renderer_jobs.cycles_job import band_passes, diffuse_fresnel
+from renderer_jobs.cycles_job import band_passes
+from renderer_jobs.plastic_scale import diffuse_fresnel
 from renderer_jobs.scene_load import scene_from_dict
 
 needs_blender = pytest.mark.skipif(find_blender_python(required=False) is None,
@@ -130,13 +131,14 @@ def test_cubes_agree_with_mitsuba():
 @needs_mitsuba
 def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
     """Issue 33: the same scene rendered by each backend into a store with the defaults and served
-    by default (denoised copies) — each group's mean raw agrees within 2 %, emitter pixels seen in
-    frame included (the earlier denoiser inflated them, by Cycles' copies and Mitsuba's differently:
-    12 %); and with ``denoise=none`` too."""
+    by default (denoised copies) — the backends' ratio of each group's mean raw is the same served by
+    default as with ``denoise=none`` (emitter pixels seen in frame included: the earlier denoiser
+    inflated them, by Cycles' copies and Mitsuba's differently, 12 %), and the means agree."""
     from pathlib import Path
 
     from illumix_client.local import LocalClient
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.mitsuba_render import RenderSettings
     from renderer_jobs.scene_load import load_scenes
 
@@ -145,7 +147,7 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
     means = {}
     for backend, spp in (("mitsuba", 256), ("cycles", 64)):
         store = str(tmp_path / backend)
-        jobs.execute(jobs.plan([scene], store), store, RenderSettings(spp=spp, seed=3, backend=backend, resolution=(48, 36)))
+        execute(jobs.plan([scene], store), store, RenderSettings(spp=spp, seed=3, backend=backend, resolution=(48, 36)))
         with LocalClient(store) as c:
             for i, g in enumerate(scene.group_names):
                 for dn in (None, "none"):
@@ -154,8 +156,15 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
                                  **({"denoise": dn} if dn else {}))
                     means[backend, g, dn] = s.raw.reshape(-1, 3).mean(0)
     for g in scene.group_names:
+        # default serving adds nothing to the backends' difference (the earlier denoiser added 6-12 %)
+        ratio = {dn: means["cycles", g, dn] / means["mitsuba", g, dn] for dn in (None, "none")}
+        np.testing.assert_allclose(ratio[None], ratio["none"], atol=0.005, err_msg=g)
+        # the backends themselves: the panel within 2 %; the small tile seen in frame, whose mean is
+        # its emitter pixels', differs by 2.3 % (Mitsuba's served mean over seeds 3-7: 2.236 ± 0.013,
+        # 0.6 % per seed; Cycles 2.186), so 3 % there (bench/FIDELITY.md)
         for dn in (None, "none"):
-            np.testing.assert_allclose(means["cycles", g, dn], means["mitsuba", g, dn], rtol=0.02, err_msg=f"{g} {dn}")
+            np.testing.assert_allclose(means["cycles", g, dn], means["mitsuba", g, dn], rtol=0.03 if g == "tile" else 0.02,
+                                       err_msg=f"{g} {dn}")
 
 
 @needs_blender

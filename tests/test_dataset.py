@@ -166,6 +166,7 @@ def test_room_cache_regenerates_on_another_version_or_config(tmp_path):
 def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
     """A failed view job fails its cubes without running them; other jobs go on (local executor)."""
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.demo import demo_room
     from renderer_jobs.mitsuba_render import RenderSettings
 
@@ -181,7 +182,7 @@ def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
 
     monkeypatch.setattr(jobs, "run_job", fake_run_job)
     seen = []
-    results = jobs.execute(p, str(tmp_path / "st"), RenderSettings(), keep_going=True,
+    results = execute(p, str(tmp_path / "st"), RenderSettings(), keep_going=True,
                            on_done=lambda job, r, exc: seen.append((job.label, exc is None)))
     failed = sorted(label for label, ok in seen if not ok)
     assert failed == ["demo-room-0/corner/desk", "demo-room-0/front/[view+aovs]", "demo-room-0/front/ceiling",
@@ -190,4 +191,4 @@ def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
     assert sorted(r["job"] for r in results) == ["demo-room-0/corner/[view+aovs]", "demo-room-0/corner/ceiling",
                                                  "demo-room-0/corner/daylight"]
     with pytest.raises(jobs.JobError, match="boom"):  # the default stops at the first failure
-        jobs.execute(p, str(tmp_path / "st"), RenderSettings())
+        execute(p, str(tmp_path / "st"), RenderSettings())

@@ -155,6 +155,7 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
 
     from renderer_jobs import denoise_guides as dg
     from renderer_jobs import jobs
+    from renderer_jobs.execute import execute
     from renderer_jobs.scene_load import scene_from_dict
     from store import CubeStore
 
@@ -164,7 +165,7 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     box = jobs.apply_resolution(scene_from_dict(box_scene()), RES)
     store = str(tmp_path / "st")
     settings = RenderSettings(spp=16, resolution=RES, skip_dark=False)
-    jobs.execute(jobs.plan([box], store, groups=["lamp"]), store, settings)
+    execute(jobs.plan([box], store, groups=["lamp"]), store, settings)
     assert calls == ["lamp"]
     meta = CubeStore.open(store, mode="r").cube_meta(box.name, "cam", "lamp")
     tp = meta.render_stats["targeted_paths"]

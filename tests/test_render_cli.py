@@ -11,6 +11,7 @@ import yaml
 
 from cli_testutil import run_cli
 from renderer_jobs import jobs
+from renderer_jobs.execute import execute
 from renderer_jobs.demo import demo_room_dict
 from renderer_jobs.scene_load import scene_from_dict
 
@@ -201,13 +202,13 @@ def test_local_process_pool(tmp_path):
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
     store = str(tmp_path / "st")
     p = jobs.plan([scene], store)
-    res = jobs.execute(p, store, RenderSettings(spp=16), executor="local", workers=2)
+    res = execute(p, store, RenderSettings(spp=16), executor="local", workers=2)
     assert len(res) == 6
     st = CubeStore.open(store, mode="r")
     assert all(st.is_complete("mini", v, g) for v in ("a", "b") for g in ("lamp", "bulb"))
     # Reproducible whatever the process and thread layout: in-process (all threads) gives the same bits.
     solo = str(tmp_path / "solo")
-    jobs.execute(jobs.plan([scene], solo, views=["a"]), solo, RenderSettings(spp=16), executor="local", workers=1)
+    execute(jobs.plan([scene], solo, views=["a"]), solo, RenderSettings(spp=16), executor="local", workers=1)
     one = CubeStore.open(solo, mode="r")
     assert all(np.array_equal(st.read_cube("mini", "a", g), one.read_cube("mini", "a", g)) for g in ("lamp", "bulb"))
 
@@ -227,7 +228,7 @@ def test_ray_executor_on_local_instance(tmp_path):
     try:
         p = jobs.plan([scene], store)
         # (boost_factor=1: the in-process render below has no guides to choose targeted extra paths from)
-        res = jobs.execute(p, store, RenderSettings(spp=16, seed=5, boost_factor=1), executor="ray")
+        res = execute(p, store, RenderSettings(spp=16, seed=5, boost_factor=1), executor="ray")
         assert len(res) == 6
     finally:
         ray.shutdown()
@@ -260,7 +261,7 @@ def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
     assert not CubeStore.exists(url)
     scene = scene_from_dict(yaml.safe_load(open(scene_file)))
     p = jobs.plan([scene], url, views=["a"], groups=["lamp"])
-    jobs.execute(p, url, RenderSettings(spp=16), executor="local", workers=1)
+    execute(p, url, RenderSettings(spp=16), executor="local", workers=1)
     assert CubeStore.exists(url) and CubeStore.open(url, mode="r").is_complete("mini", "a", "lamp")
 
     other = tmp_path / "other"

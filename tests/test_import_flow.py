@@ -1,0 +1,111 @@
+"""The import flow README's "What is where" states is the code's (issue 34): one-way arrows between the
+rooms, and no circle among the product's modules (function-level imports included; imports under
+``if TYPE_CHECKING:`` are annotations only and left out)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: room → the rooms it may import (README, "What is where"); ``illumix`` (the CLI) wires them all.
+ALLOWED = {
+    "retarget": set(),
+    "store": {"retarget"},
+    "renderer_jobs": {"retarget", "store"},
+    "scenegen": {"retarget", "renderer_jobs"},
+    "scene_import": {"retarget", "renderer_jobs"},
+    "imagefiles": {"retarget"},
+    "engine": {"retarget", "store"},
+    "service": {"retarget", "store", "engine", "imagefiles"},
+    "dataset_export": {"retarget", "store", "engine", "imagefiles"},
+    "awb_eval": {"retarget", "store", "engine"},
+    "illumix": {"retarget", "store", "renderer_jobs", "scenegen", "scene_import", "imagefiles", "engine", "service",
+                "dataset_export", "awb_eval"},
+}
+CLIENT = ROOT / "clients" / "python" / "illumix_client"
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for room in ALLOWED:
+        for p in (ROOT / room).rglob("*.py"):
+            parts = p.relative_to(ROOT).with_suffix("").parts
+            out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+    return out
+
+
+def _imports(path: Path, known: dict[str, Path]) -> set[str]:
+    """The product modules ``path`` imports (``from a.b import c`` counts ``a.b.c`` when it is a module)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skip = {id(n) for node in ast.walk(tree) if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+            for n in ast.walk(node)}
+
+    def resolve(name: str) -> str | None:
+        while name and name not in known:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    out = set()
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            out |= {r for a in node.names if (r := resolve(a.name))}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out |= {r for a in node.names if (r := resolve(f"{node.module}.{a.name}"))}
+    return out
+
+
+def _graph() -> dict[str, set[str]]:
+    known = _modules()
+    return {m: _imports(p, known) - {m} for m, p in known.items()}
+
+
+def test_rooms_import_only_downward():
+    bad = sorted(f"{m} imports {t}" for m, targets in _graph().items() for t in targets
+                 if t.split(".")[0] != m.split(".")[0] and t.split(".")[0] not in ALLOWED[m.split(".")[0]])
+    assert not bad, "imports against the README's flow:\n" + "\n".join(bad)
+
+
+def test_no_circular_imports_among_product_modules():
+    graph = _graph()
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    circles: list[list[str]] = []
+
+    def visit(v: str) -> None:  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                circles.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert not circles, f"circular imports: {circles}"
+
+
+def test_the_client_reaches_the_engine_never_the_service():
+    """The client talks HTTP; its optional local mode composes with the engine, never with routes."""
+    known = _modules()
+    for p in CLIENT.rglob("*.py"):
+        rooms = {m.split(".")[0] for m in _imports(p, known)}
+        assert rooms <= {"engine", "retarget", "store"}, f"{p.name} imports {sorted(rooms)}"
