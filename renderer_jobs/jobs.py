@@ -113,27 +113,32 @@ def _view_meta(scene: Scene, view: str):
                     scene_hash=scene.scene_hash, view_hash=scene.view_hash(view))
 
 
+# Only "not there yet" is planned as missing; a store that cannot be read raises its StoreError
+# (an unreadable view planned as empty was rendered again over the damage, or the damage hidden).
+
+
 def _stored_view(st, scene: str, view: str):
+    from store import StoreKeyError
+
     try:
         if view not in st.views(scene):
             return None
         return st.view_meta(scene, view)
-    except Exception:  # noqa: BLE001 — a scene that does not exist yet has no views
+    except StoreKeyError:  # a scene that does not exist yet has no views
         return None
 
 
 def _stored_cube_meta(st, scene: str, view: str, group: str):
+    from store import StoreKeyError
+
     try:
         return st.cube_meta(scene, view, group)
-    except Exception:  # noqa: BLE001
+    except StoreKeyError:
         return None
 
 
 def _scene_list(st) -> list[str]:
-    try:
-        return list(st.scenes())
-    except Exception:  # noqa: BLE001
-        return []
+    return list(st.scenes())
 
 
 def plan(scenes: Iterable[Scene], store_path: str | None, *, views: list[str] | None = None,

@@ -270,3 +270,20 @@ def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
     code, out, err = run_cli(capsys, "render", scene_file, "--store", str(other), *TINY)
     assert code == 2 and err.count("\n") == 1 and "is not empty and is not an illumix store" in err
     assert sorted(x.name for x in other.iterdir()) == ["notes.txt"]
+
+
+def test_plan_refuses_an_unreadable_store_instead_of_planning_it_empty(tmp_path):
+    """Issue 34: the planner once answered None/[] on any exception, so a damaged view was planned
+    as missing and rendered again over the damage; now only "not there yet" is missing."""
+    from store import CubeStore, StoreError
+
+    scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
+    path = tmp_path / "st"
+    st = CubeStore.open(str(path), mode="a")
+    st.write_view("mini", "a", jobs._view_meta(scene, "a"))
+    p = jobs.plan([scene], str(path))
+    assert "mini/a/[view+aovs]" in [j.label for j in p.skipped]  # the view is stored; the others are to do
+    meta = next(path.glob("scenes/mini/a/zarr.json"))
+    meta.write_text(meta.read_text()[: len(meta.read_text()) // 2])
+    with pytest.raises(StoreError):
+        jobs.plan([scene], str(path))
