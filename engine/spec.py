@@ -33,9 +33,11 @@ from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 FORMATS = ("npz", "arrays", "png", "tiff", "dng", "exr")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored
 SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spectra over the bands
-# ccm is 36 bytes a pixel (25 MB of a 56 MB 720x960 answer) and is exactly Σ_g mixture_g CCM_g from
-# the mixture output and meta["illuminants"][g]["ccm"]: sent only when asked for.
-DEFAULT_OUTPUTS = (*(o for o in OUTPUTS if o != "ccm"), "meta")
+# The user's four (raw, gain map, CCM map, sRGB) and the rest of the ground truth. ccm is 36 bytes a
+# pixel (25 MB of a 56 MB 720x960 float32 answer): dtype=float16 halves it, and it is exactly
+# Σ_g mixture_g CCM_g from the mixture output and meta["illuminants"][g]["ccm"], so a client short of
+# bandwidth may leave it out (outputs=...) and rebuild it (illumix_client.Sample.ccm_map()).
+DEFAULT_OUTPUTS = (*OUTPUTS, "meta")
 ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, "reflectance", "illumination", "meta")
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 

@@ -155,8 +155,11 @@ def test_reads(client):
 def test_sample_arrays_meta_and_subsets(client, server):
     s = client.sample("synth", "v0", seed=7, sensor="XYZ", pair=("A", "D65"), intensities=(1, 0.5))
     assert s.raw.shape == (48, 64, 3) and s.raw.dtype == np.float32 and s.gain.shape == (48, 64, 3)
-    assert s.ccm is None and s.srgb.shape == (48, 64, 3) and s.weights.shape == (48, 64, 2)  # ccm: on request
-    assert s.ccm_map().shape == (48, 64, 3, 3) and s.ccm_map().dtype == np.float32
+    assert s.ccm.shape == (48, 64, 3, 3) and s.srgb.shape == (48, 64, 3) and s.weights.shape == (48, 64, 2)
+    lean = client.sample("synth", "v0", seed=7, sensor="XYZ", pair=("A", "D65"), intensities=(1, 0.5),
+                         outputs=["mixture", "meta"])  # without the CCM map: rebuilt from mixture + meta
+    assert lean.ccm is None
+    np.testing.assert_allclose(lean.ccm_map(), s.ccm, rtol=1e-5, atol=1e-6)
     assert s.raw.flags.writeable  # views of the client's own buffer, as npz arrays were
     assert s.mask.dtype == bool and not s.mask[-4:].any() and s.mask[:-4].all()
     assert (s.scene, s.view, s.seed) == ("synth", "v0", 7)
@@ -167,12 +170,12 @@ def test_sample_arrays_meta_and_subsets(client, server):
     raw = httpx.get(server.url + "/sample", params={"scene": "synth", "view": "v0", "seed": 7, "sensor": "XYZ",
                                                     "pair": "A,D65", "intensities": "1,0.5"}).content
     with np.load(io.BytesIO(raw)) as z:  # the service's default npz; the client asked for arrays
-        for k in ic.OUTPUTS:  # the default outputs are sent; the others (ccm, AOVs, spectra) are None
+        for k in ic.OUTPUTS:  # the default outputs are sent; the others (AOVs, spectra) are None
             if k in z.files:
                 np.testing.assert_array_equal(getattr(s, k), z[k])
             else:
                 assert getattr(s, k) is None, k
-        assert {"raw", "gain", "srgb", "weights", "mask", "illum", "mixture"} <= set(z.files) and "ccm" not in z.files
+        assert {"raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"} <= set(z.files)
     sub = client.sample("synth", "solo", illuminants=["D65"], crop=(8, 4, 16, 12), size=(8, 6),
                         outputs=["gain", "mask"])
     assert sub.gain.shape == (6, 8, 3) and sub.mask.shape == (6, 8)

@@ -250,3 +250,19 @@ def test_png_raw_keeps_midtones_with_a_lamp_in_view(tmp_path):
         gain = text["exposure_gain"]
         expected = np.clip(z["raw"] * gain, 0, 1) * 65535
         np.testing.assert_allclose(png[valid], expected[valid], atol=0.51 + 1e-6 * 65535)
+
+
+@pytest.mark.parametrize("h, w, crop", [(480, 640, None), (600, 800, "0,0,256,256")])
+def test_default_outputs_pass_the_default_limits(tmp_path, h, w, crop):
+    """Issue 34: with the CCM map back among the defaults, a 480x640 frame and a 256² crop are still
+    within one request's working memory (the estimate made before any work)."""
+    from engine.context import make_context
+
+    synth.build(tmp_path / "big", h=h, w=w)
+    ctx = make_context(CubeStore.open(str(tmp_path / "big"), mode="r"))  # the service's default cache
+    spec = SampleSpec(scene="synth", view="v0", sensor="XYZ", pair="A,D65", crop=crop)
+    assert "ccm" in spec.outputs
+    p = plan(spec, ctx)
+    assert price(p, ctx) <= Limits().max_request_mb * 2**20
+    arrays, _ = build(p, ctx)
+    assert arrays["ccm"].shape == ((256, 256) if crop else (h, w)) + (3, 3)

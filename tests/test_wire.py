@@ -145,10 +145,11 @@ def test_arrays_equal_npz_values_for_every_output(client):
     assert s.meta["scene"] == "synth" and s.scales == {}
 
 
-def test_default_outputs_leave_out_ccm(client):
-    assert "ccm" not in DEFAULT_OUTPUTS and "mixture" in DEFAULT_OUTPUTS and "meta" in DEFAULT_OUTPUTS
+def test_default_outputs_are_the_users_four_and_the_rest_of_the_ground_truth(client):
+    """Issue 34: raw, gain map, CCM map and sRGB by default (the CCM map had been dropped)."""
+    assert {"raw", "gain", "ccm", "srgb", "mixture", "meta"} <= set(DEFAULT_OUTPUTS)
     got, header = dec.decode(get(client, format="arrays").content)
-    assert "ccm" not in got and {"raw", "gain", "srgb", "weights", "mask", "illum", "mixture"} <= set(got)
+    assert {"raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture"} <= set(got)
     assert "meta" in header
 
 
