@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
@@ -12,17 +11,9 @@ from engine import budget
 from engine.sampling import build, plan, price
 from engine.spec import SampleSpec
 from service import arrays_format
-from service import file_downloads as files
 from service.deps import CtxDep
-from service.encoding import (
-    MEDIA,
-    encode_image,
-    encode_npz,
-    half_precision,
-    image_output,
-    meta_json,
-    png_scale,
-)
+from service.encoders import ENCODERS, encoder, wire_arrays
+from service.encoding import MEDIA
 from service.errors import error_responses, fail
 from service.models import BatchRequest
 
@@ -69,16 +60,6 @@ _NPZ = {"application/octet-stream": _BINARY, arrays_format.MEDIA_TYPE: _BINARY}
 _SAMPLE_CONTENT = {**_NPZ, **{MEDIA[f]: _BINARY for f in ("png", "tiff", "dng", "exr")}}
 
 
-def _encoding(spec: SampleSpec, arrays: dict[str, np.ndarray], meta: dict) -> tuple[dict[str, np.ndarray], dict]:
-    """``(arrays to send, scales)``: float16 with their scales (also put in ``meta["encoding"]``) when
-    ``dtype=float16``, else as composed."""
-    if spec.dtype != "float16":
-        return arrays, {}
-    arrays, scales = half_precision(arrays)
-    meta["encoding"] = {"dtype": "float16", "scales": scales, "value": "stored * scale"}
-    return arrays, scales
-
-
 @router.get("/sample", response_class=Response,
             responses={200: {"content": _SAMPLE_CONTENT,
                              "description": "npz or arrays container with one array per output (+ meta JSON), "
@@ -87,30 +68,15 @@ def _encoding(spec: SampleSpec, arrays: dict[str, np.ndarray], meta: dict) -> tu
 def sample(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
     """One sample: the view lit by the given illuminants, projected through the sensor, with exact
     pixel-wise ground truth. Unknown parameters are refused with the close match."""
-    p = plan(files.compose_spec(params), ctx)
-    files.check(p)
-    hold = ctx.memory.acquire(price(p, ctx) + files.extra_bytes(p), f"this sample ({_describe(params, p)})")
+    enc = encoder(params.format)
+    p = plan(enc.compose_spec(params), ctx)
+    enc.check(p)
+    hold = ctx.memory.acquire(price(p, ctx) + enc.extra_bytes(p), f"this sample ({_describe(params, p)})")
     try:
         arrays, meta = build(p, ctx)
-        headers: dict[str, str] = {}
-        if params.format in ("npz", "arrays"):
-            arrays, scales = _encoding(params, arrays, meta)
-            meta = meta if "meta" in params.outputs else None
-            if params.format == "npz":
-                body = encode_npz(arrays, meta, scales)
-            else:
-                body = arrays_format.encode(arrays, scales, **({"meta": meta} if meta is not None else {}))
-        elif params.format in files.FILE_FORMATS:
-            body, headers = files.encode(p, ctx, arrays, meta, with_meta="meta" in params.outputs)
-        else:
-            name = image_output(arrays, params.format)
-            noise = params.noise_model() if name == "raw" else None
-            meta["encoding"] = png_scale(name, noise) if params.format == "png" else None
-            body, headers = encode_image(arrays, params.format, noise=noise, meta=meta)
-            headers["X-Illumix-Meta"] = meta_json({k: meta[k] for k in ("scene", "view", "seed", "size",
-                                                                         "exposure_gain")})
+        body, headers = enc.encode(p, ctx, arrays, meta)
         del arrays
-        return HeldResponse(body, hold, media_type=MEDIA[params.format], headers=headers)
+        return HeldResponse(body, hold, media_type=enc.media_type, headers=headers)
     except BaseException:
         hold.release()
         raise
@@ -131,9 +97,10 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
     if not 1 <= len(body.samples) <= limits.max_batch:
         raise fail(413 if body.samples else 422, f"a batch holds 1..{limits.max_batch} samples, got "
                    f"{len(body.samples)}; split it", code="too_large" if body.samples else "invalid_parameter")
-    fmt = body.samples[0].format
-    if fmt not in ("npz", "arrays") or any(s.format != fmt for s in body.samples):
-        raise fail(422, "batch items are all npz or all arrays; give every item the same format= (or none: npz)")
+    enc = encoder(body.samples[0].format)
+    if not enc.batch or any(s.format != enc.name for s in body.samples):
+        batchable = " or ".join(n for n, e in ENCODERS.items() if e.batch)
+        raise fail(422, f"batch items are all {batchable}; give every item the same format= (or none: npz)")
     plans = [plan(s, ctx) for s in body.samples]
     # Items are built one after another and their outputs kept for the archive: price the outputs
     # of all (twice: arrays and archive) plus the largest item's working memory.
@@ -142,24 +109,14 @@ def batch(body: BatchRequest, ctx: CtxDep) -> Response:
     work = max(price(p, ctx, encoded=False) for p in plans)
     hold = ctx.memory.acquire(2 * outs + work, f"this batch of {len(plans)} samples")
     try:
-        arrays: dict[str, np.ndarray] = {}
-        scales: dict[str, float] = {}
-        items: list[dict] = []
-        for i, p in enumerate(plans):
+        items = []
+        for p in plans:
             a, meta = build(p, ctx)
-            a, s = _encoding(p.spec, a, meta)
-            arrays.update({f"{i}/{k}": v for k, v in a.items()})
-            scales.update({f"{i}/{k}": v for k, v in s.items()})
-            wants_meta = "meta" in p.spec.outputs
-            items.append({"meta": meta} if wants_meta else {})
-            if fmt == "npz":
-                if wants_meta:
-                    arrays[f"{i}/meta"] = np.array(meta_json(meta))
-                if s:
-                    arrays[f"{i}/scales"] = np.array(meta_json(s))
-        payload = encode_npz(arrays, None) if fmt == "npz" else arrays_format.encode(arrays, scales, items=items)
-        del arrays
-        return HeldResponse(payload, hold, media_type=MEDIA[fmt])
+            a, scales = wire_arrays(p.spec, a, meta)
+            items.append((a, scales, meta if "meta" in p.spec.outputs else None))
+        payload = enc.encode_batch(items)
+        del items
+        return HeldResponse(payload, hold, media_type=enc.media_type)
     except BaseException:
         hold.release()
         raise
