@@ -128,8 +128,8 @@ def dataset(
     failed: list[dict] = []
     t_render = time.perf_counter()
     if p.jobs:
-        if executor == "local" and settings.backend == "mitsuba":
-            require_renderer()
+        if executor == "local":
+            require_renderer(settings.backend)
         with progress_bar(console, disable=quiet) as prog:
             task = prog.add_task("rendering", total=len(p.jobs), last="")
 

@@ -24,20 +24,24 @@ from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 console = Console(stderr=True)
 
 
-RENDER_EXTRA_HINT = "pip install 'illumix[render]'"
 
 
-def require_renderer() -> None:
-    """Stop with one line when Mitsuba (the optional extra ``render``) is not installed.
+def require_renderer(backend: str = "mitsuba") -> None:
+    """Stop with one line when this machine cannot render with ``backend``
+    (:meth:`renderer_jobs.backends.Backend.require`): Mitsuba (the optional extra ``render``) or
+    Blender's environment not installed.
 
     A service-only install (``pip install illumix``, ``docker/Dockerfile.service``) has no renderer;
     ``scripts/install.sh`` and ``docker/Dockerfile.render`` install it.
     """
-    import importlib.util
+    from renderer_jobs.backends import get_backend
+    from renderer_jobs.mitsuba_variant import RenderError
+    from renderer_jobs.scene_schema import SceneError
 
-    if importlib.util.find_spec("mitsuba") is None:
-        raise UserError(f"rendering needs Mitsuba 3, which this install lacks: {RENDER_EXTRA_HINT} "
-                        "(or bash scripts/install.sh; on Debian also apt-get install libllvm19)")
+    try:
+        get_backend(backend).require()
+    except (RenderError, SceneError) as exc:
+        raise UserError(str(exc)) from None
 
 
 def _split(text: str | None, flag: str) -> list[str] | None:
@@ -138,10 +142,8 @@ def render(
                                    backend=backend, scenes=scenes, boost_factor=boost_factor,
                                    boost_reach=boost_reach)
         adaptive = settings.adaptive
-        if settings.backend == "cycles" and not dry_run:
-            from renderer_jobs.cycles_env import find_blender_python
-
-            find_blender_python()
+        if settings.backend != "mitsuba" and not dry_run:
+            require_renderer(settings.backend)  # before planning: it may need another environment
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
                       overwrite=overwrite)
     except SceneError as exc:
@@ -173,8 +175,8 @@ def render(
         if as_json:
             print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
         return
-    if executor == "local" and settings.backend == "mitsuba":
-        require_renderer()  # ray: the workers render (their image has Mitsuba); the driver needs none
+    if executor == "local":
+        require_renderer(settings.backend)  # ray: the workers render (their image has it); the driver needs none
     t0 = time.perf_counter()
     done: list[dict] = []
     with progress_bar(console, disable=as_json and not console.is_terminal) as prog:

@@ -36,8 +36,7 @@ def validate(
     from renderer_jobs.scene_schema import SceneError
     from renderer_jobs.validate import run_validation
 
-    if BACKENDS.canonical(backend) == "mitsuba":
-        require_renderer()
+    require_renderer(BACKENDS.canonical(backend))
     names = [s.strip() for s in illuminants.split(",") if s.strip()]
     if not names:
         raise UserError("--illuminants is empty; give e.g. D65,A")

@@ -1,12 +1,13 @@
-"""Run a render plan's jobs on an executor: this process's pool, a Ray cluster, or (for the Cycles
-backend) Blender on this machine. Above :mod:`renderer_jobs.jobs` and the executors, which import
-the jobs module and never this one."""
+"""Run a render plan's jobs with its backend (:mod:`renderer_jobs.backends`) on an executor: this
+machine's process pool or a Ray cluster (the Cycles backend: Blender on this machine). Above
+:mod:`renderer_jobs.jobs` and the executors, which import the jobs module and never this one."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
 from renderer_jobs import jobs
+from renderer_jobs.backends import get_backend
 from renderer_jobs.modes import EXECUTORS
 from renderer_jobs.scene_schema import SceneError
 
@@ -28,18 +29,19 @@ def execute(plan_: jobs.Plan, store_path: str, settings, *, executor: str = "loc
     cb = on_done or (lambda job, r, exc: None)
     if not plan_.jobs:
         return []
+    backend = get_backend(settings_dict.get("backend", "mitsuba"))
+    if executor not in backend.executors:  # refused before anything is deleted or written
+        raise SceneError(f"the {backend.name} backend runs on the executors {', '.join(backend.executors)}"
+                         f"{' (' + backend.executor_note + ')' if getattr(backend, 'executor_note', '') else ''}, "
+                         f"not {executor}: leave out --executor {executor}")
     if plan_.replace_views:
         st = jobs._open_store(store_path, mode="a")
         for scene, view in plan_.replace_views:
             st.delete(scene, view)
-    if settings_dict.get("backend", "mitsuba") == "cycles":
-        if executor != "local":
-            raise SceneError("the cycles backend runs on this machine (Blender uses every core): "
-                             "leave out --executor ray")
-        from renderer_jobs.cycles_jobs import run_cycles
-
-        return run_cycles(plan_, store_path, settings_dict, cb, overwrite, on_pass)
-    if executor == "ray":
+    if hasattr(backend, "run"):  # a backend that batches its jobs itself
+        return backend.run(plan_, store_path, settings_dict, executor=executor, workers=workers, address=address,
+                           on_done=cb, ray_init=ray_init, overwrite=overwrite, on_pass=on_pass, keep_going=keep_going)
+    if executor == "ray":  # one job at a time (backend.run_job, through jobs.run_job)
         from renderer_jobs.ray_executor import run_ray
 
         return run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)

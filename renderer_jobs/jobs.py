@@ -21,13 +21,11 @@ or at another resolution is a conflict: the run refuses to start unless ``overwr
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 
 from renderer_jobs.modes import EXECUTORS
 from renderer_jobs.scene_load import scene_from_dict
@@ -223,59 +221,12 @@ def _scene_from_payload(payload: tuple[dict, str | None]) -> Scene:
 
 def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, settings_dict: dict,
             threads: int | None = None, overwrite: bool = False) -> dict:
-    """Render one job and write it into the store. Returns a small summary dict."""
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.mitsuba_aovs import render_aovs
-    from renderer_jobs.mitsuba_variant import select_variant
+    """Render one job with the settings' backend (:mod:`renderer_jobs.backends`) and write it into the
+    store: the executors' task. Returns a small summary dict."""
+    from renderer_jobs.backends import get_backend
 
-    if threads:
-        os.environ.setdefault("DRJIT_NUM_THREADS", str(threads))
-    scene = _scene_from_payload(payload)
-    settings = mr.RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v)
-                                    for k, v in settings_dict.items()})
-    select_variant()
-    if threads:
-        import drjit as dr
-
-        try:
-            dr.set_thread_count(int(threads))
-        except Exception:  # noqa: BLE001 — cuda variants have no thread pool
-            pass
-    t0, c0 = time.perf_counter(), time.process_time()
-    st = _open_store(store_path, mode="a")
-    if job.group is None:
-        aovs = render_aovs(scene, job.view, settings)
-        st.write_view(scene.name, job.view, _view_meta(scene, job.view), aovs)
-        return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "view",
-                "cpu_s": time.process_time() - c0}
-    probe = None
-    if settings.skip_dark:
-        from renderer_jobs.light_probe import probe_group
-        from renderer_jobs.mitsuba_scene import group_emission
-
-        probe = probe_group(scene, job.view, job.group, settings)
-        if not probe.lit:
-            # No pilot path carried light into the view: record the cube as empty, render nothing.
-            emission, name = group_emission(scene, job.group)
-            renderer = mr.renderer_info(scene, settings, mr.emitter_passes(scene, [job.group]))
-            meta = cube_meta(scene, job, settings, np.asarray(emission, dtype=float).tolist(), name, renderer,
-                             {"skipped": "dark", "probe": probe.to_dict()})
-            st.mark_empty(scene.name, job.view, job.group, meta, overwrite=overwrite)
-            return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube", "empty": True,
-                    "probe_s": probe.seconds, "cpu_s": time.process_time() - c0}
-    prepared = mask = None
-    if settings.boost_factor > 1:
-        # The denoiser's guides (the group's direct light) first: the boost mask comes from them
-        # alone, and the denoiser reuses them (traced once).
-        from renderer_jobs.boost_paths import boost_mask
-
-        prepared = denoise_guides(st, scene, job, settings)
-        mask = boost_mask(prepared[0], settings.denoise, settings.boost_reach)
-    result = mr.render_cube(scene, job.view, job.group, settings, boost_mask=mask)
-    empty = store_result(st, scene, job, result, settings, overwrite,
-                         {"probe": probe.to_dict()} if probe is not None else {}, prepared=prepared)
-    return {"job": job.label, "seconds": time.perf_counter() - t0, "kind": "cube",
-            "empty": empty, "trace_s": result.stats.get("trace_s"), "cpu_s": time.process_time() - c0}
+    backend = get_backend(settings_dict.get("backend", "mitsuba"))
+    return backend.run_job(payload, job, store_path, settings_dict, threads, overwrite)
 
 
 def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, renderer: dict, stats: dict):

@@ -23,10 +23,26 @@ EXECUTORS: MethodRegistry[str] = MethodRegistry("executor", {
     "ray": "one Ray task per job on the cluster at --address",
 })
 
-# See renderer_jobs.backends: the renderers that write transport cubes.
+class BackendEntry(str):
+    """A render backend's registry entry: its one-line description (what ``--help`` prints) and the
+    module that implements :class:`renderer_jobs.backends.Backend` as ``BACKEND`` (imported on first
+    use, so listing the choices imports no renderer)."""
+
+    module: str
+
+    def __new__(cls, description: str, module: str) -> BackendEntry:
+        entry = super().__new__(cls, description)
+        entry.module = module
+        return entry
+
+
+# The renderers that write transport cubes (renderer_jobs.backends). A new one: a module with a
+# ``BACKEND`` and one entry here.
 BACKENDS: MethodRegistry[str] = MethodRegistry("render backend", {
-    "mitsuba": "Mitsuba 3 (default): every band on every path, quasi-random pixel samples",
-    "cycles": "Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
+    "mitsuba": BackendEntry("Mitsuba 3 (default): every band on every path, quasi-random pixel samples",
+                            "renderer_jobs.mitsuba_backend"),
+    "cycles": BackendEntry("Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
+                           "renderer_jobs.cycles_backend"),
 }, aliases={"blender": "cycles"})
 
 # Mitsuba's pixel samplers, for the "all-bands" mode (renderer_jobs.mitsuba_band_render).

@@ -145,12 +145,9 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
         illuminant_spd(name, scene.spectral_grid)
     masks = patch_masks(scene, interior)
     settings = mr.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, backend=backend, illumination=False)
-    if settings.backend == "cycles":
-        from renderer_jobs import cycles_render
+    from renderer_jobs.backends import get_backend
 
-        res = cycles_render.render_cube(scene, VIEW, GROUP, settings)
-    else:
-        res = mr.render_cube(scene, VIEW, GROUP, settings)
+    res = get_backend(settings.backend).render_cube(scene, VIEW, GROUP, settings)
     cube = res.cube.astype(np.float64)
     radiance = np.stack([cube[m].mean(axis=0) for m in masks])
     patches: list[dict] = []
