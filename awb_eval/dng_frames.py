@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 
 def read_dng_rgb(path: Path) -> tuple[np.ndarray, tuple[int, int]]:

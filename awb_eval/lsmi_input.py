@@ -34,9 +34,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from awb_eval.case import Case, unsaturated
-from awb_eval.dng_frames import half_size, read_dng_rgb
-from retarget.errors import SpectralError, unknown_name
+from illumix.awb_eval.case import Case, unsaturated
+from illumix.awb_eval.dng_frames import half_size, read_dng_rgb
+from illumix.retarget.errors import SpectralError, unknown_name
 
 ZERO_MASK = -1.0  # LSMI's mixture value where a pixel is black
 _FILE = re.compile(r"^(?P<place>.+)_(?P<lights>[1-9]+)\.(?P<ext>tiff|dng)$")

@@ -10,7 +10,7 @@ Besides these names, a method may be a plug-in ``module.path:callable`` (see
 
 from __future__ import annotations
 
-from retarget.registry import MethodRegistry
+from illumix.retarget.registry import MethodRegistry
 
 #: Global statistical methods (one illuminant for the whole image) and their aliases. Each has a
 #: patch-wise twin named ``"Patch " + name`` (aliases likewise).

@@ -24,12 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from awb_eval.case import Case
-from awb_eval.method_names import AWB_METHODS, PATCH_PREFIX, is_plugin
-from awb_eval.statistical import estimate
-from retarget import global_wb
-from retarget.errors import SpectralError
-from retarget.groundtruth import gain_map
+from illumix.awb_eval.case import Case
+from illumix.awb_eval.method_names import AWB_METHODS, PATCH_PREFIX, is_plugin
+from illumix.awb_eval.statistical import estimate
+from illumix.retarget import global_wb
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.groundtruth import gain_map
 
 # name → (order n, Minkowski p, Gaussian σ in pixels): e^{n,p,σ}. The Gray-Edge settings are the ones
 # the colour constancy survey reports for its 1st- and 2nd-order Gray-Edge runs (Gijsenij, Gevers & van

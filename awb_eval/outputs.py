@@ -10,8 +10,8 @@ import os
 import re
 from pathlib import Path
 
-from awb_eval.run import Results
-from retarget.errors import SpectralError
+from illumix.awb_eval.run import Results
+from illumix.retarget.errors import SpectralError
 
 
 def write_text(path: Path, text: str) -> None:
@@ -58,7 +58,7 @@ def prepare_folder(out: Path) -> None:
 def write_outputs(out: Path, doc: dict, table: str, res: Results, labels: list[str]) -> list[str]:
     """Write the folder (checked beforehand by :func:`prepare_folder`); returns the paths written
     (relative to ``out``)."""
-    from awb_eval.plots import box_plots, error_map
+    from illumix.awb_eval.plots import box_plots, error_map
 
     out.mkdir(parents=True, exist_ok=True)
     written = ["table.md", "results.json"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from awb_eval.run import ErrorMaps
+from illumix.awb_eval.run import ErrorMaps
 
 
 def _pyplot():

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from awb_eval.run import Results
-from awb_eval.scoring import ANGULAR_STATS
+from illumix.awb_eval.run import Results
+from illumix.awb_eval.scoring import ANGULAR_STATS
 
 KEYS = (*(f"angular_{k}" for k in ANGULAR_STATS), "grid_de00_worst25", "ms")
 # (column title, key) of the markdown tables

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from awb_eval.case import Case, Unusable
-from awb_eval.methods import Method
-from awb_eval.scoring import reference, score
+from illumix.awb_eval.case import Case, Unusable
+from illumix.awb_eval.methods import Method
+from illumix.awb_eval.scoring import reference, score
 
 MIN_SIDE = (12, 16)  # the ΔE00 grid's cells: an image needs at least one pixel per cell
 

@@ -18,11 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from awb_eval.case import Case
-from awb_eval.methods import gain_from_illuminant
-from retarget.exposure import aec_gain
-from retarget.isp import apply_ccm, render_srgb
-from retarget.metrics import angular_error, grid_delta_e00, summary_statistics
+from illumix.awb_eval.case import Case
+from illumix.awb_eval.methods import gain_from_illuminant
+from illumix.retarget.exposure import aec_gain
+from illumix.retarget.isp import apply_ccm, render_srgb
+from illumix.retarget.metrics import angular_error, grid_delta_e00, summary_statistics
 
 # angular_<stat> keys of a score, in table order
 ANGULAR_STATS = ("mean", "median", "trimean", "best25", "worst25", "max")

@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 INTERPOLATIONS = ("bilinear", "nearest")
 # A channel estimate below this fraction of the strongest one is "no estimate" (cf.

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from awb_eval.case import Case, Unusable, unsaturated
-from retarget.errors import SpectralError
+from illumix.awb_eval.case import Case, Unusable, unsaturated
+from illumix.retarget.errors import SpectralError
 
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"  # a measured camera that every install has (colour-science)
 DEFAULT_PAIRS = ("A,D65", "FL11,D50")
@@ -70,8 +70,8 @@ class StoreCases:
 
     def __init__(self, path: str, *, sensor: str | None = None, pairs: str | None = None, count: int | None = None,
                  seed: int = 0, size: str | None = None, gt: str | None = None, cache_mb: int = 1024) -> None:
-        from engine.context import make_context
-        from store import CubeStore, StoreError
+        from illumix.engine.context import make_context
+        from illumix.store import CubeStore, StoreError
 
         try:
             self.store = CubeStore.open(path, mode="r")
@@ -126,7 +126,7 @@ class StoreCases:
         checked here, with one line for a bad one."""
         from pydantic import ValidationError
 
-        from engine.spec import SampleSpec
+        from illumix.engine.spec import SampleSpec
 
         n_groups = len(self.store.groups(job.scene, job.view))
         light = {"pair": list(job.lights)} if len(job.lights) == 2 else {"illuminants": list(job.lights) * n_groups}
@@ -139,9 +139,9 @@ class StoreCases:
 
     def compose(self, job: Job) -> Case:
         """One sample through :func:`engine.sampling.build_sample` → a :class:`Case`."""
-        from engine.errors import Busy
-        from engine.sampling import build_sample
-        from store import StoreError
+        from illumix.engine.errors import Busy
+        from illumix.engine.sampling import build_sample
+        from illumix.store import StoreError
 
         spec = self.spec(job)
         try:

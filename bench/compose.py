@@ -41,15 +41,15 @@ if str(ROOT) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-from retarget import groundtruth as gt  # noqa: E402
-from retarget.compose import compose, group_ccms  # noqa: E402
-from retarget.illuminants import illuminant_spd  # noqa: E402
-from retarget.isp import apply_ccm, render_srgb  # noqa: E402
-from retarget.exposure import aec_gain  # noqa: E402
-from retarget.metrics import grid_delta_e00  # noqa: E402
-from retarget.reflectances import get_reflectances  # noqa: E402
-from retarget.relight import band_scales, project, project_groups, raw_weights, relight  # noqa: E402
-from retarget.sensors import get_sensor  # noqa: E402
+from illumix.retarget import groundtruth as gt  # noqa: E402
+from illumix.retarget.compose import compose, group_ccms  # noqa: E402
+from illumix.retarget.illuminants import illuminant_spd  # noqa: E402
+from illumix.retarget.isp import apply_ccm, render_srgb  # noqa: E402
+from illumix.retarget.exposure import aec_gain  # noqa: E402
+from illumix.retarget.metrics import grid_delta_e00  # noqa: E402
+from illumix.retarget.reflectances import get_reflectances  # noqa: E402
+from illumix.retarget.relight import band_scales, project, project_groups, raw_weights, relight  # noqa: E402
+from illumix.retarget.sensors import get_sensor  # noqa: E402
 
 GROUPS = ("window", "lamp")
 ILLUMINANTS = ("D65", "A")

@@ -46,14 +46,14 @@ def main(argv=None) -> dict:
     ap.add_argument("--sensor", default=str(ROOT.parent / "shared" / "data" / "rawtoaces-data" / "data" / "camera"
                                             / "Nikon_D810_380_780_5.json"))
     args = ap.parse_args(argv)
-    from renderer_jobs import cycles_job as cj
-    from renderer_jobs import cycles_render as cr
-    from renderer_jobs.jobs import apply_resolution
-    from renderer_jobs.mitsuba_aovs import render_aovs
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from renderer_jobs.scene_load import load_scenes
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
+    from illumix.renderer_jobs import cycles_job as cj
+    from illumix.renderer_jobs import cycles_render as cr
+    from illumix.renderer_jobs.jobs import apply_resolution
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
 
     size = tuple(int(v) for v in args.size.split("x"))
     scene = apply_resolution(load_scenes(args.scene)[0], size)
@@ -112,7 +112,7 @@ def main(argv=None) -> dict:
         rows[label] = change(raw(edits))
         print(f"{label}: {rows[label]}", flush=True)
     # spectral misregistration: the sensor sampled 5 nm off the scene's bands (an off-by-one band)
-    from retarget.grid import SpectralGrid
+    from illumix.retarget.grid import SpectralGrid
 
     shifted = get_sensor(args.sensor, SpectralGrid(grid.start + 5, grid.end + 5, grid.step)).weights()
     rows["sensor 5 nm off the bands (one band)"] = change(project(base_cubes, shifted))

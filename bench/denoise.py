@@ -172,8 +172,8 @@ def render_all(args, scene, cache: Path | None) -> dict:
     """Every render the benchmark uses (through the cache): AOVs, the test cubes of all the view's
     groups at ``--spp`` (desk only feeds the ablation's shading), the error curve, the thesis
     protocol's mixed render and the K reference seeds."""
-    from renderer_jobs.boost_paths import boost_mask
-    from retarget.denoise import DEFAULT_METHOD, Guides
+    from illumix.renderer_jobs.boost_paths import boost_mask
+    from illumix.retarget.denoise import DEFAULT_METHOD, Guides
 
     groups = [g for g, _ in PAIR]
 
@@ -271,7 +271,7 @@ def class_summaries(err: np.ndarray, classes: dict) -> dict:
 
 def measure_methods(args, R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 1 (and 4, 5, 7): each method's denoised test cubes, composed, against the reference."""
-    from retarget.denoise import DENOISE_METHODS, denoise, describe, method_guides
+    from illumix.retarget.denoise import DENOISE_METHODS, denoise, describe, method_guides
 
     groups = [g for g, _ in PAIR]
     valid = classes["all"]
@@ -341,7 +341,7 @@ def reference_floor(ref: dict, classes: dict) -> dict:
 
 def thesis_protocol(args, R: dict, guides, sensor: str, ref: dict, method: str) -> dict:
     """Part 2: Σ single-group renders as rendered vs one mixed render at 16× spp (thesis Fig. 4.1)."""
-    from retarget.denoise import DENOISE_METHODS
+    from illumix.retarget.denoise import DENOISE_METHODS
 
     groups = [g for g, _ in PAIR]
     Mas = dl.composition_weights(sensor, None, [R["test"][g]["emission"] for g in groups])
@@ -447,7 +447,7 @@ def worse(rows: dict, maps: dict, classes: dict) -> dict:
 
 def ablation(R: dict, guides, M: np.ndarray, ref: dict, classes: dict) -> dict:
     """Part 8: the DT with a shading channel in its joint image (module docstring)."""
-    from retarget.denoise import denoise, dt_filter, dt_guide_image, method_params
+    from illumix.retarget.denoise import denoise, dt_filter, dt_guide_image, method_params
 
     groups = [g for g, _ in PAIR]
     p = method_params("dt-guides")[1]  # the default parameters
@@ -518,7 +518,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
                 straddle: np.ndarray | None) -> dict:
     """Part 10: the methods with clean (many-ray) guides, and the albedo AOV's noise (``straddle``:
     the test's, a geometric flag that averaging more rays does not change)."""
-    from retarget.denoise import DENOISE_METHODS, Guides
+    from illumix.retarget.denoise import DENOISE_METHODS, Guides
 
     groups = [g for g, _ in PAIR]
     v = classes["all"]
@@ -539,7 +539,7 @@ def guide_noise(R: dict, aovs: dict, clean: dict, M: np.ndarray, ref: dict, clas
 
 def cost(args, R: dict, guides, aovs: dict) -> dict:
     """Part 6: wall ms per 63-band cube and per 3-channel request (best of ``--cost-repeats``)."""
-    from retarget.denoise import DENOISE_METHODS, Guides, denoise
+    from illumix.retarget.denoise import DENOISE_METHODS, Guides, denoise
 
     rep = args.cost_repeats
     cube = R["test"][PAIR[0][0]]["cube"]
@@ -624,7 +624,7 @@ def parse(argv):
         args.thesis_factor, args.clean_aov_spp, args.cost_size, args.cost_repeats = 4, 256, "320x240", 1
     if args.ref_seeds < 2 or args.ref_seeds % 2:
         ap.error("--ref-seeds must be even and >= 2 (the floor compares the two halves)")
-    from renderer_jobs.render_settings import RenderSettings
+    from illumix.renderer_jobs.render_settings import RenderSettings
 
     d = RenderSettings()
     args.boost_factor = d.boost_factor if args.boost_factor is None else args.boost_factor
@@ -649,9 +649,9 @@ def cache_dir(args) -> Path:
 def main(argv: list[str] | None = None) -> dict:
     args = parse(argv)
     t0, c0 = time.perf_counter(), time.process_time()
-    from renderer_jobs.demo import demo_room
-    from renderer_jobs.mitsuba_variant import select_variant
-    from retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
+    from illumix.renderer_jobs.demo import demo_room
+    from illumix.renderer_jobs.mitsuba_variant import select_variant
+    from illumix.retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
 
     doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(), "test_seed": args.seed,
                  "threads": os.environ.get("DRJIT_NUM_THREADS", "all"), "scene": f"demo-room-{args.room}", "view": args.view,

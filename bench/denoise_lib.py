@@ -25,7 +25,7 @@ def _cache_name(view: str, res: tuple[int, int], spp: int, seed: int, groups: Se
     """The cache file of a render; named by the renderer's default method too, so a change of
     default (issue 17: all-bands paths) never reads another renderer's cubes, and by the targeted
     extra paths' factor, reach and mask when boosted (``boost``: ``(mask, factor, reach)``)."""
-    from renderer_jobs.render_settings import RenderSettings
+    from illumix.renderer_jobs.render_settings import RenderSettings
 
     d = RenderSettings()
     method = f"{d.wavelengths}-{d.sampler}-b{d.bands_per_path}" if d.wavelengths == "all-bands" else d.wavelengths
@@ -48,7 +48,7 @@ def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed:
     process CPU time of the render when it was made (also for a cached one). ``boost``:
     ``(mask (H, W), factor, reach)`` targeted extra paths (:mod:`renderer_jobs.boost_paths`); None:
     plain (no pixel gets more than ``spp``). With a boost the record has ``"targeted_paths"`` too."""
-    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     gl = [groups] if isinstance(groups, str) else list(groups)
     path = cache / _cache_name(view, res, spp, seed, gl, boost) if cache is not None else None
@@ -95,7 +95,7 @@ def multijitter_count(n: int) -> int:
 def exact_spp_bracket(target: float, sets: int = 4) -> tuple[int, int]:
     """The largest spp ≤ ``target`` and the smallest ≥ it that split into ``sets`` band sets the
     renderer's default sampler (multijitter) renders exactly."""
-    from renderer_jobs.render_settings import RenderSettings
+    from illumix.renderer_jobs.render_settings import RenderSettings
 
     assert RenderSettings().sampler == "multijitter", "exact_spp_bracket knows multijitter's rule only"
     ok = [n for n in range(1, int(target / sets) + 64) if multijitter_count(n) == n]
@@ -109,9 +109,9 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
     """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached.
     ``straddle``: with the ``straddle`` AOV, traced again alone when the cache's was made by another
     rule (the guides' AOVs; the clean ones for pixel classes need none)."""
-    from renderer_jobs import denoise_guides as dg
-    from renderer_jobs.mitsuba_aovs import render_aovs
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs import denoise_guides as dg
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
     rule = np.float64([dg.STRADDLE_RAYS, dg.STRADDLE_COS, dg.STRADDLE_LOG_DEPTH, dg.FLAT_LOG_DEPTH, dg.FLAT_DEGREES])
@@ -119,7 +119,7 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
         with np.load(path) as z:
             cached = {k: z[k] for k in z.files} if "albedo_bands" in z.files else None  # older: render again
         if cached is not None and straddle and not np.array_equal(cached.get("straddle_rule"), rule):
-            from renderer_jobs.mitsuba_trace import Tracer
+            from illumix.renderer_jobs.mitsuba_trace import Tracer
 
             cached["straddle"], cached["straddle_rule"] = dg.straddle(Tracer(scene, view, None, res)), rule
             _save(path, cached)
@@ -142,7 +142,7 @@ def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int,
     """A group's direct-light guide, the light glass keeps from each pixel, the guide's own noise
     and the light as the camera sees it (``renderer_jobs.denoise_guides.direct_guide(behind_glass=True)``),
     cached: ``{"direct", "behind", "noise", "seen"}`` ``(H, W)`` and ``"cpu_s"``."""
-    from renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_guide
+    from illumix.renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_guide
 
     name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}x2_glass_seen.npz"
     path = cache / name if cache is not None else None
@@ -169,7 +169,7 @@ def group_guides(guides, direct: dict):
 def run_denoise(cube: np.ndarray, guides, name: str, direct: dict | None, kind: str = "transport") -> np.ndarray:
     """``retarget.denoise.denoise`` with the group's direct-light guides (a :func:`cached_direct`
     record) where the method takes them."""
-    from retarget.denoise import denoise, method_guides
+    from illumix.retarget.denoise import denoise, method_guides
 
     return denoise(cube, group_guides(guides, direct) if "direct" in method_guides(name) else guides, name, kind=kind)
 
@@ -191,9 +191,9 @@ def composition_weights(sensor: str, illuminants: Sequence[str] | None, emission
     """``M (G, bands, 3)`` float32 of ``raw = Σ_g cube_g @ M_g``: each group relit to its illuminant
     (``retarget.relight``, intensity 1), projected through the sensor. ``illuminants=None``: every
     group as rendered (its own emission, i.e. scale 1)."""
-    from retarget.illuminants import illuminant_spd
-    from retarget.relight import band_scales, raw_weights
-    from retarget.sensors import get_sensor
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.relight import band_scales, raw_weights
+    from illumix.retarget.sensors import get_sensor
 
     s = get_sensor(sensor)
     em = np.stack([np.asarray(e, np.float64) for e in emissions])
@@ -362,7 +362,7 @@ def shading_joint(guides, shading_u: np.ndarray, sigma_albedo: float, sigma_norm
     ``log(S + ε)/σs`` with ``S`` the summed illumination image ``shading_u`` pre-filtered by the
     default ``dt-guides`` operator and ``ε = 10⁻³ max S``. OpenCV takes at most 4 channels, so the
     three albedo channels become two."""
-    from retarget.denoise import dt_filter, dt_guide_image
+    from illumix.retarget.denoise import dt_filter, dt_guide_image
 
     g = dt_guide_image(guides, sigma_albedo, sigma_normal)
     s = dt_filter(shading_u[..., None].astype(np.float32), dt_guide_image(guides, 0.05, 0.2),

@@ -46,7 +46,7 @@ COLOURS = ("#ff00ff", "#00ffff", "#ffff00", "#ff8000", "#ff0000", "#00ff00", "#4
 
 def _any_neighbour(a: np.ndarray, pred) -> np.ndarray:
     """``(H, W)`` bool: ``pred(a, a shifted to a 3×3 neighbour)`` for any of the 8 (edge replicated)."""
-    from retarget.denoise import _shifted
+    from illumix.retarget.denoise import _shifted
 
     out = np.zeros(a.shape[:2], bool)
     for dy in (-1, 0, 1):
@@ -58,7 +58,7 @@ def _any_neighbour(a: np.ndarray, pred) -> np.ndarray:
 
 def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
     """``(H, W)`` int: index into the returned shape names of each pixel centre's first hit (−1: none)."""
-    from renderer_jobs.mitsuba_trace import Tracer, camera_rays
+    from illumix.renderer_jobs.mitsuba_trace import Tracer, camera_rays
 
     t = Tracer(scene, view, None, res)
     mi, dr = t.mi, t.dr
@@ -78,8 +78,8 @@ def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
 
 def causes(R: dict, guides, scene, args, behind: dict) -> tuple[dict, np.ndarray, list[str]]:
     """Every cause's ``(H, W)`` mask (before the first-match rule), the shape ids and names."""
-    from retarget.denoise import method_params
-    from retarget.denoise_classes import GLASS_MARGIN, GLASS_SHARE, _dilate
+    from illumix.retarget.denoise import method_params
+    from illumix.retarget.denoise_classes import GLASS_MARGIN, GLASS_SHARE, _dilate
 
     p = method_params("dt-irradiance")[1]
     ids, names = shape_ids(scene, args.view, args.res)
@@ -146,8 +146,8 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--resolution", default="160x120")
     own, rest = ap.parse_known_args(argv)
     args = bd.parse(["--view", own.view, "--resolution", own.resolution, *rest])
-    from renderer_jobs.demo import demo_room
-    from retarget.denoise import DEFAULT_METHOD, Guides
+    from illumix.renderer_jobs.demo import demo_room
+    from illumix.retarget.denoise import DEFAULT_METHOD, Guides
 
     scene = demo_room(args.room, args.res)
     R = bd.render_all(args, scene, bd.cache_dir(args))

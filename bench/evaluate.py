@@ -29,11 +29,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from awb_eval.method_names import AWB_METHODS  # noqa: E402
-from awb_eval.methods import Method, resolve, statistical_gain  # noqa: E402
-from awb_eval.report import aggregate, markdown  # noqa: E402
-from awb_eval.run import evaluate  # noqa: E402
-from awb_eval.store_input import StoreCases  # noqa: E402
+from illumix.awb_eval.method_names import AWB_METHODS  # noqa: E402
+from illumix.awb_eval.methods import Method, resolve, statistical_gain  # noqa: E402
+from illumix.awb_eval.report import aggregate, markdown  # noqa: E402
+from illumix.awb_eval.run import evaluate  # noqa: E402
+from illumix.awb_eval.store_input import StoreCases  # noqa: E402
 
 
 def log(msg: str) -> None:

@@ -30,9 +30,9 @@ if str(ROOT) not in sys.path:
 def build_store(path: Path, scenes: int, h: int = 240, w: int = 320) -> str:
     import numpy as np
 
-    from retarget.grid import DEFAULT_GRID
-    from store import CubeMeta, CubeStore, ViewMeta
-    from store.synth import synthetic_cube
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
+    from illumix.store.synth import synthetic_cube
 
     st = CubeStore.open(str(path), mode="a")
     common = dict(grid=DEFAULT_GRID.to_dict(), renderer={"name": "synthetic", "version": "1"}, spp=0, seed=0,
@@ -50,10 +50,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=4)
     args = ap.parse_args()
-    from dataset_export.frames import Composer
-    from dataset_export.plan import parse_lightings, plan_places
-    from dataset_export.run import ExportOptions, _open_store, _views, export_dataset
-    from retarget.sensor_model import NoiseModel
+    from illumix.dataset_export.frames import Composer
+    from illumix.dataset_export.plan import parse_lightings, plan_places
+    from illumix.dataset_export.run import ExportOptions, _open_store, _views, export_dataset
+    from illumix.retarget.sensor_model import NoiseModel
 
     tmp = Path(tempfile.mkdtemp(prefix="illumix-bench-export-"))
     t0 = time.perf_counter()

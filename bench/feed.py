@@ -53,11 +53,11 @@ def dataset_args(sensor: str, n: int, crop: int, batch: int) -> dict:
 
 def in_process(store: str, sensor: str, repeats: int) -> dict:
     """Server-side ms (compose + npz encode), warm caches: min over ``repeats``."""
-    from service.app import create_app
-    from service.encoding import encode_npz
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.service.encoding import encode_npz
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=CACHE_MB, projection_mb=PROJECTION_MB).state.ctx
     base = dict(scene="room", view="v0", sensor=sensor, pair="A,D65")
@@ -109,9 +109,9 @@ def accuracy(url: str, store: str, sensor: str) -> dict:
     """A served full frame (A on group 0 at 1, D65 on group 1 at 0.5) against float64 from the cubes."""
     import httpx
 
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
-    from store import CubeStore
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
+    from illumix.store import CubeStore
 
     r = httpx.get(f"{url}/sample", params=dict(scene="room", view="v1", sensor=sensor, pair="A,D65",
                                                intensities="1,0.5", outputs="raw,gain,mask"), timeout=120)

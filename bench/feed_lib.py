@@ -37,9 +37,9 @@ def sensor_name() -> str:
 def build_store(path: str, height: int, width: int, views: int = 3) -> int:
     """A store of ``views`` views × 2 flat-emission groups of synthetic render-like cubes
     (:func:`store.synth.synthetic_cube`, 5 % noise). Returns the decoded bytes of all cubes."""
-    from retarget.grid import DEFAULT_GRID
-    from store import CubeMeta, CubeStore, ViewMeta
-    from store.synth import synthetic_cube
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
+    from illumix.store.synth import synthetic_cube
 
     st = CubeStore.open(path, mode="a")
     n = DEFAULT_GRID.n_bands

@@ -104,27 +104,27 @@ def _obj_scene(work: Path) -> Path:
 
 def load(entry: Entry, cache: Path):
     """The entry's :class:`renderer_jobs.scene_model.Scene`, its one view at the entry's resolution."""
-    from renderer_jobs.jobs import apply_resolution
-    from renderer_jobs.scene_load import load_scenes, scene_from_dict
+    from illumix.renderer_jobs.jobs import apply_resolution
+    from illumix.renderer_jobs.scene_load import load_scenes, scene_from_dict
 
     if entry.kind == "file":
         scene = load_scenes(ROOT / entry.source)[0]
         scene = scene.model_copy(update={"views": [v for v in scene.views if v.name == entry.view]})
     elif entry.kind == "demo":
-        from renderer_jobs.demo import demo_room_dict
+        from illumix.renderer_jobs.demo import demo_room_dict
 
         doc = demo_room_dict(int(entry.source), entry.resolution)
         doc["views"] = [v for v in doc["views"] if v["name"] == entry.view]
         scene = scene_from_dict(doc, source=entry.name)
     elif entry.kind == "room":
-        from scenegen.generate import GeneratorConfig, generate_doc
+        from illumix.scenegen.generate import GeneratorConfig, generate_doc
 
         doc = generate_doc(int(entry.source), GeneratorConfig(probe=False))
         doc["views"] = [v for v in doc["views"] if v["name"] == entry.view][:1] or doc["views"][:1]
         doc["views"][0]["name"] = entry.view
         scene = scene_from_dict(doc, source=entry.name)
     else:
-        from scene_import import import_scene
+        from illumix.scene_import import import_scene
 
         work = cache / entry.name / "import"
         doc, _ = import_scene(_obj_scene(work / "src"), work / "doc")
@@ -140,7 +140,7 @@ def view_of(scene) -> str:
 
 
 def _complete(store: Path, scene) -> bool:
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     if not CubeStore.exists(str(store)):
         return False
@@ -155,9 +155,9 @@ def render(scene, store: Path, settings, log: Callable[[str], None], groups=None
     guides are saved, ``<view>-<group>-<kind>.npz`` (the operator the store's copies were made with)."""
     import time
 
-    from renderer_jobs import jobs
+    from illumix.renderer_jobs import jobs
 
-    from renderer_jobs.execute import execute
+    from illumix.renderer_jobs.execute import execute
 
     t = time.process_time()
     with _keeping_guides(keep_guides):
@@ -177,8 +177,8 @@ class _keeping_guides:
     def __enter__(self):
         if self.folder is None:
             return self
-        import retarget.denoise as rd
-        from renderer_jobs import jobs
+        import illumix.retarget.denoise as rd
+        from illumix.renderer_jobs import jobs
 
         self.rd, self.jobs = rd, jobs
         self.real, self.real_job = rd.denoise, jobs._denoise
@@ -206,9 +206,9 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene, groups: lis
     """A copy of the reference store whose denoised copies are the production's operator (its saved
     guides, the cube noise included) applied to the reference's own cubes: served by default it
     gives the default's expectation, nearly noise-free — the bias alone."""
-    from retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
-    from store import CubeStore
-    from store.schema import DenoisedInfo
+    from illumix.retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
+    from illumix.store import CubeStore
+    from illumix.store.schema import DenoisedInfo
 
     shutil.rmtree(out, ignore_errors=True)
     shutil.copytree(ref, out)
@@ -232,7 +232,7 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene, groups: lis
 
 def production_paths(store: Path, scene, group: str) -> float:
     """Mean paths per pixel of a production cube (its spp plus the targeted extra paths)."""
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     meta = CubeStore.open(str(store), mode="r").cube_meta(scene.name, view_of(scene), group)
     tp = (meta.render_stats or {}).get("targeted_paths") or {}
@@ -244,7 +244,7 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
     """Render (or reuse) the three stores of ``entry``; returns ``{"scene", "prod": [paths],
     "ref": path, "ref_spp": {group: spp}, "prod_paths": {group: paths}, "cpu_s"}``."""
     from denoise_lib import exact_spp_bracket  # the spp the sampler renders exactly (no rounding up)
-    from renderer_jobs.render_settings import RenderSettings
+    from illumix.renderer_jobs.render_settings import RenderSettings
 
     scene = load(entry, cache)
     res = entry.resolution
@@ -276,7 +276,7 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
 
 
 def _lit(store: Path, scene, group: str) -> bool:
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     st = CubeStore.open(str(store), mode="r")
     return not st.cube_meta(scene.name, view_of(scene), group).render_stats.get("skipped")
@@ -284,7 +284,7 @@ def _lit(store: Path, scene, group: str) -> bool:
 
 def _stored_spp(store: Path, scene) -> dict[str, int]:
     """``{group: spp}`` of the complete cubes in ``store``."""
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     if not CubeStore.exists(str(store)):
         return {}

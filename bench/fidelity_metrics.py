@@ -104,7 +104,7 @@ def pixel_classes(store_path: str, scene, view: str, ref_illum: np.ndarray) -> d
     order of precedence; background in none). Edge: the view's ``straddle`` AOV, a geometric step
     (normal > 20° or depth > 5 % from a 4-neighbour's) or a light step (the reference's
     illumination changes by > 25 % to a 4-neighbour)."""
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     st = CubeStore.open(store_path, mode="r")
     meta = st.view_meta(scene.name, view)
@@ -131,7 +131,7 @@ def pixel_classes(store_path: str, scene, view: str, ref_illum: np.ndarray) -> d
 def _material_kinds(scene, view: str, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """``(glass, glossy)`` ``(H, W)`` bool from the first hit's BSDF at each pixel centre:
     transmission (glass), or a glossy or specular reflection lobe (plastic, metal)."""
-    from renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
 
     h, w = shape
     tr = Tracer(scene, view, None, (w, h))

@@ -53,7 +53,7 @@ def cpu_s() -> float:
 
 def bounce_scene(resolution: tuple[int, int]) -> dict:
     """A grey box and floor beside a saturated coloured wall under one ceiling lamp."""
-    from renderer_jobs import demo
+    from illumix.renderer_jobs import demo
 
     flat = lambda v: {"kind": "diffuse", "reflectance": {"value": v}}  # noqa: E731
     mats = {"grey": flat(0.5), "ceiling": flat(0.8), "dark": flat(0.3),
@@ -78,7 +78,7 @@ def bounce_scene(resolution: tuple[int, int]) -> dict:
 
 
 def control_scene(resolution: tuple[int, int]) -> dict:
-    from renderer_jobs import demo
+    from illumix.renderer_jobs import demo
 
     doc = demo.demo_room_dict(0, resolution, name="control")
     for m in doc["materials"].values():
@@ -89,10 +89,10 @@ def control_scene(resolution: tuple[int, int]) -> dict:
 
 def render(docs: list[dict], store: str, spp: int, seed: int = 0) -> float:
     """Render the scenes into ``store`` (default settings); returns the wall time."""
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     t = time.perf_counter()
     scenes = [scene_from_dict(d, source=d["name"]) for d in docs]
@@ -103,10 +103,10 @@ def render(docs: list[dict], store: str, spp: int, seed: int = 0) -> float:
 def noise_deg(store: str, a: str, b: str, sensor: str, params: dict) -> dict:
     """Noise of the physical white point: the angle between two renders (other seed) of one scene,
     over √2 (both are noisy), on the pixels valid in both."""
-    from service.app import create_app
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=2048).state.ctx
     out = []
@@ -121,8 +121,8 @@ def noise_deg(store: str, a: str, b: str, sensor: str, params: dict) -> dict:
 def cost_ratio(doc: dict, spp: int, repeats: int = 2) -> dict:
     """CPU time of a cube with its illumination cube over the transport cube alone, per group
     (interleaved repeats after a warm-up, so JIT compilation and load changes hit both alike)."""
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
     view = scene.views[0].name
@@ -151,10 +151,10 @@ def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def measure(store: str, scene: str, sensors: list[str], params: dict) -> dict:
     """Per (view, sensor): neutral-pixel errors under both ground truths, and their maps."""
-    from service.app import create_app
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=2048).state.ctx
     wl = None
@@ -166,7 +166,7 @@ def measure(store: str, scene: str, sensors: list[str], params: dict) -> dict:
             phys, meta = build_sample(SampleSpec(**base, outputs="raw,gain,illum,mask,reflectance", gt="physical"), ctx)
             form, _ = build_sample(SampleSpec(**base, outputs="gain,illum", gt="formula"), ctx)
             if wl is None:
-                from retarget.grid import SpectralGrid
+                from illumix.retarget.grid import SpectralGrid
 
                 wl = SpectralGrid.from_dict(meta["grid"]).wavelengths
             r = phys["reflectance"][..., (wl >= 420) & (wl <= 680)]
@@ -226,7 +226,7 @@ def main() -> None:
     res = tuple(int(v) for v in args.resolution.lower().split("x"))
     os.environ["ILLUMIX_SENSOR_PATH"] = str(CAMERAS)  # the service names them by file stem
     sensors = args.sensors.split(",")
-    from renderer_jobs import demo
+    from illumix.renderer_jobs import demo
 
     docs = {"demo": demo.demo_room_dict(0, res, name="demo"), "bounce": bounce_scene(res),
             "control": control_scene(res)}

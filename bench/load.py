@@ -62,8 +62,8 @@ def build_store(path: str, h: int, w: int) -> list[tuple[str, str, int]]:
     """The synthetic store; returns ``(scene, view, n_groups)`` of every view."""
     import synthetic_store as synth
 
-    from retarget.grid import DEFAULT_GRID
-    from store import CubeMeta, CubeStore, ViewMeta
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
 
     synth.build(path, h, w, extras=False)
     st = CubeStore.open(path, mode="a")
@@ -254,10 +254,10 @@ def leak_check(store: str, views, h: int, w: int, n: int, cache_mb: int, seed: i
     import gc
     import tracemalloc
 
-    from service.app import create_app
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     ctx = create_app(CubeStore.open(store, mode="r"), cache_mb=cache_mb).state.ctx
     rng = random.Random(seed)
@@ -325,7 +325,7 @@ def main() -> None:
             log(f"leak check: {args.leak_check} requests in-process under tracemalloc")
             leak = leak_check(store, views, args.height, args.width, args.leak_check, args.cache_mb, args.seed)
             log(f"  retained minus cache: {leak['retained_minus_cache_mib']} MiB")
-    from engine.projections import projection_share
+    from illumix.engine.projections import projection_share
 
     # the projection cache is budgeted in addition to the cube cache (its default: projection_share)
     proj_mb = args.projection_cache_mb if args.projection_cache_mb is not None else projection_share(args.cache_mb)

@@ -53,13 +53,13 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pareto_lib as pl  # noqa: E402
-from retarget.basis import compress  # noqa: E402
-from retarget.compose import compose, group_ccms  # noqa: E402
-from retarget.grid import DEFAULT_GRID  # noqa: E402
-from retarget.illuminants import illuminant_spd, spd_from_samples  # noqa: E402
-from retarget.reflectances import get_reflectances  # noqa: E402
-from retarget.relight import band_scales, raw_weights  # noqa: E402
-from retarget.sensors import get_sensor  # noqa: E402
+from illumix.retarget.basis import compress  # noqa: E402
+from illumix.retarget.compose import compose, group_ccms  # noqa: E402
+from illumix.retarget.grid import DEFAULT_GRID  # noqa: E402
+from illumix.retarget.illuminants import illuminant_spd, spd_from_samples  # noqa: E402
+from illumix.retarget.reflectances import get_reflectances  # noqa: E402
+from illumix.retarget.relight import band_scales, raw_weights  # noqa: E402
+from illumix.retarget.sensors import get_sensor  # noqa: E402
 
 #: gain: 0.05° is ~1/20 of the best AWB methods' median error and of dataset annotation noise;
 #: raw: 0.1 % is below one 12-bit code value at mid grey (1/4096 of white ≈ 0.13 % of 0.18);
@@ -115,7 +115,7 @@ def scenario(name: str) -> dict:
 
 def stores(tmp: str, cubes: list[np.ndarray]) -> dict[str, object]:
     """The cubes written to a float32 store and to a store with the float16 policy."""
-    from store import CubeMeta, CubeStore, ViewMeta
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
 
     out = {}
     for policy in ("float32", "auto"):

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from retarget import groundtruth as gt
-from retarget.exposure import AECParams
-from retarget.metrics import angular_error, delta_e00, grid_delta_e00
-from retarget.reflectances import get_reflectances
-from retarget.relight import band_scales
+from illumix.retarget import groundtruth as gt
+from illumix.retarget.exposure import AECParams
+from illumix.retarget.metrics import angular_error, delta_e00, grid_delta_e00
+from illumix.retarget.reflectances import get_reflectances
+from illumix.retarget.relight import band_scales
 
 GROUPS = ("window", "lamp")
 

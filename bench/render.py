@@ -77,7 +77,7 @@ THESIS_BAND_NOISE = 0.0067
 
 
 def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
-    from renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
 
     aovs = render_aovs(scene, args.view, mr.RenderSettings())
     mask = flat_mask(aovs)
@@ -225,9 +225,9 @@ def compare_adaptive(rows: list) -> list:
 
 
 def part_skip(args, scene_doc: dict, mr, log) -> list:
-    from renderer_jobs.light_probe import probe_group
-    from renderer_jobs.mitsuba_scene import scene_bounds
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.light_probe import probe_group
+    from illumix.renderer_jobs.mitsuba_scene import scene_bounds
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     base = scene_from_dict(scene_doc)
     scene = scene_from_dict(with_cupboard(scene_doc, *scene_bounds(base)))
@@ -256,8 +256,8 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     Against the full 63-band schedule (the flat cube × the emission: the same cube in expectation,
     and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
     pixels, two seeds) and CPU time at the same spp."""
-    from renderer_jobs.mitsuba_scene import group_emission
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.mitsuba_scene import group_emission
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     doc = json.loads(json.dumps(scene_doc, default=list))
     flat_scene = scene_from_dict(doc)
@@ -288,9 +288,9 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
 def part_background(args, size, mr, log) -> list:
     """Background-pixel skip (``renderer_jobs.view_coverage``): render time with and without it, the
     pixels skipped, and that the full render is exactly zero in every skipped pixel."""
-    from renderer_jobs import demo
-    from renderer_jobs.scene_load import scene_from_dict
-    from renderer_jobs.view_coverage import covered_pixels
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.view_coverage import covered_pixels
 
     out = []
     for name, scene, view, group in (("open floor + wall", scene_from_dict(open_scene_doc(size)), "cam", "lamp"),
@@ -361,10 +361,10 @@ def main(argv: list[str] | None = None) -> dict:
     parts = {p for p in args.parts.split(",") if p}
     args.targets = [float(t) for t in args.targets.split(",") if t] if "target" in parts else []
 
-    from renderer_jobs import demo
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.mitsuba_variant import select_variant
-    from retarget import illuminants, sensors
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba_variant import select_variant
+    from illumix.retarget import illuminants, sensors
 
     def log(msg: str) -> None:
         print(msg, flush=True)
@@ -399,7 +399,7 @@ def main(argv: list[str] | None = None) -> dict:
 
         doc["samplers"] = part_samplers(args, log)
     if "backends" in parts:
-        from renderer_jobs.cycles_env import find_blender_python
+        from illumix.renderer_jobs.cycles_env import find_blender_python
 
         if find_blender_python(required=False) is None:
             doc["backends"] = {"skipped": "Blender (bpy) not installed: bash scripts/install.sh --blender"}

@@ -46,7 +46,7 @@ def _cpu_children() -> float:
 
 def render_all(scene, view: str, settings) -> tuple[dict, dict, float]:
     """``({group: cube}, {group: illumination cube}, CPU seconds)`` of every group with ``settings``."""
-    from renderer_jobs import cycles_render, mitsuba_render
+    from illumix.renderer_jobs import cycles_render, mitsuba_render
 
     c0 = _cpu_self() + _cpu_children()
     if settings.backend == "cycles":
@@ -96,9 +96,9 @@ def noise(a: np.ndarray, b: np.ndarray, sel: np.ndarray) -> list[float]:
 
 
 def compare_scene(name: str, scene, view: str, relight: dict, weights: np.ndarray, ref_spp: int, log) -> dict:
-    from renderer_jobs.mitsuba_aovs import render_aovs
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from retarget.illuminants import illuminant_spd
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.retarget.illuminants import illuminant_spd
 
     fl11 = {g: illuminant_spd("FL11", scene.spectral_grid) for g in relight}  # a spiky illuminant
     band = int(np.argmin(np.abs(scene.spectral_grid.wavelengths - 550)))
@@ -163,7 +163,7 @@ def vs_thesis(ill: dict, thesis: dict) -> dict:
 
 
 def validation(spp: int, log) -> dict:
-    from renderer_jobs.validate import run_validation
+    from illumix.renderer_jobs.validate import run_validation
 
     out = {}
     for backend in ("mitsuba", "cycles"):
@@ -179,11 +179,11 @@ def validation(spp: int, log) -> dict:
 def part_backends(args, log) -> dict:
     from pathlib import Path
 
-    from renderer_jobs import demo
-    from renderer_jobs.jobs import apply_resolution
-    from renderer_jobs.scene_load import load_scenes
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs.jobs import apply_resolution
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
 
     scenes_dir = Path(args.bench_scenes)
     out: dict = {"sensor": args.backends_sensor}

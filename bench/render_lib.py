@@ -106,8 +106,8 @@ def machine() -> dict:
 def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
     """Compile the Mitsuba kernels of (view, group) at the film size that is timed (kernels are
     specific to the film size): a probe and a small render, so timings are of rendering only."""
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.light_probe import probe_group
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.light_probe import probe_group
 
     probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
     mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode,
@@ -133,7 +133,7 @@ NARROW_BAND = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780], "values": [0, 
 def open_scene_doc(res: tuple[int, int]) -> dict:
     """A floor and a back wall under a ceiling panel, seen from above so that about 2/3 of the
     pixels see nothing: the case where skipping background pixels could pay."""
-    from renderer_jobs.demo import frame_matrix as fm
+    from illumix.renderer_jobs.demo import frame_matrix as fm
 
     return {"name": "open", "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.7}}},
             "shapes": [{"name": "floor", "type": "rectangle", "material": "white",

@@ -42,7 +42,7 @@ METRICS = ("raw_g_lit", "raw_g_image", "fl11_raw_g_lit", "band_550")
 
 
 def _render(scene, view, groups, settings):
-    from renderer_jobs import mitsuba_render
+    from illumix.renderer_jobs import mitsuba_render
 
     c0 = _cpu_self()
     cubes = {g: mitsuba_render.render_cube(scene, view, g, settings).cube.astype(np.float64) for g in groups}
@@ -50,10 +50,10 @@ def _render(scene, view, groups, settings):
 
 
 def measure(scene, view: str, groups: list[str], relight: dict, weights, spp: int, log, name: str) -> dict:
-    from renderer_jobs import mitsuba_scene
-    from renderer_jobs.mitsuba_aovs import render_aovs
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from retarget.illuminants import illuminant_spd
+    from illumix.renderer_jobs import mitsuba_scene
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.retarget.illuminants import illuminant_spd
 
     fl11 = {g: illuminant_spd("FL11", scene.spectral_grid) for g in groups}
     band = int(np.argmin(np.abs(scene.spectral_grid.wavelengths - 550)))
@@ -91,11 +91,11 @@ def measure(scene, view: str, groups: list[str], relight: dict, weights, spp: in
 def part_samplers(args, log) -> dict:
     from pathlib import Path
 
-    from renderer_jobs import demo
-    from renderer_jobs.jobs import apply_resolution
-    from renderer_jobs.scene_load import load_scenes
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs.jobs import apply_resolution
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
 
     probe_size, demo_size = (tuple(s) for s in args.samplers_sizes)
     probe = apply_resolution(load_scenes(Path(args.bench_scenes) / PROBE)[0], probe_size)

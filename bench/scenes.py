@@ -46,8 +46,8 @@ OUT = Path(__file__).resolve().parent / "out"
 
 
 def part_generate(rooms: int, validate_every: int) -> dict:
-    from renderer_jobs.scene_load import scene_from_dict
-    from scenegen.generate import GeneratorConfig, generate_doc, layout_hash
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scenegen.generate import GeneratorConfig, generate_doc, layout_hash
 
     cfg = GeneratorConfig(probe=False)
     hashes, walls, cpus, layouts, windows, groups, shapes, mats = set(), [], [], Counter(), Counter(), Counter(), [], []
@@ -73,8 +73,8 @@ def part_generate(rooms: int, validate_every: int) -> dict:
 
 
 def part_probe(rooms: int, sheet_rooms: int) -> dict:
-    from renderer_jobs.scene_load import scene_from_dict
-    from scenegen.generate import GeneratorConfig, generate_doc
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scenegen.generate import GeneratorConfig, generate_doc
 
     generate_doc(10_000, GeneratorConfig())  # warm-up: Mitsuba start and first kernels
     fracs, seconds, two, docs = [], [], 0, []
@@ -107,7 +107,7 @@ def _plots(fracs: np.ndarray, scenes) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
+    from illumix.renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
 
     OUT.mkdir(exist_ok=True)
     fig, ax = plt.subplots(figsize=(5, 3))
@@ -128,9 +128,9 @@ def _plots(fracs: np.ndarray, scenes) -> None:
 
 
 def _render(scenes, store: str, workers: int, views=None, groups=None) -> tuple[list[dict], float]:
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     p = jobs.plan(scenes, store, views=views, groups=groups)
     t0 = time.perf_counter()
@@ -139,8 +139,8 @@ def _render(scenes, store: str, workers: int, views=None, groups=None) -> tuple[
 
 
 def part_cube() -> dict:
-    from renderer_jobs import jobs
-    from scenegen.generate import generate_scene
+    from illumix.renderer_jobs import jobs
+    from illumix.scenegen.generate import generate_scene
 
     scene = generate_scene(0)
     view, out = scene.views[0].name, {}
@@ -166,8 +166,8 @@ def part_cube() -> dict:
 
 
 def part_batch(rooms: int, workers: int) -> dict:
-    from renderer_jobs import jobs
-    from scenegen.generate import GeneratorConfig, generate_scene
+    from illumix.renderer_jobs import jobs
+    from illumix.scenegen.generate import GeneratorConfig, generate_scene
 
     cfg = GeneratorConfig(views=(3, 3))
     scenes = [jobs.apply_resolution(generate_scene(1000 + i, cfg), (240, 180)) for i in range(rooms)]
@@ -191,7 +191,7 @@ def main() -> None:
     ap.add_argument("--batch-rooms", type=int, default=2)
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    from scenegen import GENERATOR_VERSION
+    from illumix.scenegen import GENERATOR_VERSION
 
     parts = [p.strip() for p in args.parts.split(",") if p.strip()]
     res: dict = {"bench": "scenes", "generator_version": GENERATOR_VERSION, **machine()}

@@ -38,10 +38,10 @@ def log(msg: str) -> None:
 
 
 def in_process_ms(store_path: str, params: dict, repeats: int) -> float:
-    from service.app import create_app
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     ctx = create_app(CubeStore.open(store_path, mode="r"), cache_mb=2048).state.ctx
     spec = SampleSpec(**params)

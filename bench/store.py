@@ -24,11 +24,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from retarget.grid import DEFAULT_GRID  # noqa: E402
-from store import CubeMeta, CubeStore, ViewMeta  # noqa: E402
-from store.codec import REL_BOUND_F16, decode, encode  # noqa: E402
-from store.layout import n_chunks  # noqa: E402
-from store.synth import synthetic_cube  # noqa: E402
+from illumix.retarget.grid import DEFAULT_GRID  # noqa: E402
+from illumix.store import CubeMeta, CubeStore, ViewMeta  # noqa: E402
+from illumix.store.codec import REL_BOUND_F16, decode, encode  # noqa: E402
+from illumix.store.layout import n_chunks  # noqa: E402
+from illumix.store.synth import synthetic_cube  # noqa: E402
 
 
 def _rel_err(a: np.ndarray, ref: np.ndarray) -> float:

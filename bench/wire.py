@@ -64,8 +64,8 @@ def median_ms(fn, repeats: int) -> float:
 def offline(repeats: int) -> dict:
     from illumix_client.sample import parse_sample
 
-    from service import arrays_format
-    from service.encoding import encode_npz, half_precision
+    from illumix.service import arrays_format
+    from illumix.service.encoding import encode_npz, half_precision
 
     out = {}
     for name, (h, w, names) in PAYLOADS.items():
@@ -98,17 +98,17 @@ def offline_row(arrays, repeats, parse_sample, arrays_format, encode_npz, half_p
 
 SERVER = """
 import sys, uvicorn
-from service import arrays_format
-from service.app import create_app
-from engine.limits import Limits
-from store import CubeStore
+from illumix.service import arrays_format
+from illumix.service.app import create_app
+from illumix.engine.limits import Limits
+from illumix.store import CubeStore
 store, port, join = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "join"
 if join:  # the same body, joined into one bytes before it is sent
     encode = arrays_format.encode
     arrays_format.encode = lambda *a, **k: encode(*a, **k).tobytes()
 if sys.argv[4] == "memo":  # compose each sample once: what is timed is encoding and transfer
     import copy
-    from service.routes import samples
+    from illumix.service.routes import samples
     memo, real_build = {}, samples.build
     def build(p, ctx):
         key = p.spec.model_dump_json(exclude={"format", "dtype"})

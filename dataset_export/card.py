@@ -69,5 +69,5 @@ def dataset_card(s: dict) -> str:
     out += ["## Licences", "", "The images are generated; what they were generated from:", "",
             *(f"- {line}" for line in s["licences"]), "",
             ("`manifest.json` lists every file with its SHA-256; check them with `sha256sum` or "
-             "`python -c \"from dataset_export.journal import verify_manifest; print(verify_manifest('.'))\"`."), ""]
+             "`python -c \"from illumix.dataset_export.journal import verify_manifest; print(verify_manifest('.'))\"`."), ""]
     return "\n".join(out)

@@ -33,8 +33,8 @@ OUTLINE = np.float32([[0, 0], [COLS, 0], [COLS, ROWS], [0, ROWS]])  # TL, TR, BR
 @lru_cache(maxsize=4)
 def _chart(bands: int | None) -> np.ndarray:
     """``(24, C)``: the patches' albedo as the AOV holds it (``bands=None``: the RGB albedo)."""
-    from retarget.grid import DEFAULT_GRID
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.retarget.reflectances import get_reflectances
 
     _, refl = get_reflectances(CHART_SET, DEFAULT_GRID)
     if bands is not None:

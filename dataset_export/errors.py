@@ -1,6 +1,6 @@
 """The export's one error type: a problem with what was asked (the CLI prints it as one line, exit 2)."""
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 
 class ExportError(SpectralError):

@@ -11,13 +11,13 @@ the other formats do; ``cubes.json`` lists each file's scene, view, group, kind 
 
 from __future__ import annotations
 
-from dataset_export.card import LICENCES
-from imagefiles.spectral_exr import spectrum_attribute, write_spectral_exr
+from illumix.dataset_export.card import LICENCES
+from illumix.imagefiles.spectral_exr import spectrum_attribute, write_spectral_exr
 
 
 def export_cubes(st, places, journal, o, summary: dict, on_progress) -> None:
     """Write the spectral EXRs (module docstring); fills ``summary``."""
-    from engine.extra_outputs import resize_image
+    from illumix.engine.extra_outputs import resize_image
 
     # one place per view: the plan never repeats a view under the same (empty) lighting
     jobs = [(p, g, kind) for p in places for g in p.groups for kind in ("transport", "illumination")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from retarget.registry import MethodRegistry
+from illumix.retarget.registry import MethodRegistry
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dataset_export.errors import ExportError
-from dataset_export.plan import Place, derive_seed
-from imagefiles.dng import as_shot_neutral
+from illumix.dataset_export.errors import ExportError
+from illumix.dataset_export.plan import Place, derive_seed
+from illumix.imagefiles.dng import as_shot_neutral
 
 OUTPUTS = ["raw", "mixture", "illum", "mask", "meta"]
 ZERO_MASK = -1.0  # LSMI's mixture value where no light reaches the pixel (never NaN, never other negatives)
@@ -80,7 +80,7 @@ class Composer:
 
     def __init__(self, store, *, gt: str | None, size: tuple[int, int] | None, noise: str | None, levels,
                  bayer: str | None, cache_mb: int = 1024) -> None:
-        from engine.context import make_context
+        from illumix.engine.context import make_context
 
         self.ctx = make_context(store, cache_mb=cache_mb)
         self.gt, self.size, self.noise, self.levels, self.bayer = gt, size, noise, levels, bayer
@@ -108,9 +108,9 @@ class Composer:
         """The sample's arrays and metadata; a refusal of the engine's (:mod:`engine.errors`: an HTTP
         answer in the service) becomes an :class:`ExportError` naming the place, which stops the
         export with one line."""
-        from engine.errors import Busy, TooLarge
-        from engine.sampling import build_sample
-        from engine.spec import SampleSpec
+        from illumix.engine.errors import Busy, TooLarge
+        from illumix.engine.sampling import build_sample
+        from illumix.engine.spec import SampleSpec
 
         try:
             return build_sample(SampleSpec(**params), self.ctx)
@@ -119,8 +119,8 @@ class Composer:
 
     def capture(self, place: Place, sensor: str) -> Capture:
         """Every frame of ``place`` seen by ``sensor`` (module docstring)."""
-        from retarget.metrics import angular_error
-        from retarget.sensor_model import simulate_raw
+        from illumix.retarget.metrics import angular_error
+        from illumix.retarget.sensor_model import simulate_raw
 
         k = len(place.lighting)
         sets = light_sets(k)

@@ -20,7 +20,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from dataset_export.errors import ExportError
+from illumix.dataset_export.errors import ExportError
 
 JOURNAL = ".export-journal.jsonl"
 MANIFEST = "manifest.json"

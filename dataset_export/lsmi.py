@@ -48,7 +48,7 @@ import re
 
 import numpy as np
 
-from dataset_export.frames import Capture
+from illumix.dataset_export.frames import Capture
 
 ABSENT_CHART = [[-2.0, -2.0]] * 4
 GT_ILLUM_SUFFIX = "_gt_illum.npy"  # <place>_<lights>_gt_illum.npy: the per-pixel ground truth (module docstring)

@@ -19,7 +19,7 @@ import random
 import re
 from dataclasses import dataclass
 
-from dataset_export.errors import ExportError
+from illumix.dataset_export.errors import ExportError
 
 MAX_LIGHTS = 3  # LSMI's Light1..Light3
 

@@ -10,18 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from dataset_export import lsmi
-from dataset_export.card import LICENCES, sensor_licence
-from dataset_export.chart import find_chart, scale_corners
-from dataset_export.errors import ExportError
-from dataset_export.frames import Capture, Composer
+from illumix.dataset_export import lsmi
+from illumix.dataset_export.card import LICENCES, sensor_licence
+from illumix.dataset_export.chart import find_chart, scale_corners
+from illumix.dataset_export.errors import ExportError
+from illumix.dataset_export.frames import Capture, Composer
 
 
 def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
     """``{"cct_K": CCT (K, Ohno 2013) or None, "duv": Duv}`` of an SPD, from its CIE 1931 XYZ."""
     import colour
 
-    from retarget.sensors import get_sensor
+    from illumix.retarget.sensors import get_sensor
 
     xyz = spd @ get_sensor("XYZ", grid).weights()
     if xyz.sum() <= 0:
@@ -33,10 +33,10 @@ def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
 def _levels(noise: str | None):
     """The sensor model of the raw frames; its black and white levels must be whole digital numbers
     (a TIFF's DN and a DNG's ``BlackLevel``/``WhiteLevel``; :func:`imagefiles.dng.dng_levels`)."""
-    from engine.spec import parse_noise
-    from imagefiles.dng import dng_levels
-    from retarget.errors import SpectralError
-    from retarget.sensor_model import NoiseModel
+    from illumix.engine.spec import parse_noise
+    from illumix.imagefiles.dng import dng_levels
+    from illumix.retarget.errors import SpectralError
+    from illumix.retarget.sensor_model import NoiseModel
 
     model = (parse_noise(noise) if noise else None) or NoiseModel()
     try:
@@ -58,7 +58,7 @@ def check_frames(st, places, o, fmt) -> None:
 
 
 def _check_dng_sizes(st, places, size: tuple[int, int] | None) -> None:
-    from imagefiles.dng import DNG_MIN_SIDE
+    from illumix.imagefiles.dng import DNG_MIN_SIDE
 
     for place in places:
         if size is None:
@@ -85,8 +85,8 @@ def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray
 
 def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
     """Write every camera's LSMI folder (module docstring); fills ``summary``."""
-    from imagefiles.dng import color_matrix, template_bytes
-    from retarget.errors import SpectralError
+    from illumix.imagefiles.dng import color_matrix, template_bytes
+    from illumix.retarget.errors import SpectralError
 
     levels = _levels(o.noise)
     bayer = o.bayer if fmt.bayer else None  # dng without a pattern (--bayer none): LinearRaw RGB frames
@@ -163,7 +163,7 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
 
 
 def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
-    from imagefiles.dng import write_dng
+    from illumix.imagefiles.dng import write_dng
 
     files, samples = [], []
     for fr in cap.frames:

@@ -12,11 +12,11 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from dataset_export.errors import ExportError, require
-from dataset_export.formats import EXPORT_FORMATS
-from dataset_export.journal import MANIFEST, Journal
-from dataset_export.plan import parse_lightings, plan_places
-from dataset_export.splits import split_scenes
+from illumix.dataset_export.errors import ExportError, require
+from illumix.dataset_export.formats import EXPORT_FORMATS
+from illumix.dataset_export.journal import MANIFEST, Journal
+from illumix.dataset_export.plan import parse_lightings, plan_places
+from illumix.dataset_export.splits import split_scenes
 
 
 @dataclass
@@ -71,7 +71,7 @@ def _check_flags(o: ExportOptions, fmt) -> None:
 def _check_size(size: tuple[int, int] | None) -> None:
     """Frames (and resampled cubes) within the service's limits on an output (its ``Limits``: side and
     pixels), checked before anything is written."""
-    from engine.limits import Limits
+    from illumix.engine.limits import Limits
 
     if size is None:
         return
@@ -83,7 +83,7 @@ def _check_size(size: tuple[int, int] | None) -> None:
 
 
 def _open_store(url: str):
-    from store import CubeStore, StoreError
+    from illumix.store import CubeStore, StoreError
 
     try:
         if not CubeStore.exists(url):
@@ -95,7 +95,7 @@ def _open_store(url: str):
 
 def _check_names(st, sensors, illuminants, place) -> None:
     """Unknown or unusable sensor / illuminant names: one line with the close matches, before any work."""
-    from engine.library import Library
+    from illumix.engine.library import Library
 
     lib = Library(st)
     grid = st.cube_meta(place.scene, place.view, place.groups[0]).spectral_grid
@@ -131,7 +131,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
                         "for more")
     splits = split_scenes({p.scene for p in places}, o.split, o.seed)
     if fmt.raw_ext:
-        from dataset_export.raw_layout import check_frames
+        from illumix.dataset_export.raw_layout import check_frames
 
         _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
         check_frames(st, places, o, fmt)
@@ -149,14 +149,14 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split
     if fmt.raw_ext is None:
-        from dataset_export.exr_layout import export_cubes
+        from illumix.dataset_export.exr_layout import export_cubes
 
         export_cubes(st, places, journal, o, summary, on_progress)
     else:
-        from dataset_export.raw_layout import export_frames
+        from illumix.dataset_export.raw_layout import export_frames
 
         export_frames(st, places, journal, o, fmt, summary, by_split, on_progress)
-    from dataset_export.card import dataset_card
+    from illumix.dataset_export.card import dataset_card
 
     journal.write_bytes("README.md", dataset_card(summary).encode())
     journal.write_json(MANIFEST, journal.manifest({"created": summary["created"], "counts": summary["counts"],

@@ -6,7 +6,7 @@ from __future__ import annotations
 import random
 from collections.abc import Iterable, Sequence
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 SPLITS = ("train", "val", "test")
 

@@ -19,9 +19,9 @@ import threading
 import time
 from collections.abc import Iterable
 
-from engine.errors import Busy, TooLarge
-from engine.spec import SPECTRAL_OUTPUTS as SPECTRAL  # one float32 per band each
-from retarget.compose import GT_OUTPUTS
+from illumix.engine.errors import Busy, TooLarge
+from illumix.engine.spec import SPECTRAL_OUTPUTS as SPECTRAL  # one float32 per band each
+from illumix.retarget.compose import GT_OUTPUTS
 
 #: bytes per output pixel of each output as returned (float32; ccm 3×3; mask bool; weights per group)
 OUTPUT_BYTES = {"raw": 12, "gain": 12, "ccm": 36, "srgb": 12, "mask": 1, "illum": 12, "albedo": 12, "normal": 12,

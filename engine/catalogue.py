@@ -5,10 +5,10 @@ them as they are."""
 
 from __future__ import annotations
 
-from engine.context import Context
-from retarget import illuminants as ill
-from retarget import sensors as sen
-from retarget.grid import DEFAULT_GRID
+from illumix.engine.context import Context
+from illumix.retarget import illuminants as ill
+from illumix.retarget import sensors as sen
+from illumix.retarget.grid import DEFAULT_GRID
 
 
 def scenes(ctx: Context) -> list[dict]:

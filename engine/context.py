@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from engine import budget
-from engine.library import Library
-from engine.limits import Limits
-from engine.projections import ProjectionCache, projection_share
-from store.lru import LRUCache, nbytes_cost
+from illumix.engine import budget
+from illumix.engine.library import Library
+from illumix.engine.limits import Limits
+from illumix.engine.projections import ProjectionCache, projection_share
+from illumix.store.lru import LRUCache, nbytes_cost
 
 
 @dataclass
@@ -39,7 +39,7 @@ def make_context(store, *, cache_mb: int = 1024, projection_mb: int | None = Non
                                  per_request=limits.max_request_mb * 2**20)
     composer = None
     if device is not None:
-        from engine.torch_sampling import TorchComposer
+        from illumix.engine.torch_sampling import TorchComposer
 
         composer = TorchComposer(device, device_cache_mb)
     return Context(store=store, library=Library(store), cache=cache, limits=limits, memory=memory,

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from engine.context import Context
-    from engine.plan import Plan
+    from illumix.engine.context import Context
+    from illumix.engine.plan import Plan
 
 
 def cube_bytes(p: Plan) -> int:

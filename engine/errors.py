@@ -8,7 +8,7 @@ export`` and ``illumix evaluate`` report them as they are.
 
 from __future__ import annotations
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 
 class NotFound(SpectralError):

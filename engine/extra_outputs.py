@@ -19,7 +19,7 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 MASK_REASONS = {"no_geometry": "the pixel sees no surface (sky or background)",
                 "emitter": "the pixel sees a light source's own surface",

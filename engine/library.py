@@ -10,13 +10,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from retarget import illuminants as ill
-from retarget import sensors as sen
-from retarget.ccm import fit_ccm
-from retarget.errors import SpectralError, unknown_name
-from retarget.grid import SpectralGrid
-from retarget.reflectances import DEFAULT_TRAINING_SET, get_reflectances
-from retarget.tables import read_csv_table
+from illumix.retarget import illuminants as ill
+from illumix.retarget import sensors as sen
+from illumix.retarget.ccm import fit_ccm
+from illumix.retarget.errors import SpectralError, unknown_name
+from illumix.retarget.grid import SpectralGrid
+from illumix.retarget.reflectances import DEFAULT_TRAINING_SET, get_reflectances
+from illumix.retarget.tables import read_csv_table
 
 
 class Library:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from store.registry import DEFAULT_MAX_BYTES
+from illumix.store.registry import DEFAULT_MAX_BYTES
 
 
 class Limits(BaseModel):

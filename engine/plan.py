@@ -8,14 +8,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from engine.errors import NotFound, TooLarge
-from engine.limits import Limits
-from engine.spec import SPECTRAL_OUTPUTS, SampleSpec
-from retarget.compose import GT_OUTPUTS
-from retarget.errors import SpectralError, unknown_name
+from illumix.engine.errors import NotFound, TooLarge
+from illumix.engine.limits import Limits
+from illumix.engine.spec import SPECTRAL_OUTPUTS, SampleSpec
+from illumix.retarget.compose import GT_OUTPUTS
+from illumix.retarget.errors import SpectralError, unknown_name
 
 if TYPE_CHECKING:
-    from engine.context import Context
+    from illumix.engine.context import Context
 
 
 @dataclass

@@ -24,9 +24,9 @@ from collections.abc import Callable, Hashable
 
 import numpy as np
 
-from retarget.projected import Projected
-from retarget.relight import project_groups
-from store.lru import LRUCache, nbytes_cost
+from illumix.retarget.projected import Projected
+from illumix.retarget.relight import project_groups
+from illumix.store.lru import LRUCache, nbytes_cost
 
 MIN_USES = 2  # a key's projection is cached on its second request
 _SEEN = 65536  # keys whose request count is remembered (a bounded LRU of counters, a few MiB)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine import extra_outputs as extra
+from illumix.engine import extra_outputs as extra
 
 
 def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exposure_gain, noise, timings) -> dict:

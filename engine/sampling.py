@@ -16,21 +16,21 @@ import time
 
 import numpy as np
 
-from engine import budget
-from engine import extra_outputs as extra
-from engine.context import Context
-from engine.cubes import aov_key, cube_bytes, frame_bytes, plan_cube_key, projection_key, read_cube, whole_cube
-from engine.plan import Plan, plan
-from engine.sample_meta import sample_meta
-from engine.spec import SPECTRAL_OUTPUTS, SampleSpec
-from engine.torch_sampling import build_on_device
-from engine.torch_sampling import refusal as torch_refusal
-from retarget.compose import OUTPUTS as COMPOSED
-from retarget.compose import compose
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
-from retarget.relight import band_scales, raw_weights
-from retarget.sensor_model import mosaic, simulate_raw
+from illumix.engine import budget
+from illumix.engine import extra_outputs as extra
+from illumix.engine.context import Context
+from illumix.engine.cubes import aov_key, cube_bytes, frame_bytes, plan_cube_key, projection_key, read_cube, whole_cube
+from illumix.engine.plan import Plan, plan
+from illumix.engine.sample_meta import sample_meta
+from illumix.engine.spec import SPECTRAL_OUTPUTS, SampleSpec
+from illumix.engine.torch_sampling import build_on_device
+from illumix.engine.torch_sampling import refusal as torch_refusal
+from illumix.retarget.compose import OUTPUTS as COMPOSED
+from illumix.retarget.compose import compose
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
+from illumix.retarget.relight import band_scales, raw_weights
+from illumix.retarget.sensor_model import mosaic, simulate_raw
 
 __all__ = ["Plan", "build", "build_sample", "exposure_for", "group_inputs", "plan", "price", "unit_weights"]
 

@@ -24,11 +24,11 @@ from pydantic import (
     model_validator,
 )
 
-from retarget.compose import OUTPUTS
-from retarget.denoise_methods import DENOISE_CHOICES
-from retarget.errors import SpectralError, UnknownName
-from retarget.exposure import EXPOSURE_METHODS
-from retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
+from illumix.retarget.compose import OUTPUTS
+from illumix.retarget.denoise_methods import DENOISE_CHOICES
+from illumix.retarget.errors import SpectralError, UnknownName
+from illumix.retarget.exposure import EXPOSURE_METHODS
+from illumix.retarget.sensor_model import BAYER_PATTERNS, NOISE_PRESETS, NoiseModel
 
 FORMATS = ("npz", "arrays", "png", "tiff", "dng", "exr")
 AOV_OUTPUTS = ("albedo", "normal", "depth")  # the view's geometry AOVs, as stored

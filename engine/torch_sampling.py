@@ -18,17 +18,17 @@ import warnings
 
 import numpy as np
 
-from engine import cubes
-from engine.sample_meta import sample_meta
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
-from retarget.groundtruth import lit_white_points
-from store.lru import LRUCache
+from illumix.engine import cubes
+from illumix.engine.sample_meta import sample_meta
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
+from illumix.retarget.groundtruth import lit_white_points
+from illumix.store.lru import LRUCache
 
 
 def refusal(spec) -> str | None:
     """Why ``spec`` cannot be composed on a device (``None``: it can)."""
-    from retarget.compose_torch import TORCH_OUTPUTS
+    from illumix.retarget.compose_torch import TORCH_OUTPUTS
 
     outputs = set(spec.array_outputs())
     bad = sorted(outputs - TORCH_OUTPUTS) + [f"{k}=" for k in ("size", "noise", "bayer", "exposure")
@@ -85,7 +85,7 @@ class TorchComposer:
     def compose(self, ctx, p, unit: list, white_points: np.ndarray, valid: np.ndarray | None) -> dict:
         """``{output: tensor on the device}`` of plan ``p``; ``unit``: per group the band weights at
         intensity 1 (``None`` for a group not read); ``white_points`` ``(G, 3)``."""
-        from retarget.compose_torch import compose_torch
+        from illumix.retarget.compose_torch import compose_torch
 
         lit = p.reads()
         cubes = [self._window(ctx, p, g, "transport") if r else None for g, r in zip(p.groups, lit)]

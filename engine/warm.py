@@ -28,13 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.context import Context
-from engine.cubes import aov_key, cube_key
-from engine.errors import Busy
-from engine.plan import plan
-from engine.spec import SampleSpec
-from retarget.errors import SpectralError
-from store import StoreError
+from illumix.engine.context import Context
+from illumix.engine.cubes import aov_key, cube_key
+from illumix.engine.errors import Busy
+from illumix.engine.plan import plan
+from illumix.engine.spec import SampleSpec
+from illumix.retarget.errors import SpectralError
+from illumix.store import StoreError
 
 #: the AOVs every sample reads (engine.extra_outputs.view_validity)
 VALIDITY_AOVS = ("mask", "emitter")
@@ -145,8 +145,8 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
     ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
     sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
     """
-    from engine.cubes import frame_bytes, projection_key, whole_cube
-    from engine.sampling import unit_weights
+    from illumix.engine.cubes import frame_bytes, projection_key, whole_cube
+    from illumix.engine.sampling import unit_weights
 
     log = log or (lambda _msg: None)
     pc, t0 = ctx.projections, time.perf_counter()

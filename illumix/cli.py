@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
         # requests/s with one BLAS thread per request thread. Must be set before numpy loads;
         # an explicit setting in the environment wins.
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from retarget.errors import SpectralError
+    from illumix.retarget.errors import SpectralError
 
     _register()
     import warnings
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> None:
         # A store that is damaged or missing something: the store's errors are one line by contract.
         # Looked up among the loaded modules (a StoreError exists only once store/ is imported), so
         # --help never imports zarr.
-        store_errors = sys.modules.get("store.errors")
+        store_errors = sys.modules.get("illumix.store.errors")
         if store_errors is not None and isinstance(exc, store_errors.StoreError):
             print(f"illumix: error: {exc}", file=sys.stderr)
             sys.exit(2)

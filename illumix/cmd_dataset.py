@@ -41,11 +41,11 @@ def dataset(
     from illumix.dataset_config import config_flag, load_config
     from illumix.progress import progress_bar
     from illumix.render_options import check_executor, render_settings
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.scene_schema import SceneError
-    from scenegen import GENERATOR_VERSION
-    from store import StoreError
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scenegen import GENERATOR_VERSION
+    from illumix.store import StoreError
 
     t0 = time.perf_counter()
     cfg = load_config(config)
@@ -65,7 +65,7 @@ def dataset(
         raise UserError(f"{config}: render: {exc}") from None
     except UserError as exc:
         raise UserError(f"{config}: {exc}") from None
-    from store.backend import is_local
+    from illumix.store.backend import is_local
 
     if scenes_dir is None and is_local(store):
         scenes_dir = Path(store.removeprefix("file://")) / scene_corpus.SCENES_DIR
@@ -73,7 +73,7 @@ def dataset(
         raise UserError(f"--store {store} is a URL: give --scenes-dir DIR for the generated rooms' scene files")
     if not dry_run:
         try:  # made now: the scene cache lives in it, and a bad location should stop us before hours of work
-            from store import CubeStore
+            from illumix.store import CubeStore
 
             CubeStore.open(store, mode="a")
         except StoreError as exc:

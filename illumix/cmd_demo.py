@@ -51,8 +51,8 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
 
 def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> None:
     from illumix.cmd_render import render
-    from renderer_jobs.render_settings import RenderSettings
-    from retarget.denoise_methods import DEFAULT_METHOD
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.retarget.denoise_methods import DEFAULT_METHOD
 
     d = RenderSettings()  # the renderer's defaults
     render(config=None, rules=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
@@ -66,7 +66,7 @@ def _save_samples(url: str, out: Path) -> list[str]:
     import httpx
     import numpy as np
 
-    from retarget.isp import preview
+    from illumix.retarget.isp import preview
 
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -113,7 +113,7 @@ def demo(
 
     from illumix.allocator import tune_for_service
     from illumix.cmd_serve import open_store
-    from service.app import create_app
+    from illumix.service.app import create_app
 
     if out.exists() and not out.is_dir():  # found now, not after the render and the server start
         raise UserError(f"--out {out} is a file; give a directory for the sample PNGs")

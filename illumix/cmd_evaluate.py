@@ -16,7 +16,7 @@ from pathlib import Path
 import typer
 from rich.console import Console
 
-from awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
+from illumix.awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
 from illumix.errors import UserError
 
 console = Console(stderr=True)
@@ -31,7 +31,7 @@ def _grid(text: str) -> tuple[int, int]:
 
 def _source(path: str, *, sensor, pairs, count, seed, size, gt, split, black_level, white_level):
     """A :class:`awb_eval.store_input.StoreCases` or :class:`awb_eval.lsmi_input.LsmiCases` for ``path``."""
-    from awb_eval.lsmi_input import LsmiCases, is_lsmi
+    from illumix.awb_eval.lsmi_input import LsmiCases, is_lsmi
 
     local = Path(path.removeprefix("file://"))
     if "://" in path.removeprefix("file://") or (local / "zarr.json").is_file():
@@ -39,7 +39,7 @@ def _source(path: str, *, sensor, pairs, count, seed, size, gt, split, black_lev
         given = [k for k, v in lsmi_only.items() if v is not None]
         if given:
             raise UserError(f"{', '.join(given)} apply to LSMI datasets; {path} is an illumix store")
-        from awb_eval.store_input import StoreCases
+        from illumix.awb_eval.store_input import StoreCases
 
         return StoreCases(path, sensor=sensor, pairs=pairs, count=count, seed=seed, size=size, gt=gt)
     if local.is_dir() and is_lsmi(local):
@@ -81,11 +81,11 @@ def evaluate(
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON on stdout instead of the table."),
 ) -> None:
     """Score white-balance methods on a store or an LSMI dataset: angular error and ΔE00 grid."""
-    from awb_eval.method_names import split_methods
-    from awb_eval.methods import resolve
-    from awb_eval.report import aggregate, markdown
-    from awb_eval.run import evaluate as run
-    from awb_eval.statistical import INTERPOLATIONS
+    from illumix.awb_eval.method_names import split_methods
+    from illumix.awb_eval.methods import resolve
+    from illumix.awb_eval.report import aggregate, markdown
+    from illumix.awb_eval.run import evaluate as run
+    from illumix.awb_eval.statistical import INTERPOLATIONS
     from illumix.progress import progress_bar
 
     t0 = time.perf_counter()
@@ -101,7 +101,7 @@ def evaluate(
     source = _source(data, sensor=sensor, pairs=pairs, count=count, seed=seed, size=size,
                      gt=None if gt is None else gt.lower(), split=split, black_level=black_level, white_level=white_level)
     if out is not None:
-        from awb_eval.outputs import prepare_folder
+        from illumix.awb_eval.outputs import prepare_folder
 
         out = Path(out)
         # after the input checks (a refused run leaves no folder), before scoring (an unwritable --out
@@ -122,7 +122,7 @@ def evaluate(
            "seconds": round(time.perf_counter() - t0, 3)}
     table = markdown(summary, title=f"AWB evaluation: {len(res.images)} images of {data}")
     if out is not None:
-        from awb_eval.outputs import write_outputs
+        from illumix.awb_eval.outputs import write_outputs
 
         written = write_outputs(out, doc, table, res, labels)
         console.print(f"wrote {', '.join(written[:4])}{' …' if len(written) > 4 else ''} to {out}", highlight=False)

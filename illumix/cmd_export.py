@@ -17,7 +17,7 @@ import sys
 import typer
 from rich.console import Console
 
-from dataset_export.formats import EXPORT_FORMATS
+from illumix.dataset_export.formats import EXPORT_FORMATS
 from illumix.errors import UserError
 
 console = Console(stderr=True)
@@ -65,11 +65,11 @@ def export(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Write a frozen dataset (LSMI layout, DNG or spectral EXR) with splits, manifest and card."""
-    from dataset_export.run import ExportOptions, export_dataset
-    from dataset_export.splits import parse_fractions
+    from illumix.dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.splits import parse_fractions
     from illumix.progress import progress_bar
-    from retarget.sensor_model import BAYER_PATTERNS
-    from engine.spec import parse_noise
+    from illumix.retarget.sensor_model import BAYER_PATTERNS
+    from illumix.engine.spec import parse_noise
 
     name = EXPORT_FORMATS.canonical(fmt)
     if gt is not None and gt.lower() not in ("physical", "formula"):

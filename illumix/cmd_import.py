@@ -31,9 +31,9 @@ def import_cmd(
 ) -> None:
     """Convert a glTF / OBJ / Mitsuba XML scene into an illumix scene file."""
     from illumix.scene_files import write_yaml
-    from renderer_jobs.scene_load import scene_from_dict
-    from renderer_jobs.scene_spectra import SceneError
-    from scene_import import import_scene
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.scene_spectra import SceneError
+    from illumix.scene_import import import_scene
 
     if out.suffix.lower() not in (".yaml", ".yml", ".json"):
         raise UserError(f"--out {str(out)!r}: give a .yaml, .yml or .json file name")

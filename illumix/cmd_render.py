@@ -18,8 +18,8 @@ from rich.console import Console
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
 from illumix.render_options import check_executor, render_settings
-from renderer_jobs.modes import BACKENDS, EXECUTORS, SAMPLERS
-from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
+from illumix.renderer_jobs.modes import BACKENDS, EXECUTORS, SAMPLERS
+from illumix.retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
 
 console = Console(stderr=True)
 
@@ -34,9 +34,9 @@ def require_renderer(backend: str = "mitsuba") -> None:
     A service-only install (``pip install illumix``, ``docker/Dockerfile.service``) has no renderer;
     ``scripts/install.sh`` and ``docker/Dockerfile.render`` install it.
     """
-    from renderer_jobs.backends import get_backend
-    from renderer_jobs.mitsuba_variant import RenderError
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs.backends import get_backend
+    from illumix.renderer_jobs.mitsuba_variant import RenderError
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     try:
         get_backend(backend).require()
@@ -118,9 +118,9 @@ def render(
     """Render spectral transport cubes (one per view and light group) into a cube store."""
     from illumix.progress import progress_bar
     from illumix.scene_files import load_scene_file
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     try:
         if rules is not None and config is None:
@@ -130,7 +130,7 @@ def render(
         executor = check_executor(executor, address)
         res = jobs.parse_resolution(resolution)
         if demo:
-            from renderer_jobs.demo import demo_room
+            from illumix.renderer_jobs.demo import demo_room
 
             scenes = [demo_room(demo_seed)]
         else:
@@ -149,7 +149,7 @@ def render(
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except Exception as exc:
-        from store import StoreError
+        from illumix.store import StoreError
 
         if isinstance(exc, StoreError):
             raise UserError(f"store {store}: {exc}") from None

@@ -22,7 +22,7 @@ def _generator_config(path: Path | None, probe: bool):
     from pydantic import ValidationError
 
     from illumix.dataset_config import _hint, is_dataset_config, parse_config, read_doc
-    from scenegen.generate import GeneratorConfig
+    from illumix.scenegen.generate import GeneratorConfig
 
     doc = {} if path is None else read_doc(path)
     if doc is None:
@@ -86,7 +86,7 @@ def generate(
                   + f", {counts['cached']} already there; {wall:.1f} s"
                   + (f" ({wall / made:.2f} s per room)" if made else ""), highlight=False)
     if as_json:
-        from scenegen import GENERATOR_VERSION
+        from illumix.scenegen import GENERATOR_VERSION
 
         print(json.dumps({"out": str(out), "count": count, "seed": seed, "generator_version": GENERATOR_VERSION,
                           "config": gen.model_dump(mode="json"), **counts, "seconds": round(wall, 3),
@@ -94,8 +94,8 @@ def generate(
 
 
 def _parse_size(text: str) -> tuple[int, int]:
-    from renderer_jobs.jobs import parse_resolution
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs.jobs import parse_resolution
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     try:
         w, h = parse_resolution(text)
@@ -111,7 +111,7 @@ def _preview_scenes(inputs: list[Path], max_scenes: int | None, scenes_dir: Path
     from illumix import scene_corpus
     from illumix.dataset_config import is_dataset_config, parse_config, read_doc
     from illumix.scene_files import load_scene_file
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     scenes = []
     for path in inputs:
@@ -163,7 +163,7 @@ def preview(
     import cv2
     import numpy as np
 
-    from renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
+    from illumix.renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
 
     per_row = max(len(s.views) for s in scenes)
     columns = per_row if per_row <= 8 else 4

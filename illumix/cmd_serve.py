@@ -14,7 +14,7 @@ from illumix.errors import UserError
 def open_store(path: str, *, create: bool = False):
     """The store at ``path`` opened for the service (which persists uploads). A path holding no
     store is refused unless ``create``: a typo must not silently serve a new, empty store."""
-    from store import CubeStore, StoreError
+    from illumix.store import CubeStore, StoreError
 
     try:
         if not create and not CubeStore.exists(path):
@@ -95,8 +95,8 @@ def serve(
     import uvicorn
 
     from illumix.allocator import tune_for_service
-    from service.app import create_app
-    from engine.limits import Limits
+    from illumix.service.app import create_app
+    from illumix.engine.limits import Limits
 
     tune_for_service()
     limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
@@ -112,7 +112,7 @@ def serve(
             raise
         raise UserError(f"--device {device}: {exc}; leave out --device to compose on the CPU") from None
     if warm:  # before uvicorn binds: once the port answers, the cache is warm
-        from engine.warm import warm_cache
+        from illumix.engine.warm import warm_cache
 
         warm_cache(app.state.ctx, log=lambda line: print(f"illumix: {line}", file=sys.stderr, flush=True))
     uvicorn.run(app, host=host, port=port, log_level="info")

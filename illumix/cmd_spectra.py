@@ -8,7 +8,7 @@ import typer
 from rich.console import Console
 
 from illumix.options import choice_option
-from retarget.ccm_methods import CCM_METHODS, DEFAULT_TRAINING_SET
+from illumix.retarget.ccm_methods import CCM_METHODS, DEFAULT_TRAINING_SET
 
 # The spectral libraries (colour-science, numpy) are imported inside the commands: `--help` must not
 # wait for them.
@@ -23,8 +23,8 @@ ILLUMINANT_HELP = "Illuminant name (see `illumix illuminants list`), blackbody:K
 @illuminants_app.command("list")
 def illuminants_list(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """List the built-in illuminants and the parametric forms."""
-    from retarget import illuminants as ill
-    from retarget.errors import SpectralError
+    from illumix.retarget import illuminants as ill
+    from illumix.retarget.errors import SpectralError
 
     names, unusable = [], {}
     for name in ill.builtin_names():
@@ -51,8 +51,8 @@ def sensors_list(as_json: bool = typer.Option(False, "--json", help="Print JSON.
     """List the built-in sensors (plus files in ILLUMIX_SENSOR_PATH) and whether they cover the grid."""
     from rich.table import Table
 
-    from retarget import sensors as sen
-    from retarget.errors import SpectralError
+    from illumix.retarget import sensors as sen
+    from illumix.retarget.errors import SpectralError
 
     rows = []
     for name in sen.builtin_names():
@@ -78,9 +78,9 @@ def whitepoint(
     as_json: bool = typer.Option(False, "--json", help="Print JSON: rgb, r_over_g, b_over_g."),
 ) -> None:
     """The sensor's white point of an illuminant (thesis eq. 3.2): R/G, B/G and RGB with G = 1."""
-    from retarget import illuminants as ill
-    from retarget import sensors as sen
-    from retarget.groundtruth import white_point
+    from illumix.retarget import illuminants as ill
+    from illumix.retarget import sensors as sen
+    from illumix.retarget.groundtruth import white_point
 
     s = sen.get_sensor(sensor)
     wp = white_point(s.weights(), ill.illuminant_spd(illuminant, s.grid), what=illuminant)
@@ -103,10 +103,10 @@ def ccm(
     as_json: bool = typer.Option(False, "--json", help="Print JSON: matrix, fit_delta_e00_mean."),
 ) -> None:
     """Fit the CCM (white-balanced raw → linear sRGB) of a sensor under an illuminant."""
-    from retarget import illuminants as ill
-    from retarget import sensors as sen
-    from retarget.ccm import fit_ccm
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget import illuminants as ill
+    from illumix.retarget import sensors as sen
+    from illumix.retarget.ccm import fit_ccm
+    from illumix.retarget.reflectances import get_reflectances
 
     s = sen.get_sensor(sensor)
     _, refl = get_reflectances(training, s.grid)

@@ -17,7 +17,7 @@ PATH_HELP = "Store directory or fsspec URL (e.g. ./illumix-store, s3://bucket/st
 
 
 def _open(path: str):
-    from store import CubeStore, StoreError
+    from illumix.store import CubeStore, StoreError
 
     try:
         return CubeStore.open(path, mode="r")
@@ -41,8 +41,8 @@ def info(path: str = typer.Argument(..., help=PATH_HELP),
          as_json: bool = typer.Option(False, "--json", help="Print JSON: {scenes: [{name, views: [{name, "
                                       "width, height, groups: [{name, emission, dtype, complete}]}]}]}.")) -> None:
     """List scenes, views, light groups, shapes, dtypes, sizes and completeness."""
-    from store import StoreError
-    from store.report import info as store_info
+    from illumix.store import StoreError
+    from illumix.store.report import info as store_info
 
     st = _open(path)
     try:
@@ -80,8 +80,8 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
     """Check every array and all metadata (schema, shapes, chunks, finiteness, statistics).
 
     Exit code 0 when the store is sound, 1 when any problem is found (each printed with where)."""
-    from store import StoreError
-    from store.report import verify as store_verify
+    from illumix.store import StoreError
+    from illumix.store.report import verify as store_verify
 
     st = _open(path)
     try:

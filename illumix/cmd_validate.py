@@ -11,7 +11,7 @@ from rich.table import Table
 
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
-from renderer_jobs.modes import BACKENDS
+from illumix.renderer_jobs.modes import BACKENDS
 
 console = Console(stderr=True)
 
@@ -32,9 +32,9 @@ def validate(
 ) -> None:
     """Render a Lambertian ColorChecker under a distant light and compare it with closed form."""
     from illumix.cmd_render import require_renderer
-    from renderer_jobs.jobs import parse_resolution
-    from renderer_jobs.scene_schema import SceneError
-    from renderer_jobs.validate import run_validation
+    from illumix.renderer_jobs.jobs import parse_resolution
+    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs.validate import run_validation
 
     require_renderer(BACKENDS.canonical(backend))
     names = [s.strip() for s in illuminants.split(",") if s.strip()]
@@ -47,7 +47,7 @@ def validate(
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except ValueError as exc:  # patch too small for the resolution
-        from retarget.errors import SpectralError
+        from illumix.retarget.errors import SpectralError
 
         if isinstance(exc, SpectralError):
             raise

@@ -31,8 +31,8 @@ from pydantic import (
 )
 
 from illumix.errors import UserError
-from retarget.denoise_methods import DEFAULT_METHOD
-from scenegen.generate import GeneratorConfig
+from illumix.retarget.denoise_methods import DEFAULT_METHOD
+from illumix.scenegen.generate import GeneratorConfig
 
 
 class GeneratedSection(BaseModel):

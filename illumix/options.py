@@ -12,9 +12,9 @@ from typing import Any
 
 import typer
 
-from renderer_jobs.modes import WAVELENGTH_MODES
-from retarget.errors import UnknownName
-from retarget.registry import MethodRegistry
+from illumix.renderer_jobs.modes import WAVELENGTH_MODES
+from illumix.retarget.errors import UnknownName
+from illumix.retarget.registry import MethodRegistry
 
 # The renderer hashes seeds to 32 bits, so --seed N and N + 2**32 would give the same cube.
 SEED_MAX = 2**32 - 1

@@ -20,8 +20,8 @@ def cli_flag(name: str) -> str:
 
 def check_executor(executor: str, address: str | None, flag: Callable[[str], str] = cli_flag) -> str:
     """The canonical executor name; an address is only for Ray."""
-    from renderer_jobs.modes import EXECUTORS
-    from retarget.errors import UnknownName
+    from illumix.renderer_jobs.modes import EXECUTORS
+    from illumix.retarget.errors import UnknownName
 
     try:
         executor = EXECUTORS.canonical(executor)
@@ -41,7 +41,7 @@ def render_settings(*, spp: int, seed: int, wavelengths: str, sampler: str, band
     stratified render needs ``4 * spp`` ≥ the bands). A noise target implies adaptive spp.
     Raises :class:`UserError` (or :class:`~renderer_jobs.scene_schema.SceneError` from the settings'
     own checks, which the caller reports as one line)."""
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     for s in scenes:
         if 4 * spp < s.spectral_grid.n_bands and wavelengths == "stratified" and backend == "mitsuba":

@@ -36,7 +36,7 @@ def room_name(seed: int) -> str:
 
 
 def header(gen) -> str:
-    from scenegen import GENERATOR_VERSION
+    from illumix.scenegen import GENERATOR_VERSION
 
     return HEADER.format(version=GENERATOR_VERSION, config=config_hash(gen))
 
@@ -53,9 +53,9 @@ def room(seed: int, gen, out_dir: Path | None, *, write: bool = True):
     """Room ``seed``: ``(scene, status)`` with status ``"cached"`` (read from ``out_dir``),
     ``"generated"`` (and written there unless ``write`` is False) or ``"regenerated"`` (the cached
     file was from another generator version or config, or unreadable)."""
-    from renderer_jobs.scene_load import load_scenes
-    from renderer_jobs.scene_schema import SceneError
-    from scenegen.generate import generate_scene
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scenegen.generate import generate_scene
 
     want = header(gen)
     path = out_dir / f"{room_name(seed)}.yaml" if out_dir is not None else None
@@ -90,7 +90,7 @@ def build(config, config_dir: Path, scenes_dir: Path | None, *, limit: int | Non
     """The scenes of a :class:`~illumix.dataset_config.DatasetConfig`: its generated rooms (at most
     ``limit`` scenes in all, generated rooms first), then the scenes of its files. ``on_start(n)``
     gets the number of rooms to make, ``on_room(name, status)`` is called after each."""
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     out = Corpus()
     seeds = list(config.generated.seeds) if config.generated is not None else []

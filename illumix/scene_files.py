@@ -24,7 +24,7 @@ NATIVE = (".yaml", ".yml", ".json", ".blend")
 
 
 def _key(path: Path, rules: Path | None) -> str:
-    import scene_import
+    from illumix import scene_import
 
     h = hashlib.sha256(path.read_bytes())
     if rules is not None:
@@ -44,8 +44,8 @@ def _cache_dir(path: Path, key: str) -> Path:
 
 def import_cached(path: str | Path, rules: str | Path | None = None) -> tuple[Path, list[str]]:
     """``(scene.yaml in the cache, warnings)`` for an importable file, converting it when not cached."""
-    from renderer_jobs.scene_spectra import SceneError
-    from scene_import import import_scene
+    from illumix.renderer_jobs.scene_spectra import SceneError
+    from illumix.scene_import import import_scene
 
     p = Path(path)
     if not p.is_file():
@@ -95,8 +95,8 @@ def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:
     via :func:`renderer_jobs.scene_load.load_scenes`; ``.gltf``/``.glb``/``.obj``/``.xml`` imported
     (module docstring), each import warning re-issued as a ``UserWarning``. ``rules`` applies to
     imported files only."""
-    from renderer_jobs.scene_load import load_scenes
-    from renderer_jobs.scene_spectra import SceneError
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.renderer_jobs.scene_spectra import SceneError
 
     p = Path(path)
     if p.suffix.lower() not in IMPORTED + NATIVE and p.is_file():  # (load_scenes words a missing file or a folder)

@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.global_wb import frame_white_point
-from retarget.sensor_model import NoiseModel
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.global_wb import frame_white_point
+from illumix.retarget.sensor_model import NoiseModel
 
 DENOMINATOR = 1_000_000
 DNG_MIN_SIDE = 22  # libraw refuses smaller DNGs ("Unsupported file format")

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from imagefiles.spectral_exr import (
+from illumix.imagefiles.spectral_exr import (
     EMISSIVE,
     REFLECTIVE,
     channel_name,

@@ -21,13 +21,13 @@ import importlib
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
-from renderer_jobs.modes import BACKENDS
+from illumix.renderer_jobs.modes import BACKENDS
 
 if TYPE_CHECKING:
-    from renderer_jobs.jobs import Job, Plan, ProgressFn
-    from renderer_jobs.mitsuba_render import CubeResult
-    from renderer_jobs.render_settings import RenderSettings
-    from renderer_jobs.scene_model import Scene
+    from illumix.renderer_jobs.jobs import Job, Plan, ProgressFn
+    from illumix.renderer_jobs.mitsuba_render import CubeResult
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.renderer_jobs.scene_model import Scene
 
 
 class Backend(Protocol):

@@ -53,8 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.cycles_env import find_blender_python
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs.cycles_env import find_blender_python
+from illumix.renderer_jobs.scene_schema import SceneError
 
 WORKER = Path(__file__).with_name("blend_worker.py")
 WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
@@ -124,7 +124,7 @@ def rgb_to_spectrum(rgb, what: str) -> dict:
 def resolve_reflectance(ref: str, what: str) -> dict:
     """``{"library", "sample"}`` for ``"Library/Sample"`` or a bare sample name (the first of
     :func:`retarget.reflectances.set_names` that holds it); :class:`SceneError` with close matches."""
-    from retarget.reflectances import get_reflectances, set_names
+    from illumix.retarget.reflectances import get_reflectances, set_names
 
     ref = ref.strip()
     libs = {lib: get_reflectances(lib)[0] for lib in set_names()}
@@ -178,7 +178,7 @@ def material_doc(info: dict, what: str) -> dict | None:
         # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
         # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
         # Cycles backend's mapping, renderer_jobs.plastic_scale.plastic_diffuse_scale).
-        from renderer_jobs.plastic_scale import plastic_diffuse_scale
+        from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
 
         base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
         if np.any(base > 1):

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer_jobs.band_schedule import mix_seed
+from illumix.renderer_jobs.band_schedule import mix_seed
 
 REACH_CHANNELS = 32  # white-noise channels whose RMS estimates the reach (its own noise ~1/√(2·32) = 12 %)
 REACH_SEED = 0x0EAC4  # the noise image is fixed: the mask depends on the guides only
@@ -34,7 +34,7 @@ def reach(guides, method: str) -> np.ndarray:
     ``method``'s filter (``dt-irradiance``: its joint image
     :func:`retarget.denoise.irradiance_guide_image`, its ``sigma_spatial`` and iterations). Needs
     ``guides.direct``."""
-    from retarget.denoise import dt_filter, irradiance_guide_image, method_params
+    from illumix.retarget.denoise import dt_filter, irradiance_guide_image, method_params
 
     name, p = method_params(method)
     if name != "dt-irradiance":
@@ -57,8 +57,8 @@ def extra_path_sums(ms, sensor, integrator, pix: np.ndarray, paths: int, seed: i
     each pixel of ``pix`` (flat row-major indices of ``sensor``'s film), uniformly jittered in the
     pixel (the box filter of the film render). ``wavelengths (4,)``: carried by the camera rays (the
     band integrator sets its own per path). At most ``max_lanes`` paths per Dr.Jit call."""
-    from renderer_jobs.mitsuba_trace import camera_rays
-    from renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba_trace import camera_rays
+    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, dr = import_mitsuba()
     w, h = (int(x) for x in sensor.film().crop_size())

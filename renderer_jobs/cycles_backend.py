@@ -13,18 +13,18 @@ class CyclesBackend:
 
     def require(self) -> None:
         """Blender's ``bpy`` environment must be installed (``bash scripts/install.sh --blender``)."""
-        from renderer_jobs.cycles_env import find_blender_python
+        from illumix.renderer_jobs.cycles_env import find_blender_python
 
         find_blender_python()
 
     def render_cube(self, scene, view, group, settings):
-        from renderer_jobs import cycles_render
+        from illumix.renderer_jobs import cycles_render
 
         return cycles_render.render_cube(scene, view, group, settings)
 
     def run(self, plan, store_path, settings_dict, *, executor, workers, address, on_done, ray_init, overwrite,
             on_pass, keep_going):
-        from renderer_jobs.cycles_jobs import run_cycles
+        from illumix.renderer_jobs.cycles_jobs import run_cycles
 
         return run_cycles(plan, store_path, settings_dict, on_done, overwrite, on_pass)
 

@@ -42,12 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
-from renderer_jobs.mitsuba_scene import group_emission
-from renderer_jobs.plastic_scale import plastic_diffuse_scale
-from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_textures import is_texture
-from renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
+from illumix.renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
+from illumix.renderer_jobs.mitsuba_scene import group_emission
+from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
+from illumix.renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_textures import is_texture
+from illumix.renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,
                                         Sphere, SpotLight)
 
@@ -66,7 +66,7 @@ def conductor_constants(name: str, scene: Scene) -> tuple[np.ndarray, np.ndarray
     """Band averages of ``η, k`` of a conductor from Mitsuba's tables (``mitsuba/data/ior``)."""
     import importlib.util
 
-    from retarget.grid import resample
+    from illumix.retarget.grid import resample
 
     grid = scene.spectral_grid
     if name == "none":  # Mitsuba's perfect mirror
@@ -258,7 +258,7 @@ def _grey_map(path: Path) -> bool:
     """True when every pixel of the environment map has R = G = B (within 0.1 %)."""
     try:
         if path.suffix.lower() == ".exr":
-            from renderer_jobs.cycles_exr import read_exr
+            from illumix.renderer_jobs.cycles_exr import read_exr
 
             layers = read_exr(path)
             img = next(iter(layers.values())) if len(layers) == 1 else np.concatenate(

@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from renderer_jobs.jobs import (
+from illumix.renderer_jobs.jobs import (
     Job,
     JobError,
     Plan,
@@ -15,15 +15,15 @@ from renderer_jobs.jobs import (
     _view_meta,
     store_result,
 )
-from renderer_jobs.local_executor import run_guarded
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs.local_executor import run_guarded
+from illumix.renderer_jobs.scene_schema import SceneError
 
 
 def run_cycles(plan_: Plan, store_path: str, settings_dict: dict, on_done, overwrite: bool = False,
                on_pass: Callable[[int, int, str], None] | None = None) -> list[dict]:
     """Execute ``plan_`` with Cycles in this process (sequentially: Blender uses every core)."""
-    from renderer_jobs import cycles_render as cr
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs import cycles_render as cr
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     settings = RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v) for k, v in settings_dict.items()})
     st = _open_store(store_path, mode="a")

@@ -19,13 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.cycles_env import find_blender_python
-from renderer_jobs.cycles_exr import read_exr
-from renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
-from renderer_jobs.mitsuba_render import CubeResult, RenderSettings
-from renderer_jobs.mitsuba_scene import group_emission
-from renderer_jobs.mitsuba_variant import RenderError
-from renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.cycles_env import find_blender_python
+from illumix.renderer_jobs.cycles_exr import read_exr
+from illumix.renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
+from illumix.renderer_jobs.mitsuba_render import CubeResult, RenderSettings
+from illumix.renderer_jobs.mitsuba_scene import group_emission
+from illumix.renderer_jobs.mitsuba_variant import RenderError
+from illumix.renderer_jobs.scene_model import Scene
 
 WORKER = Path(__file__).with_name("cycles_worker.py")
 Progress = Callable[[int, int, str], None]

@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from renderer_jobs.scene_load import scene_from_dict
-from renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.renderer_jobs.scene_model import Scene
 
 CHART_SET = "ColorChecker N Ohta"
 CHART_ROWS, CHART_COLS = 4, 6
@@ -97,7 +97,7 @@ def colorchecker(center, normal, up=(0, 1, 0), patch: float = 0.1, gap: float = 
 def _pale_samples(rng: np.random.Generator, k: int, lo: float, max_chroma: float = 10.0) -> list[int]:
     """``k`` distinct CIE 2017 sample indices with mean reflectance ≥ ``lo`` and relative spectral
     spread (std / mean over the grid) ≤ ``max_chroma``."""
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     _, r = get_reflectances("CIE 2017")
     m = r.mean(axis=1)
@@ -223,7 +223,7 @@ def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name
 
 
 def _dark_floor_candidates() -> list[int]:
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     _, r = get_reflectances("CIE 2017")
     m = r.mean(axis=1)

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from renderer_jobs.band_schedule import group_seed, mix_seed
-from renderer_jobs.mitsuba_trace import Tracer
-from renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.band_schedule import group_seed, mix_seed
+from illumix.renderer_jobs.mitsuba_trace import Tracer
+from illumix.renderer_jobs.scene_model import Scene
 
 ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
 DIRECT_SAMPLES = 64  # next-event samples per pixel of the direct-light guide
@@ -51,7 +51,7 @@ def guides_needed(settings) -> tuple[str, ...]:
     """The guides ``settings`` (a :class:`RenderSettings`) denoise with: those its ``denoise``
     method reads (none for ``None``), less ``straddle`` without the targeted extra paths
     (:func:`uses_straddle`)."""
-    from retarget.denoise import method_guides
+    from illumix.retarget.denoise import method_guides
 
     names = () if settings.denoise is None else method_guides(settings.denoise)
     return tuple(n for n in names if n != "straddle" or uses_straddle(settings))
@@ -204,8 +204,8 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     same samples' shadow rays would bring if the dielectrics (glass) that block them were not there
     — where glass may focus or bend the group's light (a caustic) that the first image shows as
     shadow."""
-    from renderer_jobs.mitsuba_scene import group_emission
-    from retarget.denoise_classes import DIRECT_FLOOR  # the direct-light test's scale, for the same light
+    from illumix.renderer_jobs.mitsuba_scene import group_emission
+    from illumix.retarget.denoise_classes import DIRECT_FLOOR  # the direct-light test's scale, for the same light
 
     tracer = Tracer(scene, view, [group], resolution)
     seed = group_seed(seed, [group])  # as the cube's: each group's guide its own light samples

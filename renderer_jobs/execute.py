@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from renderer_jobs import jobs
-from renderer_jobs.backends import get_backend
-from renderer_jobs.modes import EXECUTORS
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs import jobs
+from illumix.renderer_jobs.backends import get_backend
+from illumix.renderer_jobs.modes import EXECUTORS
+from illumix.renderer_jobs.scene_schema import SceneError
 
 
 def execute(plan_: jobs.Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,
@@ -42,10 +42,10 @@ def execute(plan_: jobs.Plan, store_path: str, settings, *, executor: str = "loc
         return backend.run(plan_, store_path, settings_dict, executor=executor, workers=workers, address=address,
                            on_done=cb, ray_init=ray_init, overwrite=overwrite, on_pass=on_pass, keep_going=keep_going)
     if executor == "ray":  # one job at a time (backend.run_job, through jobs.run_job)
-        from renderer_jobs.ray_executor import run_ray
+        from illumix.renderer_jobs.ray_executor import run_ray
 
         return run_ray(plan_, store_path, settings_dict, address, cb, ray_init, overwrite)
-    from renderer_jobs.local_executor import run_local
+    from illumix.renderer_jobs.local_executor import run_local
 
     return run_local(plan_, store_path, settings_dict, workers, cb, overwrite, keep_going)
 

@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
-from renderer_jobs.modes import EXECUTORS
-from renderer_jobs.scene_load import scene_from_dict
-from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_schema import Dielectric, SceneError
+from illumix.renderer_jobs.modes import EXECUTORS
+from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_schema import Dielectric, SceneError
 
 
 class JobError(RuntimeError):
@@ -97,13 +97,13 @@ def apply_resolution(scene: Scene, resolution: tuple[int, int] | None) -> Scene:
 
 
 def _open_store(path: str, mode: str = "a"):
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     return CubeStore.open(path, mode=mode)
 
 
 def _view_meta(scene: Scene, view: str):
-    from store import ViewMeta
+    from illumix.store import ViewMeta
 
     v = scene.view(view)
     return ViewMeta(width=v.width, height=v.height, origin=tuple(v.origin), target=tuple(v.target),
@@ -116,7 +116,7 @@ def _view_meta(scene: Scene, view: str):
 
 
 def _stored_view(st, scene: str, view: str):
-    from store import StoreKeyError
+    from illumix.store import StoreKeyError
 
     try:
         if view not in st.views(scene):
@@ -127,7 +127,7 @@ def _stored_view(st, scene: str, view: str):
 
 
 def _stored_cube_meta(st, scene: str, view: str, group: str):
-    from store import StoreKeyError
+    from illumix.store import StoreKeyError
 
     try:
         return st.cube_meta(scene, view, group)
@@ -201,7 +201,7 @@ def plan(scenes: Iterable[Scene], store_path: str | None, *, views: list[str] | 
 def _store_exists(path: str) -> bool:
     """A store is already at ``path`` (a missing path, an empty directory or an fsspec URL with
     nothing there yet is not one: the first job creates it)."""
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     return CubeStore.exists(path)
 
@@ -223,7 +223,7 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
             threads: int | None = None, overwrite: bool = False) -> dict:
     """Render one job with the settings' backend (:mod:`renderer_jobs.backends`) and write it into the
     store: the executors' task. Returns a small summary dict."""
-    from renderer_jobs.backends import get_backend
+    from illumix.renderer_jobs.backends import get_backend
 
     backend = get_backend(settings_dict.get("backend", "mitsuba"))
     return backend.run_job(payload, job, store_path, settings_dict, threads, overwrite)
@@ -231,7 +231,7 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
 
 def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, renderer: dict, stats: dict):
     """The store's :class:`store.schema.CubeMeta` of one rendered (or skipped) cube."""
-    from store.schema import CubeMeta
+    from illumix.store.schema import CubeMeta
 
     return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
                     renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
@@ -245,8 +245,8 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
     """Write a rendered cube (with its illumination cube and denoised copies) into the store, or
     record it as empty when it is all zero. Returns True for empty. ``prepared``: the
     :func:`denoise_guides` of this job, when already traced."""
-    from renderer_jobs.mitsuba_render import ILLUMINATION_METHOD
-    from store.schema import IlluminationInfo
+    from illumix.renderer_jobs.mitsuba_render import ILLUMINATION_METHOD
+    from illumix.store.schema import IlluminationInfo
 
     meta = cube_meta(scene, job, settings, result.emission.tolist(), result.emission_name, result.renderer,
                      {**result.stats, **extra_stats})
@@ -267,9 +267,9 @@ def denoise_guides(st, scene, job, settings) -> tuple:
     what only the renderer can make (:mod:`renderer_jobs.denoise_guides`): the group's direct-light
     guide, and the per-band albedo and the straddle AOV of a view stored without them (e.g. by
     Cycles, or before they existed), traced once and added to the view. ``guide_passes`` records what was traced."""
-    from renderer_jobs import denoise_guides as dg
-    from renderer_jobs.mitsuba_trace import Tracer
-    from retarget.denoise import Guides
+    from illumix.renderer_jobs import denoise_guides as dg
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.retarget.denoise import Guides
 
     wanted = dg.guides_needed(settings)
     view_meta = st.view_meta(scene.name, job.view)
@@ -304,8 +304,8 @@ def _denoise(st, scene, job, result, settings, meta, prepared: tuple | None = No
     method = settings.denoise
     if method is None:
         return None
-    from retarget.denoise import as_rendered, denoise, describe
-    from store.schema import DenoisedInfo
+    from illumix.retarget.denoise import as_rendered, denoise, describe
+    from illumix.store.schema import DenoisedInfo
 
     t = time.perf_counter()
     guides, extra = prepared if prepared is not None else denoise_guides(st, scene, job, settings)

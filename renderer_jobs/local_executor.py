@@ -11,9 +11,9 @@ from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
-from renderer_jobs import jobs  # jobs.run_job looked up at call time (tests replace it)
-from renderer_jobs.jobs import Job, JobError, Plan, ProgressFn, _scene_payload
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs import jobs  # jobs.run_job looked up at call time (tests replace it)
+from illumix.renderer_jobs.jobs import Job, JobError, Plan, ProgressFn, _scene_payload
+from illumix.renderer_jobs.scene_schema import SceneError
 
 
 def run_guarded(job: Job, fn: Callable[[], dict], on_done: ProgressFn, results: list[dict],

@@ -14,13 +14,13 @@ import time
 
 import numpy as np
 
-from renderer_jobs.band_schedule import live_bands, mix_seed
-from renderer_jobs.boost_paths import extra_path_sums
-from renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
-from renderer_jobs.mitsuba_scene import load_mitsuba_scene
-from renderer_jobs.mitsuba_variant import import_mitsuba
-from renderer_jobs.scene_model import EnvMapSky, Scene
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs.band_schedule import live_bands, mix_seed
+from illumix.renderer_jobs.boost_paths import extra_path_sums
+from illumix.renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
+from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
+from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.scene_model import EnvMapSky, Scene
+from illumix.renderer_jobs.scene_schema import SceneError
 
 # spp Mitsuba's samplers can take without rounding it up (they would, with a warning): the settings
 # are checked against these so that the metadata's spp is the spp rendered.

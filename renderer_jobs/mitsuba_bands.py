@@ -42,8 +42,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer_jobs.mitsuba_scene import band_guard
-from renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.mitsuba_scene import band_guard
+from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
 
 RR_DEPTH = 5  # Mitsuba's path default: Russian roulette from the 5th vertex
 RHO_MIN = 1e-6  # below this diffuse reflectance L/ρ carries nothing usable: trace U instead

@@ -78,16 +78,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from renderer_jobs import adaptive_spp
-from renderer_jobs.band_schedule import band_counts, group_seed, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
-from renderer_jobs.mitsuba_bands import RR_DEPTH
-from renderer_jobs.mitsuba_scene import band_guard, group_emission
-from renderer_jobs.mitsuba_trace import Tracer
-from renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
-from renderer_jobs.render_settings import RenderSettings  # noqa: F401 — re-exported
-from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_schema import SceneError
-from renderer_jobs.view_coverage import covered_pixels, group_sees_sky
+from illumix.renderer_jobs import adaptive_spp
+from illumix.renderer_jobs.band_schedule import band_counts, group_seed, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
+from illumix.renderer_jobs.mitsuba_bands import RR_DEPTH
+from illumix.renderer_jobs.mitsuba_scene import band_guard, group_emission
+from illumix.renderer_jobs.mitsuba_trace import Tracer
+from illumix.renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
+from illumix.renderer_jobs.render_settings import RenderSettings  # noqa: F401 — re-exported
+from illumix.renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 
 @dataclass
@@ -384,7 +384,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
 
 def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
                       settings: RenderSettings, boost_mask: np.ndarray | None = None) -> CubeResult:
-    from renderer_jobs.mitsuba_band_render import render_all_bands  # noqa: PLC0415
+    from illumix.renderer_jobs.mitsuba_band_render import render_all_bands  # noqa: PLC0415
 
     nb = scene.spectral_grid.n_bands
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))

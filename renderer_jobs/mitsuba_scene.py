@@ -18,10 +18,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from renderer_jobs.mitsuba_textures import reflectance_dict
-from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
-from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
+from illumix.renderer_jobs.mitsuba_textures import reflectance_dict
+from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
+from illumix.renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,
                                         Sphere, SpotLight)
 

@@ -16,8 +16,8 @@ import hashlib
 
 import numpy as np
 
-from renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
-from renderer_jobs.scene_textures import BitmapTexture, PatternTexture
+from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
+from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture
 
 PLUGIN = "illumix_pattern"
 _REGISTRY: dict[str, dict] = {}  # content key -> {"labels", "table", "start", "step", "scale"}

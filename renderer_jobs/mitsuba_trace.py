@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer_jobs.mitsuba_scene import load_mitsuba_scene
-from renderer_jobs.mitsuba_variant import import_mitsuba
-from renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
+from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.scene_model import Scene
 
 
 def _numpy4(spec) -> np.ndarray:

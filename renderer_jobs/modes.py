@@ -8,7 +8,7 @@ the scene model): the command line lists these choices in ``--help`` without imp
 
 from __future__ import annotations
 
-from retarget.registry import MethodRegistry
+from illumix.retarget.registry import MethodRegistry
 
 # See renderer_jobs.mitsuba_render, "Wavelength sampling".
 WAVELENGTH_MODES: MethodRegistry[str] = MethodRegistry("wavelength sampling", {
@@ -40,9 +40,9 @@ class BackendEntry(str):
 # ``BACKEND`` and one entry here.
 BACKENDS: MethodRegistry[str] = MethodRegistry("render backend", {
     "mitsuba": BackendEntry("Mitsuba 3 (default): every band on every path, quasi-random pixel samples",
-                            "renderer_jobs.mitsuba_backend"),
+                            "illumix.renderer_jobs.mitsuba_backend"),
     "cycles": BackendEntry("Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
-                           "renderer_jobs.cycles_backend"),
+                           "illumix.renderer_jobs.cycles_backend"),
 }, aliases={"blender": "cycles"})
 
 # Mitsuba's pixel samplers, for the "all-bands" mode (renderer_jobs.mitsuba_band_render).

@@ -6,7 +6,7 @@ OBJ materials): Mitsuba darkens its diffuse term by the rough coating's transmit
 :func:`plastic_diffuse_scale` reads a table (:mod:`renderer_jobs.plastic_scale_table`) fitted once
 with Mitsuba (:func:`fit_scale`), so an imported scene is the same whether or not Mitsuba is
 installed (it once fell back to the smooth-interface value without it: 1.06 instead of 0.73 at
-α = 0.25, η = 1.5, an import 45 % darker). ``python -m renderer_jobs.plastic_scale`` writes the
+α = 0.25, η = 1.5, an import 45 % darker). ``python -m illumix.renderer_jobs.plastic_scale`` writes the
 table again (Mitsuba needed).
 """
 
@@ -40,7 +40,7 @@ def plastic_diffuse_scale(alpha: float, eta: float) -> float:
     table of :func:`fit_scale` (within 0.3 % of it on average, 1.5 % at the worst, α < 0.003, where
     Mitsuba's own transmittance tables are bumpy in η); outside the table's range (α 0.001–1,
     η 1.05–3) the nearest edge. 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08."""
-    from renderer_jobs.plastic_scale_table import ALPHAS, ETAS, SCALE
+    from illumix.renderer_jobs.plastic_scale_table import ALPHAS, ETAS, SCALE
 
     la = np.log(np.asarray(ALPHAS))
     etas = np.asarray(ETAS)
@@ -62,7 +62,7 @@ def fit_scale(alpha: float, eta: float, n: int = 48) -> float:
     evaluating Mitsuba's ``roughplastic`` at ρ = 1 and 0) in the least-squares sense over incident and
     outgoing directions, both cosine-weighted (``n`` cosines each). Needs Mitsuba: it writes the
     table that :func:`plastic_diffuse_scale` reads."""
-    from renderer_jobs.mitsuba_variant import import_mitsuba, select_variant
+    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba, select_variant
 
     select_variant()
     mi, dr = import_mitsuba()
@@ -103,7 +103,7 @@ def write_table(path: Path | None = None) -> Path:
 
     path = path or Path(__file__).with_name("plastic_scale_table.py")
     head = ('"""Table of :func:`renderer_jobs.plastic_scale.fit_scale` (Mitsuba\'s roughplastic): written by\n'
-            "``python -m renderer_jobs.plastic_scale``, checked against Mitsuba by ``tests/test_plastic_scale.py``.\n"
+            "``python -m illumix.renderer_jobs.plastic_scale``, checked against Mitsuba by ``tests/test_plastic_scale.py``.\n"
             'Rows: ``ALPHAS`` (GGX α, log-spaced); columns: ``ETAS`` (interior / exterior IOR)."""\n\n')
     path.write_text(head + wrapped("ALPHAS", alphas) + "\n" + wrapped("ETAS", etas) + "\nSCALE = (\n" + "\n".join(rows)
                     + "\n)\n")

@@ -1,5 +1,5 @@
 """Table of :func:`renderer_jobs.plastic_scale.fit_scale` (Mitsuba's roughplastic): written by
-``python -m renderer_jobs.plastic_scale``, checked against Mitsuba by ``tests/test_plastic_scale.py``.
+``python -m illumix.renderer_jobs.plastic_scale``, checked against Mitsuba by ``tests/test_plastic_scale.py``.
 Rows: ``ALPHAS`` (GGX α, log-spaced); columns: ``ETAS`` (interior / exterior IOR)."""
 
 ALPHAS = (

@@ -20,9 +20,9 @@ PREVIEW_SPP = 16
 def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES, spp: int = PREVIEW_SPP,
                    seed: int = 0) -> np.ndarray:
     """``(V, H, W, 3)`` float32 linear sRGB of each view with every group on."""
-    from renderer_jobs.mitsuba_render import emitter_passes
-    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba_render import emitter_passes
+    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
+    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, _ = import_mitsuba()
     views = [v.name for v in scene.views] if views is None else views
@@ -40,7 +40,7 @@ def to_srgb8(linear: np.ndarray) -> np.ndarray:
     """Auto-exposed (97th percentile of luminance → 0.9) 8-bit sRGB of a linear ``(H, W, 3)`` image."""
     y = linear @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     p = float(np.percentile(y, 97)) if np.any(y > 0) else 1.0
-    from retarget.isp import encode_srgb
+    from illumix.retarget.isp import encode_srgb
 
     return (encode_srgb(linear * (0.9 / max(p, 1e-12))) * 255 + 0.5).astype(np.uint8)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import socket
 
-from renderer_jobs.jobs import JobError, Plan, ProgressFn, _scene_payload, run_job
+from illumix.renderer_jobs.jobs import JobError, Plan, ProgressFn, _scene_payload, run_job
 
 
 def _check_reachable(address: str | None, timeout: float = 5.0) -> None:

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
-from renderer_jobs.scene_schema import SceneError
-from retarget.denoise_methods import DEFAULT_METHOD
+from illumix.renderer_jobs.modes import SAMPLERS, WAVELENGTH_MODES
+from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.retarget.denoise_methods import DEFAULT_METHOD
 
 DEFAULT_BOOST_FACTOR = 8  # bench/DENOISE.md: 8x the spp where reach > 0.6 brings front's p99.3 under 2.5 %
 DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
@@ -66,8 +66,8 @@ class RenderSettings:
     boost_reach: float = 0.6
 
     def __post_init__(self) -> None:
-        from renderer_jobs.modes import BACKENDS  # noqa: PLC0415
-        from retarget.errors import UnknownName  # noqa: PLC0415
+        from illumix.renderer_jobs.modes import BACKENDS  # noqa: PLC0415
+        from illumix.retarget.errors import UnknownName  # noqa: PLC0415
 
         try:
             object.__setattr__(self, "backend", BACKENDS.canonical(self.backend))
@@ -83,7 +83,7 @@ class RenderSettings:
             raise SceneError(str(SAMPLERS.unknown(self.sampler)))
         object.__setattr__(self, "sampler", SAMPLERS.canonical(self.sampler))
         if self.wavelengths == "all-bands" and self.backend == "mitsuba":
-            from renderer_jobs.mitsuba_band_render import check_spp  # noqa: PLC0415
+            from illumix.renderer_jobs.mitsuba_band_render import check_spp  # noqa: PLC0415
 
             if self.bands_per_path < 4 or self.bands_per_path % 4:
                 raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
@@ -95,8 +95,8 @@ class RenderSettings:
         if self.max_lanes < 1:
             raise SceneError("max_lanes must be >= 1")
         if self.denoise is not None:
-            from retarget.denoise import DENOISE_METHODS  # noqa: PLC0415
-            from retarget.errors import UnknownName  # noqa: PLC0415
+            from illumix.retarget.denoise import DENOISE_METHODS  # noqa: PLC0415
+            from illumix.retarget.errors import UnknownName  # noqa: PLC0415
 
             try:
                 name = None if str(self.denoise).lower() == "none" else DENOISE_METHODS.canonical(self.denoise)

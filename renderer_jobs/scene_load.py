@@ -15,8 +15,8 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from renderer_jobs.scene_model import Scene
-from renderer_jobs.scene_schema import SceneError
+from illumix.renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs.scene_schema import SceneError
 
 
 def _format_loc(doc: Any, loc: tuple) -> str:
@@ -81,7 +81,7 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
 def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list[Scene]:
     """The scene of a Blender ``.blend`` file (:func:`renderer_jobs.blend_import.blend_doc`: read by
     Blender in a worker process, ``cache_dir`` its output), validated."""
-    from renderer_jobs.blend_import import blend_doc
+    from illumix.renderer_jobs.blend_import import blend_doc
 
     doc, base = blend_doc(path, cache_dir=cache_dir)
     return [scene_from_dict(doc, source=str(path), base=base)]

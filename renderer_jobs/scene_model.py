@@ -20,15 +20,15 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
-from renderer_jobs.scene_schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpectrum, Dielectric, EnvMapSky,
+from illumix.renderer_jobs.scene_schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpectrum, Dielectric, EnvMapSky,
                                         FileSpectrum, Light, LightGroup, LibrarySpectrum, Material, MeshFile,
                                         Name, RoughConductor, SceneError, Shape, SpectrumSpec, StrictModel,
                                         TableSpectrum, View)
-from renderer_jobs.scene_textures import BitmapTexture, PatternTexture
-from retarget.errors import SpectralError
-from retarget.grid import SpectralGrid
-from retarget.illuminants import illuminant_spd as _library_spd
-from retarget.illuminants import spd_from_samples
+from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import SpectralGrid
+from illumix.retarget.illuminants import illuminant_spd as _library_spd
+from illumix.retarget.illuminants import spd_from_samples
 
 
 class GridSpec(StrictModel):
@@ -165,9 +165,9 @@ class Scene(StrictModel):
 
     def spectrum(self, spec: SpectrumSpec, what: str, *, reflectance: bool = True) -> np.ndarray:
         """Band averages ``(n_bands,)`` float64 of a spectrum spec on the scene grid."""
-        from retarget.grid import resample
-        from retarget.reflectances import get_reflectances
-        from retarget.tables import read_csv_table
+        from illumix.retarget.grid import resample
+        from illumix.retarget.reflectances import get_reflectances
+        from illumix.retarget.tables import read_csv_table
 
         grid = self.spectral_grid
         extend = "constant" if reflectance else "refuse"
@@ -223,7 +223,7 @@ class Scene(StrictModel):
                 return _library_spd(str(self.resolve_path(g.emission)), grid)
             return _library_spd(g.emission, grid)
         if isinstance(g.emission, FileSpectrum):
-            from retarget.tables import read_csv_table
+            from illumix.retarget.tables import read_csv_table
 
             path = self.resolve_path(g.emission.file)
             wl, v, _ = read_csv_table(str(path), what=f"{what} file {str(path)!r}")

@@ -31,10 +31,10 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from renderer_jobs.scene_spectra import (NAME_PATTERN, SCHEMA_VERSION, ConstantSpectrum, FileSpectrum,  # noqa: F401
+from illumix.renderer_jobs.scene_spectra import (NAME_PATTERN, SCHEMA_VERSION, ConstantSpectrum, FileSpectrum,  # noqa: F401
                                          LibrarySpectrum, Name, SceneError, SpectrumSpec, StrictModel,
                                          TableSpectrum, Vec3)
-from renderer_jobs.scene_textures import BitmapTexture, PatternTexture, Reflectance  # noqa: F401
+from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture, Reflectance  # noqa: F401
 
 
 # ---------------------------------------------------------------------------------------------

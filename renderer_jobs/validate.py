@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import colour
 import numpy as np
 
-from renderer_jobs import demo
-from renderer_jobs.scene_model import Scene
+from illumix.renderer_jobs import demo
+from illumix.renderer_jobs.scene_model import Scene
 
 DEFAULT_ILLUMINANTS = ("D65", "A", "FL2", "FL11", "FL12", "blackbody:2300")
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"
@@ -84,7 +84,7 @@ class ValidationResult:
 
 def closed_form_radiance(scene: Scene, incidence_deg: float) -> np.ndarray:
     """``(24, n_bands)``: band-average radiance ``S̄ · E · cosθ / π`` of each patch (E = 1)."""
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     _, refl = get_reflectances(demo.CHART_SET, scene.spectral_grid)
     return refl * math.cos(math.radians(incidence_deg)) / math.pi
@@ -93,12 +93,12 @@ def closed_form_radiance(scene: Scene, incidence_deg: float) -> np.ndarray:
 def compare(patch_radiance: np.ndarray, scene: Scene, sensor, illuminant: str, incidence_deg: float,
             emission: np.ndarray) -> list[dict]:
     """Per-patch metrics for one illuminant from rendered mean band radiance ``(24, n_bands)``."""
-    from retarget import metrics
-    from retarget.ccm import fit_ccm, linear_srgb_to_lab
-    from retarget.groundtruth import white_point
-    from retarget.illuminants import illuminant_spd
-    from retarget.reflectances import get_reflectances
-    from retarget.relight import band_scales
+    from illumix.retarget import metrics
+    from illumix.retarget.ccm import fit_ccm, linear_srgb_to_lab
+    from illumix.retarget.groundtruth import white_point
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.reflectances import get_reflectances
+    from illumix.retarget.relight import band_scales
 
     grid = scene.spectral_grid
     phi = illuminant_spd(illuminant, grid)
@@ -135,9 +135,9 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
                    backend: str = "mitsuba") -> ValidationResult:
     """Render the validation chart once (with ``backend``: ``"mitsuba"`` or ``"cycles"``) and compare
     it with closed form under every illuminant."""
-    from renderer_jobs import mitsuba_render as mr
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
 
     scene = demo.validation_chart(resolution=resolution, incidence_deg=incidence_deg)
     sen = get_sensor(sensor, scene.spectral_grid)
@@ -145,7 +145,7 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
         illuminant_spd(name, scene.spectral_grid)
     masks = patch_masks(scene, interior)
     settings = mr.RenderSettings(spp=spp, seed=seed, wavelengths=wavelengths, backend=backend, illumination=False)
-    from renderer_jobs.backends import get_backend
+    from illumix.renderer_jobs.backends import get_backend
 
     res = get_backend(settings.backend).render_cube(scene, VIEW, GROUP, settings)
     cube = res.cube.astype(np.float64)

@@ -6,7 +6,7 @@ Pure numpy / colour-science. Nothing here does network or store I/O beyond readi
 
 import warnings
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 # colour-science warns at import when matplotlib is absent (its plotting API); illumix never plots
 # through colour, and matplotlib is only the benchmarks' extra, so the warning would be noise in

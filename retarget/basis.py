@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
-from retarget.projected import Projected
-from retarget.relight import project_groups
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
+from illumix.retarget.projected import Projected
+from illumix.retarget.relight import project_groups
 
 #: Pixels sampled for the basis fit (plenty for 63 bands; the 63 × 63 Gram matrix takes ~30 ms).
 DEFAULT_SAMPLE = 1 << 16

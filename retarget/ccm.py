@@ -28,9 +28,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from retarget.ccm_methods import CCM_METHODS
-from retarget.errors import SpectralError
-from retarget.grid import SpectralGrid, resample
+from illumix.retarget.ccm_methods import CCM_METHODS
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import SpectralGrid, resample
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ colour-science): the command line shows these names in ``--help`` before it impo
 
 from __future__ import annotations
 
-from retarget.registry import MethodRegistry
+from illumix.retarget.registry import MethodRegistry
 
 # value: whether the fit keeps white (M·1 = 1)
 CCM_METHODS: MethodRegistry[bool] = MethodRegistry(

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget import exposure as aec
-from retarget import groundtruth as gt
-from retarget.basis import BasisCube, project_groups_any
-from retarget.ccm import fit_ccm
-from retarget.errors import SpectralError
-from retarget.isp import apply_ccm, encode_srgb
-from retarget.relight import band_scales, raw_weights
-from retarget.sensors import Sensor
+from illumix.retarget import exposure as aec
+from illumix.retarget import groundtruth as gt
+from illumix.retarget.basis import BasisCube, project_groups_any
+from illumix.retarget.ccm import fit_ccm
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.isp import apply_ccm, encode_srgb
+from illumix.retarget.relight import band_scales, raw_weights
+from illumix.retarget.sensors import Sensor
 
 OUTPUTS = ("raw", "gain", "ccm", "srgb", "weights", "mask", "illum", "mixture")
 GT_OUTPUTS = frozenset(OUTPUTS) - {"raw"}  # everything the ground truth is computed for

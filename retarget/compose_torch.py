@@ -24,8 +24,8 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import torch
 
-from retarget.errors import SpectralError
-from retarget.groundtruth import DEFAULT_REL_EPS, MIN_CHANNEL_RATIO
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.groundtruth import DEFAULT_REL_EPS, MIN_CHANNEL_RATIO
 
 TORCH_OUTPUTS = frozenset({"raw", "gain", "mask", "weights", "illum", "mixture"})
 _PRECISION_LOCK = threading.Lock()  # torch.set_float32_matmul_precision is process-wide

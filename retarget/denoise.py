@@ -54,10 +54,10 @@ from typing import Any
 
 import numpy as np
 
-from retarget.denoise_classes import DIRECT_ROUNDS, direct_test, irradiance_classes, isolate
-from retarget.denoise_shading import relative_noise, shading
-from retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
-from retarget.errors import SpectralError
+from illumix.retarget.denoise_classes import DIRECT_ROUNDS, direct_test, irradiance_classes, isolate
+from illumix.retarget.denoise_shading import relative_noise, shading
+from illumix.retarget.denoise_methods import DEFAULT_METHOD, DENOISE_METHODS
+from illumix.retarget.errors import SpectralError
 
 #: Normal axis the DT guide projects onto: oblique, so the six axis-aligned normals of a room (and
 #: most others) map to distinct values.

@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 if TYPE_CHECKING:
-    from retarget.denoise import Guides
+    from illumix.retarget.denoise import Guides
 
 #: Surface pixels this close (pixels, chessboard distance) to an emitter pixel get codes of their own in
 #: ``dt-irradiance``'s joint image: a lamp's edge spills light over two pixels (bench/DENOISE.md).

@@ -6,7 +6,7 @@ before it imports numpy or OpenCV.
 
 from __future__ import annotations
 
-from retarget.registry import MethodRegistry
+from illumix.retarget.registry import MethodRegistry
 
 _ALIASES = {"dt": "dt-guides", "domain transform": "dt-guides", "atrous": "atrous-guides",
             "demodulated": "dt-irradiance", "dt-demodulated": "dt-irradiance"}

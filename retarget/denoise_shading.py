@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from retarget.denoise import Guides
+    from illumix.retarget.denoise import Guides
 
 
 #: ``shading``'s floor, as a share of the direct-light guide's mean over the surface: it stands in

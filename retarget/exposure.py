@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
-from retarget.registry import MethodRegistry
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
+from illumix.retarget.registry import MethodRegistry
 
 EXPOSURE_METHODS: MethodRegistry[str] = MethodRegistry(
     "exposure method", {"constant": "constant", "adaptive": "adaptive"}, aliases={"auto": "constant"})

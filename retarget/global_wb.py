@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.groundtruth import gain_map
-from retarget.isp import apply_ccm, encode_srgb
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.groundtruth import gain_map
+from illumix.retarget.isp import apply_ccm, encode_srgb
 
 
 def frame_shares(mixture: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:

@@ -17,7 +17,7 @@ from typing import Literal
 
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 Extension = Literal["refuse", "constant", "zero"]
 

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
 
 DEFAULT_REL_EPS = 1e-7
 # A channel answering less than this fraction of the strongest channel has no meaningful

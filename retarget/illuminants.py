@@ -27,9 +27,9 @@ from pathlib import Path
 import colour
 import numpy as np
 
-from retarget.errors import SpectralError, unknown_name
-from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
-from retarget.tables import read_csv_table
+from illumix.retarget.errors import SpectralError, unknown_name
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid, resample
+from illumix.retarget.tables import read_csv_table
 
 PARAMETRIC = {"blackbody": (500.0, 50000.0), "daylight": (4000.0, 25000.0)}
 _FINE = colour.SpectralShape(300, 830, 1)

@@ -13,8 +13,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from retarget import illuminants as ill
-from retarget.grid import SpectralGrid
+from illumix.retarget import illuminants as ill
+from illumix.retarget.grid import SpectralGrid
 
 #: temperatures of the plotted loci, kelvin: steps that grow with temperature (the white point moves
 #: less per kelvin as T rises) and that include the values worth labelling (2000, 3000, 5000, 6500 K…)

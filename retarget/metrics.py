@@ -14,7 +14,7 @@ from __future__ import annotations
 import colour
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 
 def angular_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 # Weights of one sensor and illuminant at two intensities differ by a float64 scalar multiple up
 # to rounding of that multiplication (~1e-16); anything beyond 1e-9 is a different request.

@@ -29,10 +29,10 @@ import colour
 import numpy as np
 from colour.quality import datasets as quality_data
 
-from retarget.ccm_methods import DEFAULT_TRAINING_SET  # noqa: F401  (callers import it from here)
-from retarget.errors import SpectralError, UnknownName, unknown_name
-from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
-from retarget.tables import read_csv_table
+from illumix.retarget.ccm_methods import DEFAULT_TRAINING_SET  # noqa: F401  (callers import it from here)
+from illumix.retarget.errors import SpectralError, UnknownName, unknown_name
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid, resample
+from illumix.retarget.tables import read_csv_table
 
 
 def _sets() -> dict[str, dict]:

@@ -18,7 +18,7 @@ import re
 from collections.abc import Iterator, Mapping
 from typing import Generic, TypeVar
 
-from retarget.errors import UnknownName
+from illumix.retarget.errors import UnknownName
 
 T = TypeVar("T")
 _FOLD = re.compile(r"[\s_\-]+")

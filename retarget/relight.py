@@ -19,8 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.finite import all_finite
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.finite import all_finite
 
 _ROW_BLOCK = 1 << 18  # pixels per block when widening float16 to float32 (bounds temporaries)
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from retarget.errors import SpectralError
-from retarget.registry import MethodRegistry
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.registry import MethodRegistry
 
 BAYER_PATTERNS: MethodRegistry[str] = MethodRegistry("Bayer pattern", {p: p for p in ("RGGB", "BGGR", "GRBG", "GBRG")})
 

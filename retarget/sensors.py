@@ -27,9 +27,9 @@ from pathlib import Path
 import colour
 import numpy as np
 
-from retarget.errors import SpectralError, unknown_name
-from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
-from retarget.tables import read_csv_table, read_rawtoaces_camera
+from illumix.retarget.errors import SpectralError, unknown_name
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid, resample
+from illumix.retarget.tables import read_csv_table, read_rawtoaces_camera
 
 XYZ = "XYZ"
 _RANGE_SUFFIX = re.compile(r"_\d{3}_\d{3,4}_\d+$")

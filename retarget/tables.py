@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.errors import SpectralError
+from illumix.retarget.errors import SpectralError
 
 
 def read_csv_table(source: str | Path | bytes, *, columns: int | None = None, what: str = "CSV"

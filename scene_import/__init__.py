@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from renderer_jobs.scene_spectra import SceneError
+from illumix.renderer_jobs.scene_spectra import SceneError
 
 SUPPORTED = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".xml": "mitsuba"}
 
@@ -24,9 +24,9 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
     light). ``assets``: the sub-folder of ``out_dir`` for meshes and images (default
     ``<file stem>_assets``). Raises :class:`SceneError` (one line) for files it cannot read.
     """
-    from renderer_jobs.blend_import import sanitize
-    from scene_import.builder import SceneBuilder
-    from scene_import.rules import Rules, load_rules
+    from illumix.renderer_jobs.blend_import import sanitize
+    from illumix.scene_import.builder import SceneBuilder
+    from illumix.scene_import.rules import Rules, load_rules
 
     p = Path(path)
     fmt = SUPPORTED.get(p.suffix.lower())
@@ -41,11 +41,11 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
     out.mkdir(parents=True, exist_ok=True)
     b = SceneBuilder(out_dir=out, assets=assets or f"{sanitize(p.stem, 'scene')}_assets", source=p, fmt=fmt)
     if fmt == "gltf":
-        from scene_import.gltf import import_gltf as run
+        from illumix.scene_import.gltf import import_gltf as run
     elif fmt == "obj":
-        from scene_import.obj import import_obj as run
+        from illumix.scene_import.obj import import_obj as run
     else:
-        from scene_import.mitsuba_xml import import_mitsuba_xml as run
+        from illumix.scene_import.mitsuba_xml import import_mitsuba_xml as run
     try:
         name = run(p, b)
     except SceneError:

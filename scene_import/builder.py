@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.blend_import import _Names, sanitize
-from renderer_jobs.scene_spectra import SceneError
-from scene_import.colour_match import illuminant_for, uv_distance
-from scene_import.rules import Rules
+from illumix.renderer_jobs.blend_import import _Names, sanitize
+from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene_import.colour_match import illuminant_for, uv_distance
+from illumix.scene_import.rules import Rules
 
 COLOUR_TOLERANCE_UV = 6e-3  # CIE 1960 Δuv beyond which an emitter's colour is not its group's illuminant
 DEFAULT_WIDTH = 320  # pixels of an imported view (views carry no resolution in glTF/OBJ)

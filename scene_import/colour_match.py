@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.isp import encode_srgb
+from illumix.retarget.isp import encode_srgb
 
 NAMED = ("A", "D50", "D55", "D65", "D75")  # named CIE illuminants preferred when they fit as well
 NAMED_SLACK_UV = 8e-4  # how much further (CIE 1960 uv) a named illuminant may be than the CCT one
@@ -50,7 +50,7 @@ def reflectance(rgb, what: str, warn: Callable[[str], None]) -> dict:
         c = np.clip(c, 0.0, 1.0)
     if float(c.max() - c.min()) <= GREY_SPREAD:
         return {"value": round(float(c.mean()), 6)}
-    from renderer_jobs.blend_import import rgb_to_spectrum
+    from illumix.renderer_jobs.blend_import import rgb_to_spectrum
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -126,8 +126,8 @@ def _uv(xy) -> np.ndarray:
 @lru_cache(maxsize=256)
 def illuminant_xy(name: str) -> tuple[float, float]:
     """Chromaticity of a named illumix illuminant (CIE 1931, on the default grid)."""
-    from retarget.grid import DEFAULT_GRID, resample
-    from retarget.illuminants import illuminant_spd
+    from illumix.retarget.grid import DEFAULT_GRID, resample
+    from illumix.retarget.illuminants import illuminant_spd
 
     wl, cmf = _cmfs_1nm()
     bars = np.stack([resample(wl, cmf[:, i], DEFAULT_GRID) for i in range(3)])

@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.scene_spectra import SceneError
-from scene_import.builder import DEFAULT_WIDTH, SceneBuilder
-from scene_import.colour_match import mean_rgb, reflectance, rgb_light, write_texture
+from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene_import.builder import DEFAULT_WIDTH, SceneBuilder
+from illumix.scene_import.colour_match import mean_rgb, reflectance, rgb_light, write_texture
 
 COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -214,7 +214,7 @@ def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | 
     plastic = not metal and rough < 0.999
     scale = 1.0
     if plastic:
-        from renderer_jobs.plastic_scale import plastic_diffuse_scale
+        from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
 
         scale = plastic_diffuse_scale(alpha, 1.5)
     if texture is not None and metal:

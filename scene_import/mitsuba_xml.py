@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer_jobs.scene_schema import CONDUCTORS, SceneError
-from scene_import.builder import SceneBuilder
-from scene_import.colour_match import reflectance, rgb_light, spectrum_light
-from scene_import.mitsuba_xml_values import XmlDoc, ior, spectrum_samples, to_world, transform, vec
+from illumix.renderer_jobs.scene_schema import CONDUCTORS, SceneError
+from illumix.scene_import.builder import SceneBuilder
+from illumix.scene_import.colour_match import reflectance, rgb_light, spectrum_light
+from illumix.scene_import.mitsuba_xml_values import XmlDoc, ior, spectrum_samples, to_world, transform, vec
 
 SHAPES = ("obj", "ply", "rectangle", "cube", "disk", "sphere", "cylinder")
 
@@ -55,7 +55,7 @@ def _colour(d: XmlDoc, c: ET.Element | None, what: str) -> tuple[np.ndarray | No
         return rgb_light([1, 1, 1])[0] if v > 0 else None, v, "float"
     if c.tag == "spectrum":
         if d.get(c, "type") == "blackbody":
-            from scene_import.colour_match import illuminant_xy
+            from illumix.scene_import.colour_match import illuminant_xy
 
             t = float(d.value(c, "temperature", 6504.0))
             return np.asarray(illuminant_xy(f"blackbody:{t:g}")), 1.0, "blackbody"

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from pydantic import Field, ValidationError, field_validator
 
-from renderer_jobs.scene_spectra import Name, SceneError, StrictModel
+from illumix.renderer_jobs.scene_spectra import Name, SceneError, StrictModel
 
 
 class GroupRule(StrictModel):
@@ -40,8 +40,8 @@ class GroupRule(StrictModel):
         if v is None:
             return v
         v = canonical_illuminant(v)
-        from retarget.errors import SpectralError
-        from retarget.illuminants import illuminant_spd
+        from illumix.retarget.errors import SpectralError
+        from illumix.retarget.illuminants import illuminant_spd
 
         try:
             illuminant_spd(v)

@@ -8,9 +8,9 @@ placed anywhere and may lie under furniture; the rest stands against a wall).
 
 from __future__ import annotations
 
-from scenegen.clutter import FLOOR, WALL
-from scenegen.clutter import TABLETOP as _TABLETOP
-from scenegen.furniture import FURNITURE_BUILDERS
+from illumix.scenegen.clutter import FLOOR, WALL
+from illumix.scenegen.clutter import TABLETOP as _TABLETOP
+from illumix.scenegen.furniture import FURNITURE_BUILDERS
 
 FURNITURE = dict(FURNITURE_BUILDERS)
 CLUTTER = {**_TABLETOP, **WALL, **FLOOR}

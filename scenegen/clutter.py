@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect, sphere
+from illumix.scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect, sphere
 
 
 def _u(rng, lo: float, hi: float) -> float:

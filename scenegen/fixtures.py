@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect
-from scenegen.rooms import Plan
+from illumix.scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect
+from illumix.scenegen.rooms import Plan
 
 KINDS = ("ceiling", "pendant", "tubes", "strip", "floor_lamp", "desk_lamp", "screen")
 TYPICAL = {"ceiling": "LED panel, 4000 K", "pendant": "incandescent, 2700 K", "tubes": "fluorescent (F11 / FL3.x)",

@@ -12,7 +12,7 @@ what the tests check intersections between.
 
 from __future__ import annotations
 
-from scenegen.parts import Item, MaterialPicker, Surface, box, cylinder, disk
+from illumix.scenegen.parts import Item, MaterialPicker, Surface, box, cylinder, disk
 
 
 def _u(rng, lo: float, hi: float) -> float:

@@ -22,12 +22,12 @@ import math
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from scenegen import GENERATOR_VERSION
-from scenegen import fixtures as fx
-from scenegen.materials import Materials
-from scenegen.placement import Placer
-from scenegen.rooms import LAYOUTS, make_plan, shell_shapes
-from scenegen.windows import add_windows, daylight
+from illumix.scenegen import GENERATOR_VERSION
+from illumix.scenegen import fixtures as fx
+from illumix.scenegen.materials import Materials
+from illumix.scenegen.placement import Placer
+from illumix.scenegen.rooms import LAYOUTS, make_plan, shell_shapes
+from illumix.scenegen.windows import add_windows, daylight
 
 ROOM_TYPES: dict[str, list[str]] = {
     "living": ["sofa", "table", "shelf", "cabinet", "chair"],
@@ -76,7 +76,7 @@ def _obj(kind: str, i: int) -> str:
 
 def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> list[tuple[float, float]]:
     """Furniture for every room (by a drawn room type); returns table centres (pendants hang there)."""
-    from scenegen.catalog import FURNITURE
+    from illumix.scenegen.catalog import FURNITURE
 
     tables = []
     n = 0
@@ -148,7 +148,7 @@ def _light_groups(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]
 
 
 def _clutter(rng, placer: Placer, mats: Materials, shapes: list[dict]) -> None:
-    from scenegen.catalog import CLUTTER, FLOOR_CLUTTER, TABLETOP, WALL_ITEMS
+    from illumix.scenegen.catalog import CLUTTER, FLOOR_CLUTTER, TABLETOP, WALL_ITEMS
 
     for i in range(int(rng.integers(3, 9)) + len(placer.surfaces)):
         kind = TABLETOP[int(rng.integers(len(TABLETOP)))]
@@ -210,7 +210,7 @@ def generate_doc(seed: int, config: GeneratorConfig = GeneratorConfig()) -> dict
     interest = [(p.x, min(p.item.height, 1.5) * 0.6, p.z) for p in placer.placed]
     interest += [((r[0] + r[2]) / 2, 1.0, (r[1] + r[3]) / 2) for r in plan.rects]
     n_cand = config.candidates if config.probe else config.views[1]
-    from scenegen.views import candidates
+    from illumix.scenegen.views import candidates
 
     views = candidates(rng, placer, n_cand, interest, config.resolution)
     n_views = int(rng.integers(config.views[0], config.views[1] + 1))
@@ -243,8 +243,8 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
     if not config.probe or len(doc["views"]) <= 1:
         doc["views"] = doc["views"][:n_views]
         return doc
-    from renderer_jobs.scene_load import scene_from_dict
-    from scenegen.views import clear_views, probe
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scenegen.views import clear_views, probe
 
     scene = scene_from_dict(doc, source=doc["name"], check=False)
     frac, shares = probe(scene)
@@ -260,7 +260,7 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
 
 def generate_scene(seed: int, config: GeneratorConfig = GeneratorConfig()):
     """The validated :class:`~renderer_jobs.scene_model.Scene` of room ``seed``."""
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     return scene_from_dict(generate_doc(seed, config), source=f"generated room (seed {seed})")
 

@@ -22,7 +22,7 @@ from functools import cache
 
 import numpy as np
 
-from retarget.errors import unknown_name
+from illumix.retarget.errors import unknown_name
 
 REUSE = 0.5  # probability that pick() reuses a material already made for the class
 
@@ -69,8 +69,8 @@ def _lab_table(set_name: str) -> np.ndarray:
     """CIELAB ``(n, 3)`` of a set's reflectances under D65 (CIE 1931 2°), on illumix's grid."""
     import colour
 
-    from retarget.grid import DEFAULT_GRID
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.retarget.reflectances import get_reflectances
 
     _, r = get_reflectances(set_name)
     wl = DEFAULT_GRID.wavelengths

@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from renderer_jobs.demo import frame_matrix
+from illumix.renderer_jobs.demo import frame_matrix
 
 
 class MaterialPicker(Protocol):

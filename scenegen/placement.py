@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from scenegen.parts import Item, footprint_extent, place, rotation_y
-from scenegen.rooms import PARTITION, Plan
+from illumix.scenegen.parts import Item, footprint_extent, place, rotation_y
+from illumix.scenegen.rooms import PARTITION, Plan
 
 CELL = 0.05  # m
 

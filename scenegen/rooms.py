@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from scenegen.parts import rect
+from illumix.scenegen.parts import rect
 
 LAYOUTS = ("rect", "L", "two-rooms")
 DOOR = (0.9, 2.05)  # width, height (m)

@@ -57,9 +57,9 @@ def candidates(rng: np.random.Generator, placer, n: int, interest: list[tuple[fl
 def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, spp: int = PROBE_SPP,
                     seed: int = 0) -> np.ndarray:
     """``(n_views, H, W)`` luminance of ``group`` alone in each view (Mitsuba ``path``, max depth ≤ 5)."""
-    from renderer_jobs.mitsuba_render import emitter_passes
-    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba_render import emitter_passes
+    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
+    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, _ = import_mitsuba()
     out = np.zeros((len(views), resolution[1], resolution[0]))
@@ -76,8 +76,8 @@ def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, s
 def view_depth(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
     """``(n_views, H, W)`` distance (m) along each pixel's centre ray to the first surface (0: none):
     one ray per pixel, Mitsuba's ``aov`` integrator, every view in one batch sensor."""
-    from renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
+    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
 
     mi, _ = import_mitsuba()
     doc = build_scene_dict(scene, views[0], [], resolution=resolution)

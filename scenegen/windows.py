@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from scenegen.parts import rect
-from scenegen.rooms import Opening, Plan
+from illumix.scenegen.parts import rect
+from illumix.scenegen.rooms import Opening, Plan
 
 
 def add_windows(rng: np.random.Generator, plan: Plan, count: int) -> list[tuple[int, Opening]]:

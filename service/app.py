@@ -19,12 +19,12 @@ import logging
 
 from fastapi import FastAPI
 
-from engine.context import make_context
-from engine.limits import Limits
-from service import errors
-from service.body_guard import BodyGuard
-from service.metrics import Metrics, RequestMetrics
-from service.routes import explore, metrics, registries, samples, status, web
+from illumix.engine.context import make_context
+from illumix.engine.limits import Limits
+from illumix.service import errors
+from illumix.service.body_guard import BodyGuard
+from illumix.service.metrics import Metrics, RequestMetrics
+from illumix.service.routes import explore, metrics, registries, samples, status, web
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file

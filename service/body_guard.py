@@ -16,7 +16,7 @@ from collections.abc import Callable
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from service.errors import error_response
+from illumix.service.errors import error_response
 
 
 class BodyTooLarge(HTTPException):

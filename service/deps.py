@@ -7,8 +7,8 @@ from typing import Annotated
 
 from fastapi import Depends, Header, Request
 
-from engine.context import Context
-from service.errors import fail
+from illumix.engine.context import Context
+from illumix.service.errors import fail
 
 
 async def get_ctx(request: Request) -> Context:

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.spec import FORMATS, SampleSpec
-from service import arrays_format
-from service import file_downloads as files
-from service.encoding import MEDIA, encode_image, encode_npz, half_precision, image_output, meta_json, png_scale
+from illumix.engine.spec import FORMATS, SampleSpec
+from illumix.service import arrays_format
+from illumix.service import file_downloads as files
+from illumix.service.encoding import MEDIA, encode_image, encode_npz, half_precision, image_output, meta_json, png_scale
 
 
 class Encoder:

@@ -39,8 +39,8 @@ import cv2
 import numpy as np
 import tifffile
 
-from engine.spec import IMAGE_OUTPUTS
-from retarget.errors import SpectralError
+from illumix.engine.spec import IMAGE_OUTPUTS
+from illumix.retarget.errors import SpectralError
 
 GAIN_PNG_SCALE = 4096.0
 RAW_PNG_WHITE = 65535

@@ -24,9 +24,9 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-from engine.errors import Busy, NotFound, TooLarge
-from retarget.errors import SpectralError, UnknownName
-from store import StoreError, StoreKeyError
+from illumix.engine.errors import Busy, NotFound, TooLarge
+from illumix.retarget.errors import SpectralError, UnknownName
+from illumix.store import StoreError, StoreKeyError
 
 log = logging.getLogger("illumix.service")
 

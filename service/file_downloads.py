@@ -26,12 +26,12 @@ import importlib.util
 
 import numpy as np
 
-from engine import budget
-from engine.spec import SampleSpec
-from imagefiles.dng import DNG_LEVELS, DNG_MIN_SIDE, dng_levels
-from retarget.errors import SpectralError
-from retarget.sensor_model import simulate_raw
-from service.errors import fail
+from illumix.engine import budget
+from illumix.engine.spec import SampleSpec
+from illumix.imagefiles.dng import DNG_LEVELS, DNG_MIN_SIDE, dng_levels
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.sensor_model import simulate_raw
+from illumix.service.errors import fail
 
 FILE_FORMATS = ("dng", "exr")
 MODULES = {"dng": "pidng", "exr": "OpenEXR"}
@@ -81,7 +81,7 @@ def headers(meta: dict, fmt: str) -> dict[str, str]:
     """The answer's headers: ``Content-Disposition`` with the file name ``<scene>-<view>-<seed>.<fmt>``
     (anything but letters, digits, ``-``, ``_`` and ``.`` as ``_``) and ``X-Illumix-Meta`` (what and
     how: scene, view, seed, size, exposure gain; a DNG's levels, CFA and neutral under ``encoding``)."""
-    from service.encoding import meta_json
+    from illumix.service.encoding import meta_json
 
     stem = "".join(c if c.isascii() and (c.isalnum() or c in "-_.") else "_"
                    for c in f"{meta['scene']}-{meta['view']}-{meta['seed']}")
@@ -101,8 +101,8 @@ def encode(p, ctx, arrays: dict[str, np.ndarray], meta: dict, with_meta: bool) -
 
 def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
     """The DNG of a sample composed with :func:`compose_spec` (module docstring)."""
-    from imagefiles.dng import as_shot_neutral, color_matrix, dng_bytes
-    from service.encoding import meta_json
+    from illumix.imagefiles.dng import as_shot_neutral, color_matrix, dng_bytes
+    from illumix.service.encoding import meta_json
 
     spec = p.spec
     noise = spec.noise_model()
@@ -131,8 +131,8 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
 
 def encode_exr(p, arrays: dict[str, np.ndarray], meta: dict | None) -> bytes:
     """The OpenEXR of the sample's array outputs (module docstring); ``meta`` in ``illumixMeta`` when given."""
-    from imagefiles.layered_exr import layered_exr_bytes
-    from service.encoding import meta_json
+    from illumix.imagefiles.layered_exr import layered_exr_bytes
+    from illumix.service.encoding import meta_json
 
     return layered_exr_bytes(arrays, groups=p.groups, wavelengths=p.metas[0].spectral_grid.wavelengths,
                              meta=None if meta is None else meta_json(meta))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from engine.spec import SampleSpec
+from illumix.engine.spec import SampleSpec
 
 
 class CacheStats(BaseModel):

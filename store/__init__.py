@@ -2,7 +2,7 @@
 
 Public API::
 
-    from store import CubeStore, CubeMeta, ViewMeta, StoreError
+    from illumix.store import CubeStore, CubeMeta, ViewMeta, StoreError
     st = CubeStore.open("./illumix-store", mode="a")
 
 See :mod:`store.cubestore` (the store), :mod:`store.schema` (metadata), :mod:`store.codec` (dtype
@@ -11,10 +11,10 @@ publication), :mod:`store.registry` (uploaded sensors/illuminants), :mod:`store.
 (``info``/``verify``).
 """
 
-from store.cubestore import CubeStore
-from store.errors import StoreError, StoreKeyError, StoreWriteError
-from store.registry import Registry, RegistryEntry
-from store.schema import SCHEMA_VERSION, BandStats, CubeMeta, RendererInfo, StorageInfo, ViewMeta
+from illumix.store.cubestore import CubeStore
+from illumix.store.errors import StoreError, StoreKeyError, StoreWriteError
+from illumix.store.registry import Registry, RegistryEntry
+from illumix.store.schema import SCHEMA_VERSION, BandStats, CubeMeta, RendererInfo, StorageInfo, ViewMeta
 
 __all__ = ["CubeStore", "CubeMeta", "ViewMeta", "RendererInfo", "BandStats", "StorageInfo", "StoreError",
            "StoreKeyError", "StoreWriteError", "Registry", "RegistryEntry", "SCHEMA_VERSION"]

@@ -29,7 +29,7 @@ from typing import Any
 
 import zarr
 
-from store.errors import StoreError
+from illumix.store.errors import StoreError
 
 STAGING = "_staging"
 TRASH = "_trash"

@@ -22,14 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from store import layout
-from store.backend import STAGING, TRASH, Backend
-from store.codec import POLICIES, Policy
-from store.errors import StoreError, StoreKeyError
-from store.names import check_name
-from store.nodes import STATE_ATTR, array_handles, current_write_id, node_attrs, read_state
-from store.schema import SCHEMA_VERSION, CubeMeta, ViewMeta, parse_stored, utc_now
-from store import reader, writer
+from illumix.store import layout
+from illumix.store.backend import STAGING, TRASH, Backend
+from illumix.store.codec import POLICIES, Policy
+from illumix.store.errors import StoreError, StoreKeyError
+from illumix.store.names import check_name
+from illumix.store.nodes import STATE_ATTR, array_handles, current_write_id, node_attrs, read_state
+from illumix.store.schema import SCHEMA_VERSION, CubeMeta, ViewMeta, parse_stored, utc_now
+from illumix.store import reader, writer
 
 ROOT_ATTR = "illumix_store"
 VIEW_ATTR = writer.VIEW_ATTR
@@ -106,7 +106,7 @@ class CubeStore:
                     raise StoreError(f"{b.url} exists, is not empty and is not an illumix store; "
                                      "choose a new or empty directory")
             if attrs is None:
-                from store.nodes import write_group
+                from illumix.store.nodes import write_group
 
                 write_group(b, "", {ROOT_ATTR: {"schema_version": SCHEMA_VERSION, "created": utc_now()}})
         if attrs is not None:
@@ -369,7 +369,7 @@ class CubeStore:
 
     def registry(self, kind: str, max_bytes: int | None = None) -> Any:
         """The persistent user registry ``"sensors"`` or ``"illuminants"`` (:class:`store.Registry`)."""
-        from store.registry import Registry
+        from illumix.store.registry import Registry
 
         return Registry(self._b, kind, max_bytes=max_bytes)
 

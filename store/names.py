@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 
-from store.errors import StoreError
+from illumix.store.errors import StoreError
 
 MAX_NAME_LEN = 128
 #: Letters, digits, ``_ - . +``; must start with a letter or digit.

@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 import zarr
 
-from store.backend import Backend
-from store.errors import StoreError
-from store.layout import compressors
-from store.lru import LRUCache
+from illumix.store.backend import Backend
+from illumix.store.errors import StoreError
+from illumix.store.layout import compressors
+from illumix.store.lru import LRUCache
 
 STATE_ATTR = "illumix_state"
 

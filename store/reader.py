@@ -12,15 +12,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from store import layout
-from store.codec import EXPONENT_FILL, decode
-from store.errors import StoreError, StoreKeyError
-from store.names import check_name
-from store.nodes import band_index, crop_region, current_write_id, open_array
-from store.writer import DENOISED, ILLUMINATION
+from illumix.store import layout
+from illumix.store.codec import EXPONENT_FILL, decode
+from illumix.store.errors import StoreError, StoreKeyError
+from illumix.store.names import check_name
+from illumix.store.nodes import band_index, crop_region, current_write_id, open_array
+from illumix.store.writer import DENOISED, ILLUMINATION
 
 if TYPE_CHECKING:
-    from store.cubestore import CubeStore
+    from illumix.store.cubestore import CubeStore
 
 RETRIES = 8
 KINDS = ("transport", "illumination")

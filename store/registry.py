@@ -15,11 +15,11 @@ import hashlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from store.backend import Backend
-from store.errors import StoreError, StoreKeyError, StoreWriteError
-from store.names import check_fmt, check_name
-from store.nodes import group_meta_bytes, node_attrs
-from store.schema import SCHEMA_VERSION, utc_now
+from illumix.store.backend import Backend
+from illumix.store.errors import StoreError, StoreKeyError, StoreWriteError
+from illumix.store.names import check_fmt, check_name
+from illumix.store.nodes import group_meta_bytes, node_attrs
+from illumix.store.schema import SCHEMA_VERSION, utc_now
 
 KINDS = ("sensors", "illuminants")
 #: Default payload size limit in bytes (a rawtoaces camera JSON is ~10-50 kB).

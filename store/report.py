@@ -14,14 +14,14 @@ from typing import Any
 import numpy as np
 import zarr
 
-from store import layout
-from store.codec import EXPONENT_FILL, decode
-from store.cubestore import CUBE_ATTR, VIEW_ATTR, CubeStore
-from store.errors import StoreError
-from store.nodes import STATE_ATTR, node_attrs, read_state
-from store.registry import KINDS
-from store.schema import CubeMeta, ViewMeta, parse_stored
-from store.writer import DENOISED, ILLUMINATION
+from illumix.store import layout
+from illumix.store.codec import EXPONENT_FILL, decode
+from illumix.store.cubestore import CUBE_ATTR, VIEW_ATTR, CubeStore
+from illumix.store.errors import StoreError
+from illumix.store.nodes import STATE_ATTR, node_attrs, read_state
+from illumix.store.registry import KINDS
+from illumix.store.schema import CubeMeta, ViewMeta, parse_stored
+from illumix.store.writer import DENOISED, ILLUMINATION
 
 
 def _group_info(st: CubeStore, scene: str, view: str, g: str) -> dict[str, Any]:

@@ -19,9 +19,9 @@ from typing import Any, Literal, TypeVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from retarget.errors import SpectralError
-from retarget.grid import SpectralGrid
-from store.errors import StoreError
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import SpectralGrid
+from illumix.store.errors import StoreError
 
 #: Version of the metadata written by this code. Readers refuse anything newer.
 SCHEMA_VERSION = 1

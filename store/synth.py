@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from retarget.grid import DEFAULT_GRID, SpectralGrid
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid
 
 
 def _reflectances(rng: np.random.Generator, k: int, wl: np.ndarray) -> np.ndarray:

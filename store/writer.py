@@ -14,16 +14,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import ValidationError
 
-from store import layout
-from store.codec import EXPONENT_FILL, Policy, encode
-from store.errors import StoreError
-from store.names import check_name
-from store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
-from store.schema import (SCHEMA_VERSION, BandStats, CubeMeta, DenoisedInfo, IlluminationInfo, StorageInfo, ViewMeta,
+from illumix.store import layout
+from illumix.store.codec import EXPONENT_FILL, Policy, encode
+from illumix.store.errors import StoreError
+from illumix.store.names import check_name
+from illumix.store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
+from illumix.store.schema import (SCHEMA_VERSION, BandStats, CubeMeta, DenoisedInfo, IlluminationInfo, StorageInfo, ViewMeta,
                           utc_now)
 
 if TYPE_CHECKING:
-    from store.cubestore import CubeStore
+    from illumix.store.cubestore import CubeStore
 
 VIEW_ATTR = "illumix_view"
 CUBE_ATTR = "illumix_cube"

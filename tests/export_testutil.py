@@ -19,7 +19,7 @@ def chart_albedo(h: int = CHART_SIZE[1], w: int = CHART_SIZE[0], hom: np.ndarray
     warped in by ``hom``; nearest-neighbour, so each patch holds its exact broad-band albedo."""
     import cv2
 
-    from dataset_export.chart import COLS, ROWS, chart_albedos
+    from illumix.dataset_export.chart import COLS, ROWS, chart_albedos
 
     ref = chart_albedos(3)
     chart = np.full((ROWS * s, COLS * s, 3), 0.04, np.float32)
@@ -34,14 +34,14 @@ def chart_albedo(h: int = CHART_SIZE[1], w: int = CHART_SIZE[0], hom: np.ndarray
 def chart_corners(hom: np.ndarray = CHART_H) -> np.ndarray:
     import cv2
 
-    from dataset_export.chart import OUTLINE
+    from illumix.dataset_export.chart import OUTLINE
 
     return cv2.perspectiveTransform(OUTLINE[None], hom)[0]
 
 
 def build_export_store(path) -> str:
-    from retarget.grid import DEFAULT_GRID
-    from store import CubeMeta, CubeStore, ViewMeta
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
 
     syn.build(path, illumination=True)
     st = CubeStore.open(str(path), mode="a")

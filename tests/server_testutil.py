@@ -57,8 +57,8 @@ def synthetic_service_fixtures(prefix: str, token: str | None = None, **build):
     def client(store_path):
         from fastapi.testclient import TestClient
 
-        from service.app import create_app
-        from store import CubeStore
+        from illumix.service.app import create_app
+        from illumix.store import CubeStore
 
         with TestClient(create_app(CubeStore.open(str(store_path), mode="a"), token=token, cache_mb=64)) as c:
             yield c

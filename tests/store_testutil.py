@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from retarget.grid import DEFAULT_GRID
-from store import CubeMeta, CubeStore, ViewMeta
-from store.synth import synthetic_cube
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.store import CubeMeta, CubeStore, ViewMeta
+from illumix.store.synth import synthetic_cube
 
 #: Small frames whose sides are not multiples of the 32 px test tile (edge chunks are partial).
 H, W, TILE = 48, 80, 32

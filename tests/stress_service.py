@@ -25,10 +25,10 @@ from hypothesis import event
 from hypothesis import strategies as st
 
 import synthetic_store as synth
-from retarget.grid import DEFAULT_GRID
-from service.app import create_app
-from engine.limits import Limits
-from store import CubeMeta, CubeStore, ViewMeta
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.service.app import create_app
+from illumix.engine.limits import Limits
+from illumix.store import CubeMeta, CubeStore, ViewMeta
 
 TOKEN = "stress-token"
 N = DEFAULT_GRID.n_bands
@@ -64,7 +64,7 @@ def _uploads() -> tuple[dict[str, str], dict[str, str]]:
 
 
 def _stress_cubes(rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     cc = get_reflectances("ColorChecker N Ohta")[1].astype(np.float32)
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from retarget.grid import DEFAULT_GRID
-from retarget.reflectances import get_reflectances
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.reflectances import get_reflectances
 
 H, W = 48, 64
 DARK_ROWS = 4
@@ -48,7 +48,7 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
     and the view's hit mask (all geometry) and emitter AOV (an "emitter" in the top-left 2×2).
     ``denoised`` (implies ``illumination``): synth/v0's cubes carry 10 % noise per band (seeded) and
     their copies denoised with the default method are stored beside them."""
-    from store import CubeMeta, CubeStore, ViewMeta
+    from illumix.store import CubeMeta, CubeStore, ViewMeta
 
     st = CubeStore.open(str(path), mode="a")
     refl = reflectance_image(h, w)
@@ -73,8 +73,8 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
         meta = CubeMeta(emission=flat, emission_name="flat", **common)
         cube, copies = refl * u, None
         if denoised:
-            from retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
-            from store.schema import DenoisedInfo
+            from illumix.retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
+            from illumix.store.schema import DenoisedInfo
 
             noisy = [(x * (1 + 0.1 * rng.standard_normal(x.shape))).astype(np.float32) for x in (cube, u)]
             cube, u = noisy

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import yaml
 
-from renderer_jobs import jobs, modes
-from renderer_jobs.backends import JobBackend, get_backend
-from renderer_jobs.execute import execute
-from renderer_jobs.modes import BACKENDS, EXECUTORS, BackendEntry
-from renderer_jobs.render_settings import RenderSettings
-from renderer_jobs.scene_load import scene_from_dict
-from retarget.errors import UnknownName
+from illumix.renderer_jobs import jobs, modes
+from illumix.renderer_jobs.backends import JobBackend, get_backend
+from illumix.renderer_jobs.execute import execute
+from illumix.renderer_jobs.modes import BACKENDS, EXECUTORS, BackendEntry
+from illumix.renderer_jobs.render_settings import RenderSettings
+from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.retarget.errors import UnknownName
 from test_render_cli import tiny_scene_file
 
 
@@ -38,7 +38,7 @@ class FakeBackend(JobBackend):
         pass
 
     def render_cube(self, scene, view, group, settings):
-        from renderer_jobs.mitsuba_render import CubeResult
+        from illumix.renderer_jobs.mitsuba_render import CubeResult
 
         v = scene.view(view)
         n = scene.spectral_grid.n_bands
@@ -65,8 +65,8 @@ def test_a_second_renderer_is_one_module_and_one_registry_entry(tmp_path, monkey
     registry = modes.MethodRegistry("render backend", {**{n: BACKENDS[n] for n in BACKENDS.names},
                                                         "fake": BackendEntry("a test renderer", __name__)})
     monkeypatch.setattr(modes, "BACKENDS", registry)
-    monkeypatch.setattr("renderer_jobs.backends.BACKENDS", registry)
-    from store import CubeStore
+    monkeypatch.setattr("illumix.renderer_jobs.backends.BACKENDS", registry)
+    from illumix.store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
     store = str(tmp_path / "st")

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from retarget.basis import BasisCube, compress, fit_basis, project_groups_any
-from retarget.compose import compose, group_ccms
-from retarget.errors import SpectralError
-from retarget.illuminants import illuminant_spd
-from retarget.reflectances import get_reflectances
-from retarget.sensors import get_sensor
+from illumix.retarget.basis import BasisCube, compress, fit_basis, project_groups_any
+from illumix.retarget.compose import compose, group_ccms
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.illuminants import illuminant_spd
+from illumix.retarget.reflectances import get_reflectances
+from illumix.retarget.sensors import get_sensor
 
 PALETTE = get_reflectances("ColorChecker N Ohta")[1]  # (24, 63)
 B = PALETTE.shape[1]

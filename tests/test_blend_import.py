@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer_jobs import blend_import, scene_load
-from renderer_jobs.scene_schema import LibrarySpectrum, SceneError, TableSpectrum
+from illumix.renderer_jobs import blend_import, scene_load
+from illumix.renderer_jobs.scene_schema import LibrarySpectrum, SceneError, TableSpectrum
 
 try:
-    from renderer_jobs.cycles_env import find_blender_python
+    from illumix.renderer_jobs.cycles_env import find_blender_python
 except ImportError:  # a checkout without the Cycles backend: the importer's own copy of the search
-    from renderer_jobs.blend_import import find_blender_python
+    from illumix.renderer_jobs.blend_import import find_blender_python
 
 BLENDER = find_blender_python(required=False)
 pytestmark = pytest.mark.skipif(BLENDER is None, reason="Blender's Python (bpy) is not installed; "
@@ -77,7 +77,7 @@ def test_view_matches_camera(imported):
 
 
 def test_measured_reflectance(imported):
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     scene, _, _ = imported
     cube = _shape(scene, "Cube")
@@ -119,7 +119,7 @@ def test_materials_kinds(imported):
     floor = scene.materials[_shape(scene, "Floor").material]
     assert floor.kind == "roughplastic" and floor.alpha == pytest.approx(0.25)  # roughness 0.5 squared
     # A grey upsamples to a flat spectrum, divided by the rough-plastic scale that keeps Blender's look
-    from renderer_jobs.plastic_scale import plastic_diffuse_scale
+    from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
 
     assert np.allclose(floor.reflectance.values, 0.5 / plastic_diffuse_scale(0.25, floor.int_ior), atol=3e-3)
 
@@ -181,7 +181,7 @@ def test_cache_reused(blend, imported):
 
 
 def test_load_scenes_hook(blend, tmp_path, monkeypatch):
-    from renderer_jobs.scene_load import load_scenes
+    from illumix.renderer_jobs.scene_load import load_scenes
 
     monkeypatch.setenv("ILLUMIX_CACHE", str(tmp_path / "cache"))
     upper = tmp_path / "Upper.BLEND"  # the suffix is matched case-insensitively

@@ -12,7 +12,7 @@ from test_cli_spectra import assert_one_line_error
 
 
 def test_ctrl_c_exits_130(capsys, monkeypatch):
-    from retarget import sensors
+    from illumix.retarget import sensors
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt

@@ -26,8 +26,8 @@ def rooms(tmp_path_factory):
 
 
 def test_generate_writes_files_that_load_and_resumes(rooms, capsys):
-    from renderer_jobs.scene_load import load_scenes
-    from scenegen import GENERATOR_VERSION
+    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scenegen import GENERATOR_VERSION
 
     out = rooms / "out"
     code, stdout, err = run_cli(capsys, "scenes", "generate", "--count", "3", "--seed", "7", "--out", str(out),
@@ -58,7 +58,7 @@ def test_generate_writes_files_that_load_and_resumes(rooms, capsys):
 
 @needs_mitsuba
 def test_render_accepts_a_generated_file(rooms, capsys):
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     out = rooms / "single"
     code, _, err = run_cli(capsys, "scenes", "generate", "--count", "1", "--seed", "7", "--out", str(out),
@@ -84,7 +84,7 @@ def test_preview_writes_a_contact_sheet(rooms, capsys):
     code, _, err = run_cli(capsys, "scenes", "generate", "--count", "2", "--seed", "7", "--out", str(src),
                            "--config", str(rooms / "gen.yaml"))
     assert code == 0, err
-    from renderer_jobs.scene_load import load_scenes
+    from illumix.renderer_jobs.scene_load import load_scenes
 
     n_views = [len(load_scenes(src / f"room-00000{s}.yaml")[0].views) for s in (7, 8)]
     sheet = rooms / "sheet.png"

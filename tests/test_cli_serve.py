@@ -11,7 +11,7 @@ import pytest
 
 import synthetic_store
 from cli_testutil import run_cli
-from store import CubeStore
+from illumix.store import CubeStore
 
 # Port 0: the address check binds before uvicorn would, and a fixed port may be in use here.
 SERVE = ("serve", "--port", "0")

@@ -103,11 +103,11 @@ def test_any_registry_spelling_is_accepted_and_canonical(tmp_path, capsys):
 
 
 def test_render_settings_and_executor_accept_registry_spellings():
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from renderer_jobs.modes import WAVELENGTH_MODES
-    from renderer_jobs.scene_schema import SceneError
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.modes import WAVELENGTH_MODES
+    from illumix.renderer_jobs.scene_schema import SceneError
 
     assert RenderSettings(wavelengths="Stratified").wavelengths == "stratified"
     assert list(WAVELENGTH_MODES) == ["all-bands", "stratified", "random"] and list(jobs.EXECUTORS) == ["local", "ray"]

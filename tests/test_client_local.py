@@ -14,8 +14,8 @@ import synthetic_store
 from fastapi.testclient import TestClient
 from illumix_client.local import LocalClient
 
-from service.app import create_app
-from store import CubeStore
+from illumix.service.app import create_app
+from illumix.store import CubeStore
 
 SPEC = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "A,D65", "crop": "8,4,32,24",
         "intensities": "1,0.5", "seed": 3}

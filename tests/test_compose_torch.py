@@ -66,8 +66,8 @@ def test_the_service_composes_eligible_requests_on_its_device(tmp_path):
 
     from fastapi.testclient import TestClient
 
-    from service.app import create_app
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.store import CubeStore
 
     synthetic_store.build(tmp_path / "s", illumination=True)
     st = CubeStore.open(str(tmp_path / "s"), mode="r")
@@ -94,8 +94,8 @@ def test_the_service_composes_eligible_requests_on_its_device(tmp_path):
 def test_a_device_torch_cannot_compute_on_is_refused_at_start(tmp_path):
     """``meta`` is a device torch knows but computes nothing on: refused when the app is made (the
     CLI prints it as one line), not a 500 on every request."""
-    from service.app import create_app
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.store import CubeStore
 
     synthetic_store.build(tmp_path / "s", extras=False)
     with pytest.raises(RuntimeError, match="cannot compute"):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from cli_testutil import run_cli
-from renderer_jobs.cycles_env import find_blender_python
-from renderer_jobs.cycles_job import band_passes
-from renderer_jobs.plastic_scale import diffuse_fresnel
-from renderer_jobs.scene_load import scene_from_dict
+from illumix.renderer_jobs.cycles_env import find_blender_python
+from illumix.renderer_jobs.cycles_job import band_passes
+from illumix.renderer_jobs.plastic_scale import diffuse_fresnel
+from illumix.renderer_jobs.scene_load import scene_from_dict
 
 needs_blender = pytest.mark.skipif(find_blender_python(required=False) is None,
                                    reason="the cycles backend needs Blender: bash scripts/install.sh --blender")
@@ -73,7 +73,7 @@ def test_without_blender_the_cli_says_how_to_install(tmp_path, capsys, monkeypat
 
 @needs_blender
 def test_validation_chart_matches_closed_form():
-    from renderer_jobs.validate import run_validation
+    from illumix.renderer_jobs.validate import run_validation
 
     res = run_validation(spp=4, resolution=(96, 64), backend="cycles", illuminants=("D65", "A", "FL11"))
     # A sun on Lambertian patches: every sample is exact, so only float rounding remains.
@@ -87,8 +87,8 @@ def test_relighting_is_exact():
     colours of a pass change, the samples do not. (One group: with several, Cycles' light tree
     weighs each light by its power in the pass, so a group's *noise* — not its expectation —
     depends on the other groups' emission.)"""
-    from renderer_jobs import cycles_render
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs import cycles_render
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     def alone(emission):
         d = two_light_scene(emission)
@@ -108,8 +108,8 @@ def test_relighting_is_exact():
 @needs_mitsuba
 def test_cubes_agree_with_mitsuba():
     """Mean raw per group and per region within the noise of the two renders (a diffuse scene)."""
-    from renderer_jobs import cycles_render, mitsuba_render
-    from renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs import cycles_render, mitsuba_render
+    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
 
     scene = scene_from_dict(two_light_scene())
     cyc = cycles_render.render_cubes(scene, "cam", mitsuba_render.RenderSettings(spp=32, seed=1))
@@ -137,10 +137,10 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
     from pathlib import Path
 
     from illumix_client.local import LocalClient
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from renderer_jobs.scene_load import load_scenes
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.scene_load import load_scenes
 
     scene = jobs.apply_resolution(load_scenes(Path(__file__).parents[1] / "bench/fidelity_scenes/lamps_in_frame.yaml")[0],
                                   (48, 36))
@@ -169,7 +169,7 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
 
 @needs_blender
 def test_render_cli_writes_the_same_store_layout(tmp_path, capsys):
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     p = tmp_path / "duo.json"
     p.write_text(json.dumps(two_light_scene(res=(16, 12))))
@@ -191,7 +191,7 @@ def test_render_cli_writes_the_same_store_layout(tmp_path, capsys):
 
 
 def test_emitter_rectangle_becomes_an_area_light_facing_its_normal():
-    from renderer_jobs.cycles_job import area_light
+    from illumix.renderer_jobs.cycles_job import area_light
 
     d = two_light_scene()
     d["shapes"][2]["transform"] = {"scale": [0.5, 0.25, 1], "rotate": [{"axis": [1, 0, 0], "angle": 90}],
@@ -235,7 +235,7 @@ def _envmap_scene(tmp_path, coloured=False) -> dict:
 def test_envmap_sky_matches_mitsuba(tmp_path):
     """Mitsuba's lat-long lookup (map frame, u = atan2(x, −z)/2π, v = acos(y)/π) and its D65 for a
     grey map: the sky seen directly agrees pixel by pixel, the lit ball on average."""
-    from renderer_jobs import cycles_render, mitsuba_render
+    from illumix.renderer_jobs import cycles_render, mitsuba_render
 
     scene = scene_from_dict(_envmap_scene(tmp_path))
     cyc = cycles_render.render_cube(scene, "cam", "sky", mitsuba_render.RenderSettings(spp=8, illumination=False))
@@ -253,7 +253,7 @@ def test_envmap_sky_matches_mitsuba(tmp_path):
 
 @needs_blender
 def test_coloured_envmap_warns(tmp_path):
-    from renderer_jobs.cycles_job import write_job
+    from illumix.renderer_jobs.cycles_job import write_job
 
     messages: list[str] = []
     write_job(scene_from_dict(_envmap_scene(tmp_path, coloured=True)), "cam", tmp_path / "job", spp=1, seed=0,

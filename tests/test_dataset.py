@@ -77,8 +77,8 @@ def test_unreadable_configs(tmp_path, capsys):
 
 
 def test_a_scene_named_twice_is_refused(tmp_path, capsys):
-    from renderer_jobs.scene_load import dump_scene
-    from scenegen.generate import GeneratorConfig, generate_scene
+    from illumix.renderer_jobs.scene_load import dump_scene
+    from illumix.scenegen.generate import GeneratorConfig, generate_scene
 
     dump_scene(generate_scene(3, GeneratorConfig(**GEN)), tmp_path / "dup.yaml")  # also room-000003
     cfg = write_config(tmp_path, tiny(scenes=["dup.yaml"]))
@@ -88,8 +88,8 @@ def test_a_scene_named_twice_is_refused(tmp_path, capsys):
 
 @needs_mitsuba
 def test_tiny_dataset_renders_resumes_and_records_the_generator(tmp_path, capsys):
-    from scenegen import GENERATOR_VERSION
-    from store import CubeStore
+    from illumix.scenegen import GENERATOR_VERSION
+    from illumix.store import CubeStore
 
     cfg = write_config(tmp_path, tiny())
     store = tmp_path / "st"
@@ -145,7 +145,7 @@ def test_tiny_dataset_renders_resumes_and_records_the_generator(tmp_path, capsys
 
 def test_room_cache_regenerates_on_another_version_or_config(tmp_path):
     from illumix import scene_corpus
-    from scenegen.generate import GeneratorConfig
+    from illumix.scenegen.generate import GeneratorConfig
 
     gen = GeneratorConfig(**GEN)
     scene, status = scene_corpus.room(11, gen, tmp_path)
@@ -165,10 +165,10 @@ def test_room_cache_regenerates_on_another_version_or_config(tmp_path):
 
 def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
     """A failed view job fails its cubes without running them; other jobs go on (local executor)."""
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.demo import demo_room
-    from renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.demo import demo_room
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     scene = demo_room(0, resolution=(8, 6))
     p = jobs.plan([scene], str(tmp_path / "st"))

@@ -14,10 +14,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from retarget.denoise import DENOISE_METHODS, Guides, denoise, describe, method_params
-from retarget.denoise_methods import DENOISE_CHOICES
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID
+from illumix.retarget.denoise import DENOISE_METHODS, Guides, denoise, describe, method_params
+from illumix.retarget.denoise_methods import DENOISE_CHOICES
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID
 from tests.synthetic_store import reflectance_image
 
 H, W = 48, 64
@@ -266,7 +266,7 @@ def test_glass_around_the_light_itself_is_filtered_as_usual():
     """A bulb's envelope or a glazed window: glass keeps the group's light from nearly every pixel.
     That marks no caustic anywhere; leaving the whole frame as rendered (and boosting it) would not
     pay, so beyond GLASS_MAX_COVER of the surface the behind-glass guide changes nothing."""
-    from retarget.denoise import irradiance_classes
+    from illumix.retarget.denoise import irradiance_classes
 
     _, cube, g = _scene(np.random.default_rng(16), noise=0.05)
     everywhere = g.with_direct(np.zeros_like(g.direct), g.direct)  # all the light comes through glass
@@ -278,7 +278,7 @@ def test_glass_around_the_light_itself_is_filtered_as_usual():
 def test_metal_and_glass_illumination_is_filtered_among_its_own():
     """An illumination cube holds the light falling on a surface, glass and metal included, which
     the guides describe: there metal and glass are one class (3), smoothed among themselves."""
-    from retarget.denoise import irradiance_classes
+    from illumix.retarget.denoise import irradiance_classes
 
     rng = np.random.default_rng(17)
     _, _, g = _scene(rng)
@@ -409,7 +409,7 @@ def test_registry_names_params_and_errors():
 
 
 def test_the_renderer_stores_copies_made_with_the_default_method():
-    from renderer_jobs.render_settings import RenderSettings
-    from retarget.denoise_methods import DEFAULT_METHOD
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.retarget.denoise_methods import DEFAULT_METHOD
 
     assert RenderSettings().denoise == DEFAULT_METHOD == "dt-irradiance"

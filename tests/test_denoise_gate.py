@@ -12,10 +12,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from retarget import denoise_classes as dc
-from retarget.denoise import Guides, denoise, irradiance_guide_image, relative_noise, shading
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID
+from illumix.retarget import denoise_classes as dc
+from illumix.retarget.denoise import Guides, denoise, irradiance_guide_image, relative_noise, shading
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID
 
 H, W = 48, 64
 NB = DEFAULT_GRID.n_bands
@@ -48,7 +48,7 @@ def test_emitter_and_background_pixels_are_served_as_rendered():
     out = denoise(cube, g)
     np.testing.assert_allclose(out[emitter], cube[emitter], rtol=1e-6)  # divided and multiplied back: rounding
     np.testing.assert_allclose(out[~hit], cube[~hit], rtol=1e-6)
-    from retarget.denoise import as_rendered
+    from illumix.retarget.denoise import as_rendered
 
     kept = as_rendered(g)
     assert kept[emitter].all() and kept[~hit].all() and not kept[40:, 5:40].any()  # a lit flat wall is filtered
@@ -71,7 +71,7 @@ def test_the_direct_light_is_divided_out_so_a_ramp_is_kept():
 
 
 def dc_floor(x: np.ndarray) -> float:
-    from retarget.denoise_shading import SHADE_FLOOR
+    from illumix.retarget.denoise_shading import SHADE_FLOOR
 
     return SHADE_FLOOR * float(x.mean())
 
@@ -124,7 +124,7 @@ def test_relative_noise_pools_the_variance():
 def test_the_band_sets_spread_estimates_the_variance_of_their_mean():
     """``set_noise``: k independent estimates of a sum → their mean and ``s²/k``; over many pixels
     its mean is the variance of the mean (σ²/k), unbiased."""
-    from renderer_jobs.mitsuba_band_render import set_noise
+    from illumix.renderer_jobs.mitsuba_band_render import set_noise
 
     rng = np.random.default_rng(1)
     est = 5.0 + 2.0 * rng.standard_normal((4, 200, 200))

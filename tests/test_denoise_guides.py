@@ -12,11 +12,11 @@ import pytest
 
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
-from renderer_jobs import demo  # noqa: E402
-from renderer_jobs import denoise_guides as dg  # noqa: E402
-from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from renderer_jobs.mitsuba_render import RenderSettings  # noqa: E402
-from renderer_jobs.validate import patch_masks  # noqa: E402
+from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.renderer_jobs import denoise_guides as dg  # noqa: E402
+from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba_render import RenderSettings  # noqa: E402
+from illumix.renderer_jobs.validate import patch_masks  # noqa: E402
 
 
 def test_hammersley_puts_one_point_in_every_row_and_column():
@@ -37,7 +37,7 @@ def test_guide_wavelengths_follow_the_emission():
 
 
 def test_albedo_bands_and_direct_light_match_the_closed_forms_on_the_validation_chart():
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     s = demo.validation_chart()
     aovs = render_aovs(s, "head-on", RenderSettings(spp=16, seed=1))
@@ -57,10 +57,10 @@ def test_a_view_stored_without_the_per_band_albedo_gets_it_once(tmp_path):
     before they existed): the first cube denoised with the default traces them and adds them to the
     view; the next one reads them (the same guides for every group), and both record the
     direct-light pass."""
-    from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import render_cube
-    from renderer_jobs.mitsuba_trace import Tracer
-    from store import CubeStore
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.store import CubeStore
 
     s = demo.validation_chart()
     plain = RenderSettings(spp=16, seed=1, denoise=None)
@@ -86,7 +86,7 @@ def _box_with_ball(material: str | None) -> object:
     and the floor, so its straight shadow lies on the floor in view."""
     from test_render import box_scene
 
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     d = box_scene()
     d["materials"]["glass"] = {"kind": "dielectric", "int_ior": 1.5}
@@ -128,7 +128,7 @@ def test_straddle_marks_pixels_whose_rays_hit_two_surfaces():
     footprint (measured against the geometry AOVs of the box with and without it)."""
     from scipy.ndimage import binary_dilation, binary_erosion
 
-    from renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
 
     res, k3 = (48, 32), np.ones((3, 3), bool)
     empty, ball = (_box_with_ball(m) for m in (None, "white"))
@@ -157,9 +157,9 @@ def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
     """Without extra paths (``boost_factor`` 1) the pixels ``straddle`` leaves as rendered would keep
     the spp's noise: it is neither traced nor read, even from a view that holds it, and the denoised
     copy's record does not list it."""
-    from renderer_jobs import jobs
-    from renderer_jobs.mitsuba_render import render_cube
-    from store import CubeStore
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.store import CubeStore
 
     s = demo.validation_chart()
     boosted, plain = RenderSettings(spp=16, seed=1), RenderSettings(spp=16, seed=1, boost_factor=1)
@@ -215,7 +215,7 @@ def test_straddle_marks_the_edges_of_patches_floating_before_the_sky():
     miss, the only rule that marks them (same normal, same depth); their insides are never marked."""
     from scipy.ndimage import binary_dilation, binary_erosion
 
-    from renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
 
     s = demo.validation_chart()
     flags = dg.straddle(Tracer(s, "head-on", None, None))
@@ -231,7 +231,7 @@ def test_the_direct_guide_states_its_own_noise():
     light; a point light's guide has no sampling noise, and says so."""
     from test_render import box_scene
 
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     res = (32, 24)
@@ -255,7 +255,7 @@ def test_the_guide_as_seen_is_the_guide_on_a_lambertian_chart_and_more_on_a_glos
     for m in doc["materials"].values():
         if m.get("kind") == "diffuse":
             m.update(kind="roughplastic", alpha=0.05)
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     glossy = dg.direct_guide(scene_from_dict(doc), "head-on", "light", None, seed=3)
     assert (glossy.seen[lit] >= 0.5 * glossy.direct[lit]).all() and np.isfinite(glossy.seen).all()
@@ -265,8 +265,8 @@ def test_metal_has_no_diffuse_albedo():
     """Mitsuba's ``roughconductor`` answers ``eval_diffuse_reflectance`` with a view-dependent value
     (up to 2.7 on a silver mirror, which the filter then averaged: a blurred reflection); the
     ``albedo_bands`` AOV reads the lobe from the BSDF's flags, so metal is 0 (left as rendered)."""
-    from renderer_jobs.mitsuba_trace import Tracer
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     doc = demo.validation_chart_dict()
     for m in doc["materials"].values():

@@ -8,7 +8,6 @@ are built by ``docker/smoke.sh``, outside CI, so this is checked here as text.
 
 from __future__ import annotations
 
-import fnmatch
 import re
 import tomllib
 from pathlib import Path
@@ -19,9 +18,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _packages() -> set[str]:
-    include = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]["find"]["include"]
-    return {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()
-            and any(fnmatch.fnmatch(p.name, pat) for pat in include)}
+    """The repository folders pyproject.toml installs (``package-dir``: ``illumix.<room>`` → ``<room>``)."""
+    folders = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"].values()
+    return {f for f in folders if (ROOT / f / "__init__.py").is_file()}
 
 
 @pytest.mark.parametrize("dockerfile", ["Dockerfile.service", "Dockerfile.render"])

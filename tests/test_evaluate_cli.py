@@ -11,8 +11,8 @@ from evaluate_testutil import make_lsmi, make_store
 from test_cli_spectra import assert_one_line_error
 from test_cli_startup import run_fresh
 
-from awb_eval.methods import load_plugin
-from retarget.errors import SpectralError
+from illumix.awb_eval.methods import load_plugin
+from illumix.retarget.errors import SpectralError
 
 KEYS = {"angular_mean", "angular_median", "angular_worst25", "grid_de00_worst25"}
 
@@ -118,7 +118,7 @@ def test_unwritable_out_fails_before_scoring(store, capsys, tmp_path, monkeypatc
     def must_not_score(*args, **kwargs):
         raise AssertionError("scored before checking --out")
 
-    monkeypatch.setattr("awb_eval.run.evaluate", must_not_score)
+    monkeypatch.setattr("illumix.awb_eval.run.evaluate", must_not_score)
     line = assert_one_line_error(*run_cli(capsys, "evaluate", store, "--methods", "GW", "--out", where))
     assert f"--out {where}" in line and expect in line, line
     assert [p.name for p in tmp_path.iterdir()] == ["afile"]  # no probe left behind

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from evaluate_testutil import BLACK, LIGHTS, WHITE, lsmi_image, make_lsmi, make_store
 
-from awb_eval.lsmi_input import LsmiCases, is_lsmi, read_levels
-from awb_eval.methods import resolve
-from awb_eval.report import aggregate
-from awb_eval.run import evaluate
-from awb_eval.store_input import StoreCases, parse_pairs
-from retarget.errors import SpectralError, UnknownName
+from illumix.awb_eval.lsmi_input import LsmiCases, is_lsmi, read_levels
+from illumix.awb_eval.methods import resolve
+from illumix.awb_eval.report import aggregate
+from illumix.awb_eval.run import evaluate
+from illumix.awb_eval.store_input import StoreCases, parse_pairs
+from illumix.retarget.errors import SpectralError, UnknownName
 
 ZERO = 1e-3  # degrees; module docstring
 
@@ -29,10 +29,10 @@ def lsmi(tmp_path_factory):
 
 
 def test_store_cases_are_the_service_samples(store):
-    from engine.context import make_context
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.engine.context import make_context
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     src = StoreCases(store, pairs="A,D65;D50", sensor="Nikon 5100 (NPL)")
     assert len(src) == 2 and [j.pair for j in src.jobs] == ["A,D65", "D50"]
@@ -70,7 +70,7 @@ def test_store_input_errors(store, tmp_path):
     with pytest.raises(SpectralError, match="one or two"):
         parse_pairs("A,D65,D50")
     empty = tmp_path / "empty"
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     CubeStore.open(str(empty), mode="a")
     with pytest.raises(SpectralError, match="no rendered views"):
@@ -191,7 +191,7 @@ def test_lsmi_reads_dng_exports(tmp_path):
     import cv2
     from export_testutil import build_export_store
 
-    from dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.run import ExportOptions, export_dataset
 
     store = build_export_store(tmp_path / "store")
     opts = dict(store=store, count=1, seed=2, size=(32, 24))

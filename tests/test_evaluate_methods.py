@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pytest
 
-from awb_eval.case import Case
-from awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
-from awb_eval.methods import awb_gain_map, statistical_gain, weighted_average_gain
-from awb_eval.statistical import derivative_magnitude, grid_estimates, illuminant_map
-from retarget.errors import SpectralError, UnknownName
+from illumix.awb_eval.case import Case
+from illumix.awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
+from illumix.awb_eval.methods import awb_gain_map, statistical_gain, weighted_average_gain
+from illumix.awb_eval.statistical import derivative_magnitude, grid_estimates, illuminant_map
+from illumix.retarget.errors import SpectralError, UnknownName
 
 RNG = np.random.default_rng(3)
 
@@ -148,7 +148,7 @@ def test_weighted_average_is_the_mean_mixture_of_white_points():
 def test_weighted_average_is_the_explorers_baseline(monkeypatch):
     """One implementation of the thesis' single white point: the evaluator's Weighted Average goes
     through :mod:`retarget.global_wb` (the web explorer's and the DNG's), with the same numbers."""
-    from retarget import global_wb
+    from illumix.retarget import global_wb
 
     h, w = 6, 8
     share = np.tile(np.linspace(0, 1, w, dtype=np.float32), (h, 1))

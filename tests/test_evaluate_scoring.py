@@ -8,9 +8,9 @@ from __future__ import annotations
 import colour
 import numpy as np
 
-from awb_eval.case import Case
-from awb_eval.methods import gain_from_illuminant
-from awb_eval.scoring import reference, score
+from illumix.awb_eval.case import Case
+from illumix.awb_eval.methods import gain_from_illuminant
+from illumix.awb_eval.scoring import reference, score
 
 H, W = 24, 32  # 12 × 16 cells of 2 × 2 pixels
 

@@ -14,8 +14,8 @@ import pytest
 import synthetic_store as synth
 from server_testutil import synthetic_service_fixtures
 
-from service.arrays_format import MAGIC
-from service.routes.web import STATIC
+from illumix.service.arrays_format import MAGIC
+from illumix.service.routes.web import STATIC
 
 TOKEN = "explore-token"
 
@@ -75,7 +75,7 @@ def test_static_files_ship_with_the_package():
     from fnmatch import fnmatch
 
     conf = tomllib.loads((STATIC.parents[1] / "pyproject.toml").read_text())
-    globs = conf["tool"]["setuptools"]["package-data"]["service"]
+    globs = conf["tool"]["setuptools"]["package-data"]["illumix.service"]
     for f in STATIC.rglob("*"):
         if f.is_file():
             rel = f.relative_to(STATIC.parent).as_posix()
@@ -166,8 +166,8 @@ def test_baseline_shows_the_cast_the_ground_truth_removes(client):
 
 
 def test_frame_shares_edge_cases():
-    from retarget.errors import SpectralError
-    from retarget.global_wb import frame_shares
+    from illumix.retarget.errors import SpectralError
+    from illumix.retarget.global_wb import frame_shares
 
     mix = np.zeros((2, 3, 2), np.float32)
     mix[0] = [1, 0]

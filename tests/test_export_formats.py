@@ -26,16 +26,16 @@ def test_dng_single_illuminant(store, tmp_path):
     """A single-light DNG: the raw values as composed, black/white level, RGGB, and libraw's
     camera white balance = 1 / the ground-truth white point (G = 1) to 1e-5; libraw's camera → sRGB
     matrix from ColorMatrix1 equals illumix's D65 CCM (what ColorMatrix1 was built from)."""
-    from dataset_export.run import ExportOptions, export_dataset
-    from retarget.grid import DEFAULT_GRID
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensor_model import NoiseModel, mosaic, simulate_raw
-    from retarget.sensors import get_sensor
-    from engine.context import make_context
-    from engine.library import Library
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.dataset_export.run import ExportOptions, export_dataset
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensor_model import NoiseModel, mosaic, simulate_raw
+    from illumix.retarget.sensors import get_sensor
+    from illumix.engine.context import make_context
+    from illumix.engine.library import Library
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     out = tmp_path / "dng"
     export_dataset(ExportOptions(store=store, out=str(out), format="DNG", sensors=[SENSOR], count=2, seed=1,
@@ -70,12 +70,12 @@ def test_dng_linear(store, tmp_path):
     """``--format dng --bayer none``: LinearRaw DNGs (3 samples per pixel) that libraw opens — the RGB
     digital numbers as composed, the levels, and its camera white balance = 1 / the recorded neutral;
     the camera's template is linear too."""
-    from dataset_export.run import ExportOptions, export_dataset
-    from retarget.sensor_model import NoiseModel, simulate_raw
-    from engine.context import make_context
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.dataset_export.run import ExportOptions, export_dataset
+    from illumix.retarget.sensor_model import NoiseModel, simulate_raw
+    from illumix.engine.context import make_context
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     out = tmp_path / "linear"
     s = export_dataset(ExportOptions(store=store, out=str(out), format="dng", bayer=None, count=2, seed=1,
@@ -103,9 +103,9 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
     from colour.io.fichet2021 import PATTERN_FICHET2021
 
-    from dataset_export.run import ExportOptions, export_dataset
-    from imagefiles.spectral_exr import read_spectral_exr
-    from store import CubeStore
+    from illumix.dataset_export.run import ExportOptions, export_dataset
+    from illumix.imagefiles.spectral_exr import read_spectral_exr
+    from illumix.store import CubeStore
 
     out = tmp_path / dtype
     s = export_dataset(ExportOptions(store=store, out=str(out), format="openexr", exr_dtype=dtype))
@@ -128,7 +128,7 @@ def test_exr_round_trip(store, tmp_path, dtype):
 
 
 def test_exr_half_clips_not_inf(tmp_path):
-    from imagefiles.spectral_exr import read_spectral_exr, write_spectral_exr
+    from illumix.imagefiles.spectral_exr import read_spectral_exr, write_spectral_exr
 
     cube = np.full((2, 3, 4), 7e4, np.float32)
     assert write_spectral_exr(tmp_path / "x.exr", cube, [400, 450, 500, 550], dtype="float16") == 24
@@ -139,7 +139,7 @@ def test_exr_half_clips_not_inf(tmp_path):
 def test_chart_finder():
     """Corners of a perspective-warped chart within a pixel, with noise and a same-coloured decoy;
     nothing found where there is no chart."""
-    from dataset_export.chart import chart_albedos, find_chart
+    from illumix.dataset_export.chart import chart_albedos, find_chart
 
     rng = np.random.default_rng(0)
     a = chart_albedo() + rng.normal(0, 0.01, (96, 128, 3)).astype(np.float32)

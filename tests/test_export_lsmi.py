@@ -20,7 +20,7 @@ SENSOR = "Nikon 5100 (NPL)"
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
-    from dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.run import ExportOptions, export_dataset
 
     root = tmp_path_factory.mktemp("lsmi")
     store = build_export_store(root / "store")
@@ -89,11 +89,11 @@ def test_layout_runs_like_lsmi_preprocess(exported):
 def test_frames_are_the_samples_served(exported):
     """The tiff is what /sample answers for the recorded parameters (composed again here), in DN;
     ``_12 − _1`` is light 2 alone (one exposure for the place)."""
-    from retarget.sensor_model import NoiseModel, simulate_raw
-    from engine.context import make_context
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.retarget.sensor_model import NoiseModel, simulate_raw
+    from illumix.engine.context import make_context
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     store, out, _ = exported
     man = json.loads((out / "manifest.json").read_text())
@@ -114,11 +114,11 @@ def test_physical_ground_truth_file(exported):
     white point per pixel, G = 1, composed again here from the recorded parameters) where the ground
     truth is defined, -1 elsewhere; LSMI's model Σ mixture·Light differs from it (the bounce light),
     by the angles meta.json records."""
-    from retarget.metrics import angular_error
-    from engine.context import make_context
-    from engine.sampling import build_sample
-    from engine.spec import SampleSpec
-    from store import CubeStore
+    from illumix.retarget.metrics import angular_error
+    from illumix.engine.context import make_context
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
 
     store, out, _ = exported
     man = json.loads((out / "manifest.json").read_text())
@@ -146,9 +146,9 @@ def test_physical_ground_truth_file(exported):
 def test_light_chromaticities_from_the_spectra(exported):
     """Light_i = Σ C(λ) Φ_i(λ) / its green, from the sensor and illuminant spectra directly; names and
     CCTs written (A ≈ 2856 K)."""
-    from retarget.grid import DEFAULT_GRID
-    from retarget.illuminants import illuminant_spd
-    from retarget.sensors import get_sensor
+    from illumix.retarget.grid import DEFAULT_GRID
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.sensors import get_sensor
 
     _, out, _ = exported
     meta = json.loads((out / "Nikon-5100-NPL" / "meta.json").read_text())
@@ -175,7 +175,7 @@ def test_chart_corners_in_meta(exported):
 
 
 def test_card_and_manifest(exported):
-    from dataset_export.journal import verify_manifest
+    from illumix.dataset_export.journal import verify_manifest
 
     _, out, summary = exported
     assert verify_manifest(out) == []

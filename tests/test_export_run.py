@@ -19,7 +19,7 @@ def store(tmp_path_factory):
 
 
 def test_split_scenes_disjoint_and_seeded():
-    from dataset_export.splits import split_counts, split_scenes
+    from illumix.dataset_export.splits import split_counts, split_scenes
 
     scenes = [f"s{i}" for i in range(23)]
     a = split_scenes(scenes, (0.7, 0.15, 0.15), seed=5)
@@ -32,7 +32,7 @@ def test_split_scenes_disjoint_and_seeded():
 
 def test_places_split_by_scene(store, tmp_path):
     """Repeated views (count > views) stay in their scene's split; no scene in two splits."""
-    from dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.run import ExportOptions, export_dataset
 
     s = export_dataset(ExportOptions(store=store, out=str(tmp_path / "o"), count=9, seed=2,
                                      pairs="A,D65;FL11,D50", split=(0.5, 0.25, 0.25)))
@@ -49,8 +49,8 @@ def test_places_split_by_scene(store, tmp_path):
 def test_resume_after_interruption(store, tmp_path):
     """Interrupted after two places, then rerun: the same files as one uninterrupted run; a damaged
     file is rewritten, a leftover temporary removed, and the manifest's checksums verify."""
-    from dataset_export.journal import verify_manifest
-    from dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.journal import verify_manifest
+    from illumix.dataset_export.run import ExportOptions, export_dataset
 
     opts = dict(store=store, seed=4, size=(32, 24))
     export_dataset(ExportOptions(out=str(tmp_path / "whole"), **opts))
@@ -80,7 +80,7 @@ def test_resume_after_interruption(store, tmp_path):
 
 
 def test_interrupted_write_leaves_no_file(tmp_path):
-    from dataset_export.journal import Journal
+    from illumix.dataset_export.journal import Journal
 
     j = Journal(tmp_path, {"a": 1})
 
@@ -157,7 +157,7 @@ def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
 def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
     """Store names may hold '.' (``demo.party``): a rerun deletes only the journal's own leftovers
     (regular files named ``.<name>.illumix-tmp<ext>``), never a folder or file of the export."""
-    from dataset_export.journal import Journal, temp_path
+    from illumix.dataset_export.journal import Journal, temp_path
 
     j = Journal(tmp_path, {"a": 1})
     real = j.write_bytes("Cam/demo.party-front/demo.party-front_1.tiff", b"x")
@@ -172,8 +172,8 @@ def test_resume_keeps_names_that_look_like_temporaries(tmp_path):
 
 def test_options_a_format_ignores_are_refused_by_the_library_too(store, tmp_path):
     """Not only the command line: ``export_dataset`` itself refuses what the format would drop."""
-    from dataset_export.errors import ExportError
-    from dataset_export.run import ExportOptions, export_dataset
+    from illumix.dataset_export.errors import ExportError
+    from illumix.dataset_export.run import ExportOptions, export_dataset
 
     for kw in ({"format": "exr", "gt": "physical"}, {"format": "exr", "sensors": ["XYZ"]},
                {"format": "lsmi", "bayer": None}, {"format": "dng", "exr_dtype": "float16"}):
@@ -185,11 +185,11 @@ def test_options_a_format_ignores_are_refused_by_the_library_too(store, tmp_path
 def test_service_refusal_is_an_export_error(store):
     """Anything the service refuses (its ServiceError, an HTTP answer there) stops the export as one
     ExportError line (the CLI: exit 2), not a traceback."""
-    from dataset_export.errors import ExportError
-    from dataset_export.frames import Composer
-    from dataset_export.plan import Place
-    from retarget.sensor_model import NoiseModel
-    from store import CubeStore
+    from illumix.dataset_export.errors import ExportError
+    from illumix.dataset_export.frames import Composer
+    from illumix.dataset_export.plan import Place
+    from illumix.retarget.sensor_model import NoiseModel
+    from illumix.store import CubeStore
 
     composer = Composer(CubeStore.open(store, mode="r"), gt=None, size=(5000, 10), noise=None,
                         levels=NoiseModel(), bayer=None)
@@ -200,7 +200,7 @@ def test_service_refusal_is_an_export_error(store):
 def test_count_capped_at_distinct_places(store, tmp_path, capsys):
     """--count beyond the distinct view × lighting combinations writes each combination once (a repeat
     of a view takes a lighting it has not had) and says so in one warning line; no two places alike."""
-    from dataset_export.plan import plan_places
+    from illumix.dataset_export.plan import plan_places
 
     views = [("s1", "v0", ("a", "b")), ("s2", "v0", ("a", "b"))]
     lightings = [("A", "D65"), ("FL11", "D50")]

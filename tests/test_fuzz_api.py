@@ -23,9 +23,9 @@ from hypothesis import HealthCheck, settings  # noqa: E402
 from schemathesis.specs.openapi.checks import positive_data_acceptance  # noqa: E402
 
 import synthetic_store as synth  # noqa: E402
-from service.app import create_app  # noqa: E402
-from engine.limits import Limits  # noqa: E402
-from store import CubeStore  # noqa: E402
+from illumix.service.app import create_app  # noqa: E402
+from illumix.engine.limits import Limits  # noqa: E402
+from illumix.store import CubeStore  # noqa: E402
 
 TOKEN = "fuzz-token"
 EXAMPLES = int(os.environ.get("ILLUMIX_FUZZ_EXAMPLES", "12"))

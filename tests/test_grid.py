@@ -7,8 +7,8 @@ import pytest
 from scipy import integrate
 
 from independent import band_average_fine, fine_lattice, interp
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID, SpectralGrid, resample
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid, resample
 
 # ---------------------------------------------------------------------------------------- the grid
 

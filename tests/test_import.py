@@ -14,11 +14,11 @@ import pytest
 
 import import_testutil as t
 from cli_testutil import run_cli
-from renderer_jobs.scene_load import load_scenes, scene_from_dict
-from renderer_jobs.scene_schema import SceneError, rotation_matrix
-from scene_import import import_scene
-from scene_import.colour_match import illuminant_for, illuminant_xy, rgb_light
-from scene_import.rules import load_rules
+from illumix.renderer_jobs.scene_load import load_scenes, scene_from_dict
+from illumix.renderer_jobs.scene_schema import SceneError, rotation_matrix
+from illumix.scene_import import import_scene
+from illumix.scene_import.colour_match import illuminant_for, illuminant_xy, rgb_light
+from illumix.scene_import.rules import load_rules
 from test_cli_spectra import assert_one_line_error
 
 
@@ -28,7 +28,7 @@ def _load(doc, base):
 
 def _mitsuba_loads(scene, view):
     pytest.importorskip("mitsuba")
-    from renderer_jobs.mitsuba_scene import load_mitsuba_scene
+    from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
 
     ms, sensor = load_mitsuba_scene(scene, view, None)
     assert len(ms.shapes()) >= 1 and sensor is not None
@@ -223,11 +223,11 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     pytest.importorskip("mitsuba")
     import colour
 
-    from renderer_jobs.blend_import import _upsample
-    from renderer_jobs.mitsuba_render import render_cube
-    from renderer_jobs.render_settings import RenderSettings
-    from retarget.grid import resample
-    from scene_import.colour_match import srgb_decode
+    from illumix.renderer_jobs.blend_import import _upsample
+    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.retarget.grid import resample
+    from illumix.scene_import.colour_match import srgb_decode
 
     doc, _ = import_scene(t.write_gltf(tmp_path / "s.gltf"), tmp_path / "out")
     doc["views"][0]["resolution"] = [32, 32]

@@ -1,6 +1,6 @@
 """The import flow README's "What is where" states is the code's (issue 34): one-way arrows between the
-rooms, and no circle among the product's modules (function-level imports included; imports under
-``if TYPE_CHECKING:`` are annotations only and left out)."""
+rooms, no circle among the product's modules (function-level imports included; imports under
+``if TYPE_CHECKING:`` are annotations only and left out), and one installed namespace, ``illumix.*``."""
 
 from __future__ import annotations
 
@@ -27,12 +27,19 @@ CLIENT = ROOT / "clients" / "python" / "illumix_client"
 
 
 def _modules() -> dict[str, Path]:
+    """Installed name (``illumix.<room>.…``; the CLI's own modules ``illumix.…``) → file."""
     out = {}
     for room in ALLOWED:
         for p in (ROOT / room).rglob("*.py"):
             parts = p.relative_to(ROOT).with_suffix("").parts
-            out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+            parts = parts[:-1] if parts[-1] == "__init__" else parts
+            out[".".join(parts if room == "illumix" else ("illumix", *parts))] = p
     return out
+
+
+def _room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in ALLOWED else "illumix"
 
 
 def _imports(path: Path, known: dict[str, Path]) -> set[str]:
@@ -64,7 +71,7 @@ def _graph() -> dict[str, set[str]]:
 
 def test_rooms_import_only_downward():
     bad = sorted(f"{m} imports {t}" for m, targets in _graph().items() for t in targets
-                 if t.split(".")[0] != m.split(".")[0] and t.split(".")[0] not in ALLOWED[m.split(".")[0]])
+                 if _room(t) != _room(m) and _room(t) not in ALLOWED[_room(m)])
     assert not bad, "imports against the README's flow:\n" + "\n".join(bad)
 
 
@@ -107,5 +114,17 @@ def test_the_client_reaches_the_engine_never_the_service():
     """The client talks HTTP; its optional local mode composes with the engine, never with routes."""
     known = _modules()
     for p in CLIENT.rglob("*.py"):
-        rooms = {m.split(".")[0] for m in _imports(p, known)}
+        rooms = {_room(m) for m in _imports(p, known)}
         assert rooms <= {"engine", "retarget", "store"}, f"{p.name} imports {sorted(rooms)}"
+
+
+def test_only_the_illumix_namespace_is_installed(tmp_path):
+    """``import illumix.service`` works from anywhere; the rooms' bare names (``service``, ``store``…)
+    are not importable outside the repository: they would collide with other packages."""
+    import subprocess
+    import sys
+
+    code = ("import importlib.util as u, illumix.service, illumix.store, illumix.engine\n"
+            f"print([r for r in {sorted(set(ALLOWED) - {'illumix'})!r} if u.find_spec(r) is not None])")
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -14,9 +14,9 @@ import synthetic_store as synth
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 
-from service.app import create_app
-from engine.warm import warm_cache
-from store import CubeStore
+from illumix.service.app import create_app
+from illumix.engine.warm import warm_cache
+from illumix.store import CubeStore
 
 
 def scrape(client) -> dict[tuple, float]:
@@ -131,7 +131,7 @@ def test_warm_cache_holds_exactly_what_the_default_samples_read(stores, variant)
 
 
 def synth_default_denoise() -> str:
-    from retarget.denoise import DEFAULT_METHOD
+    from illumix.retarget.denoise import DEFAULT_METHOD
 
     return DEFAULT_METHOD
 

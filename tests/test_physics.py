@@ -13,19 +13,19 @@ import numpy as np
 import pytest
 
 from independent import band_average_fine, fine_lattice, integral_fine, interp, srgb_encode
-from retarget import exposure as aec
-from retarget import groundtruth as gt
-from retarget import illuminants as ill
-from retarget import metrics
-from retarget import reflectances as refl
-from retarget import sensors as sen
-from retarget.ccm import fit_ccm, target_linear_srgb
-from retarget.compose import OUTPUTS, compose, group_ccms
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID
-from retarget.isp import apply_ccm, encode_srgb, preview, render_srgb
-from retarget.relight import band_scales, project, project_groups, raw_weights, relight
-from retarget.sensor_model import NOISE_PRESETS, NoiseModel, mosaic, simulate_raw
+from illumix.retarget import exposure as aec
+from illumix.retarget import groundtruth as gt
+from illumix.retarget import illuminants as ill
+from illumix.retarget import metrics
+from illumix.retarget import reflectances as refl
+from illumix.retarget import sensors as sen
+from illumix.retarget.ccm import fit_ccm, target_linear_srgb
+from illumix.retarget.compose import OUTPUTS, compose, group_ccms
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.isp import apply_ccm, encode_srgb, preview, render_srgb
+from illumix.retarget.relight import band_scales, project, project_groups, raw_weights, relight
+from illumix.retarget.sensor_model import NOISE_PRESETS, NoiseModel, mosaic, simulate_raw
 
 CAMERA = "Nikon 5100 (NPL)"  # colour-science's measured camera: no dependency on ../shared
 WL = DEFAULT_GRID.wavelengths

@@ -17,13 +17,13 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from retarget import groundtruth as gt
-from retarget.compose import compose, group_ccms
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID, resample
-from retarget.reflectances import get_reflectances
-from retarget.relight import band_scales
-from retarget.sensors import sensor_from_samples
+from illumix.retarget import groundtruth as gt
+from illumix.retarget.compose import compose, group_ccms
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID, resample
+from illumix.retarget.reflectances import get_reflectances
+from illumix.retarget.relight import band_scales
+from illumix.retarget.sensors import sensor_from_samples
 
 WL = DEFAULT_GRID.wavelengths
 N = DEFAULT_GRID.n_bands

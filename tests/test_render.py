@@ -13,13 +13,13 @@ import pytest
 
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
-from renderer_jobs import demo  # noqa: E402
-from renderer_jobs import mitsuba_render as mr  # noqa: E402
-from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from renderer_jobs import mitsuba_scene as ms  # noqa: E402
-from renderer_jobs import mitsuba_variant as mv  # noqa: E402
-from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
-from renderer_jobs.scene_schema import SceneError  # noqa: E402
+from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
+from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs import mitsuba_scene as ms  # noqa: E402
+from illumix.renderer_jobs import mitsuba_variant as mv  # noqa: E402
+from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from illumix.renderer_jobs.scene_schema import SceneError  # noqa: E402
 
 RES = (40, 30)
 
@@ -123,7 +123,7 @@ def test_step_spectrum_is_exact_inside_every_band_and_never_all_zero(box):
 def test_validation_matches_closed_form():
     """Delta light, Lambertian patches, no other geometry, stratified wavelengths: the estimator has
     zero variance, so rendered raw equals closed form to float32 rounding (~1e-6 relative)."""
-    from renderer_jobs.validate import run_validation
+    from illumix.renderer_jobs.validate import run_validation
 
     r = run_validation(illuminants=("D65", "FL11", "blackbody:2300"), spp=16, resolution=(96, 64))
     assert len(r.patches) == 72 and {p["patch"] for p in r.patches} == set(range(1, 25))
@@ -167,8 +167,8 @@ def test_same_seed_same_cube_other_seed_differs(box):
 def test_relight_flat_by_fl11_equals_fl11_emission():
     """Linearity per band: a cube rendered with FL11 emission equals the flat cube × FL11̄ — exactly
     (same seed: identical paths) and within noise (another seed)."""
-    from retarget.illuminants import illuminant_spd
-    from retarget.relight import band_scales, relight
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.relight import band_scales, relight
 
     flat = scene_from_dict(box_scene())
     fl11 = scene_from_dict(box_scene(lamp="FL11"))

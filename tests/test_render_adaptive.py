@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer_jobs import adaptive_spp
+from illumix.renderer_jobs import adaptive_spp
 
 
 def pilot_sums(v: np.ndarray, n: int = 16, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -98,8 +98,8 @@ def test_relative_variance_excludes_the_pixel_itself():
 def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
     """Image means of adaptive and uniform renders agree within 5 standard errors (the error of a
     difference of means over independent pixels); the adaptive cube reports its per-pixel spp."""
-    from renderer_jobs import demo
-    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
     a = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=1, adaptive=True, wavelengths="stratified"))
@@ -134,8 +134,8 @@ def test_noise_target_render_meets_its_target():
     (the pilot's neighbourhood variance is an estimate from 384 paths: ±25 % covers its error; a
     miscalibrated rule such as v/target for v/target² lands at 1.6×), and halving the target costs
     ~4× the paths."""
-    from renderer_jobs import demo
-    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs import demo
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
     mean_spp = {}

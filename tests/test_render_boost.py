@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer_jobs.render_settings import RenderSettings
-from renderer_jobs.scene_schema import SceneError
-from retarget.denoise import Guides
+from illumix.renderer_jobs.render_settings import RenderSettings
+from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.retarget.denoise import Guides
 
 RES = (24, 16)
 
@@ -30,7 +30,7 @@ def flat_guides(h: int = 32, w: int = 48) -> Guides:
 
 
 def test_reach_is_one_where_no_neighbour_resembles_and_small_on_a_flat_wall():
-    from renderer_jobs.boost_paths import boost_mask, reach
+    from illumix.renderer_jobs.boost_paths import boost_mask, reach
 
     g = flat_guides()
     normal = g.normal.copy()
@@ -71,8 +71,8 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 def renders():
     from test_render import box_scene
 
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     mask = np.zeros(RES[::-1], bool)
@@ -118,8 +118,8 @@ def test_the_extra_pass_estimates_the_film_renders_cube(renders):
 def test_a_mask_of_another_size_is_a_clear_error():
     from test_render import box_scene
 
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     with pytest.raises(SceneError, match="boost mask"):
         mr.render_cube(scene_from_dict(box_scene()), "cam", "lamp", RenderSettings(spp=16, resolution=RES),
@@ -132,9 +132,9 @@ def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
     the film is weighted by what it rendered, not by what was asked."""
     from test_render import box_scene
 
-    from renderer_jobs import mitsuba_band_render as mb
-    from renderer_jobs import mitsuba_render as mr
-    from renderer_jobs.scene_load import scene_from_dict
+    from illumix.renderer_jobs import mitsuba_band_render as mb
+    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.scene_load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     s = RenderSettings(spp=128, seed=3, resolution=RES)
@@ -153,11 +153,11 @@ def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
 def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path, monkeypatch):
     from test_render import box_scene
 
-    from renderer_jobs import denoise_guides as dg
-    from renderer_jobs import jobs
-    from renderer_jobs.execute import execute
-    from renderer_jobs.scene_load import scene_from_dict
-    from store import CubeStore
+    from illumix.renderer_jobs import denoise_guides as dg
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.store import CubeStore
 
     calls = []
     real = dg.direct_guide

@@ -10,10 +10,10 @@ import pytest
 import yaml
 
 from cli_testutil import run_cli
-from renderer_jobs import jobs
-from renderer_jobs.execute import execute
-from renderer_jobs.demo import demo_room_dict
-from renderer_jobs.scene_load import scene_from_dict
+from illumix.renderer_jobs import jobs
+from illumix.renderer_jobs.execute import execute
+from illumix.renderer_jobs.demo import demo_room_dict
+from illumix.renderer_jobs.scene_load import scene_from_dict
 
 TINY = ["--resolution", "24x16", "--spp", "16"]
 needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,
@@ -45,7 +45,7 @@ def tiny_scene_file(tmp_path, name="mini") -> str:
 
 @needs_mitsuba
 def test_render_demo_then_nothing_to_do(tmp_path, capsys):
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     store = str(tmp_path / "st")
     code, out, err = run_cli(capsys, "render", "--demo", "--store", store, *TINY, "--json")
@@ -105,7 +105,7 @@ def test_resume_renders_only_missing_cubes(tmp_path, capsys):
     assert code == 0, err
     assert sorted(json.loads(out.strip().splitlines()[-1])["rendered"]) == [
         "mini/a/[view+aovs]", "mini/a/bulb", "mini/a/lamp"]
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     st = CubeStore.open(store, mode="r")
     assert st.read_cube("mini", "a", "lamp").shape == (20, 30, 63)
@@ -196,8 +196,8 @@ def test_validate_cli_writes_validation_json(tmp_path, capsys):
 @needs_mitsuba
 def test_local_process_pool(tmp_path):
     """Two spawned worker processes render the tiny scene into one store."""
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from store import CubeStore
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
     store = str(tmp_path / "st")
@@ -218,8 +218,8 @@ def test_ray_executor_on_local_instance(tmp_path):
     """A local Ray instance (127.0.0.1 only, started here) renders the jobs; the cubes equal the
     in-process render of the same seed."""
     ray = pytest.importorskip("ray")
-    from renderer_jobs.mitsuba_render import RenderSettings, render_cube
-    from store import CubeStore
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))), base=tmp_path)
     store = str(tmp_path / "st")
@@ -247,8 +247,8 @@ def test_demo_room_dict_serialises():
 def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
     """A store is created where none is yet: an empty directory, an fsspec URL with nothing there.
     A directory holding something else is refused with one line, before anything is rendered."""
-    from renderer_jobs.mitsuba_render import RenderSettings
-    from store import CubeStore
+    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.store import CubeStore
 
     scene_file = tiny_scene_file(tmp_path)
     empty = tmp_path / "empty"
@@ -275,7 +275,7 @@ def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
 def test_plan_refuses_an_unreadable_store_instead_of_planning_it_empty(tmp_path):
     """Issue 34: the planner once answered None/[] on any exception, so a damaged view was planned
     as missing and rendered again over the damage; now only "not there yet" is missing."""
-    from store import CubeStore, StoreError
+    from illumix.store import CubeStore, StoreError
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
     path = tmp_path / "st"

@@ -17,11 +17,11 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from test_render import assert_same_within_noise, box_scene  # noqa: E402
 
-from renderer_jobs import demo  # noqa: E402
-from renderer_jobs import mitsuba_render as mr  # noqa: E402
-from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
-from renderer_jobs.validate import patch_masks  # noqa: E402
+from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
+from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from illumix.renderer_jobs.validate import patch_masks  # noqa: E402
 
 
 def test_white_lambertian_closed_form_on_the_validation_chart():
@@ -34,7 +34,7 @@ def test_white_lambertian_closed_form_on_the_validation_chart():
     expect = math.cos(math.radians(30)) / math.pi
     u = np.stack([r.illumination[m].mean(axis=0) for m in masks])  # (24, bands)
     np.testing.assert_allclose(u, expect, rtol=1e-5)
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     _, refl = get_reflectances("ColorChecker N Ohta", s.spectral_grid)
     t = np.stack([r.cube[m].mean(axis=0) for m in masks])
@@ -56,7 +56,7 @@ def test_glossy_estimates_match_the_closed_form_on_glossy_patches(monkeypatch, w
     """Rough-plastic patches (no L/ρ): the in-path estimate (all-bands: a white surface along the
     path's own BSDF-sampled continuation), the separate white path, and the stratified mode's traced
     estimate all give the closed form."""
-    from renderer_jobs import mitsuba_bands
+    from illumix.renderer_jobs import mitsuba_bands
 
     monkeypatch.setattr(mr, "TRACE_BUDGET", 1.0)  # trace every sample: no subsampling noise
     monkeypatch.setattr(mitsuba_bands, "FORCE_FIRST", force)
@@ -101,8 +101,8 @@ def test_grey_plane_illumination_is_transport_over_albedo_and_tinted_by_a_colour
 
 
 def test_illumination_relights_exactly_like_transport():
-    from retarget.illuminants import illuminant_spd
-    from retarget.relight import band_scales, relight
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.relight import band_scales, relight
 
     flat = mr.render_cube(scene_from_dict(box_scene()), "cam", "lamp", mr.RenderSettings(spp=32, seed=1))
     fl11 = mr.render_cube(scene_from_dict(box_scene(lamp="FL11")), "cam", "lamp", mr.RenderSettings(spp=32, seed=1))
@@ -115,7 +115,7 @@ def test_illumination_is_finite_non_negative_and_unbiased_against_demodulation(m
     """The box with every surface diffuse: per-sample demodulation (exact) and the other estimators
     (forced on every hit: the stratified mode's traced one; all-bands' in-path and separate white
     path) agree within noise; all finite and ≥ 0."""
-    from renderer_jobs import mitsuba_bands
+    from illumix.renderer_jobs import mitsuba_bands
 
     box = scene_from_dict(box_scene())
     for wavelengths, forced in (("stratified", ("traced",)), ("all-bands", ("mixed", "traced"))):

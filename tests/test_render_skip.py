@@ -12,11 +12,11 @@ import yaml
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
 from illumix.cli import main  # noqa: E402
-from renderer_jobs import demo  # noqa: E402
-from renderer_jobs.light_probe import probe_group  # noqa: E402
-from renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from renderer_jobs.mitsuba_render import RenderSettings, render_cube  # noqa: E402
-from renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.renderer_jobs.light_probe import probe_group  # noqa: E402
+from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube  # noqa: E402
+from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
 
 RES = (40, 30)
 
@@ -81,7 +81,7 @@ def test_probe_of_demo_room_groups_is_lit_and_cheap():
 
 
 def test_render_skips_dark_groups_into_empty_cubes(tmp_path, capsys):
-    from store import CubeStore
+    from illumix.store import CubeStore
 
     path = tmp_path / "skip.yaml"
     path.write_text(yaml.safe_dump(json.loads(json.dumps(skip_scene_dict()))))
@@ -113,7 +113,7 @@ def test_render_skips_dark_groups_into_empty_cubes(tmp_path, capsys):
 def test_background_pixels_are_skipped_only_where_exactly_zero():
     """Pixels no camera ray of which can hit geometry get no paths when the group has no sky: the
     full render is exactly zero there, and elsewhere the two renders agree within noise."""
-    from renderer_jobs.view_coverage import covered_pixels
+    from illumix.renderer_jobs.view_coverage import covered_pixels
 
     d = skip_scene_dict((48, 36))
     d["views"].append({"name": "high", "origin": (0.4, 1.6, 2.5), "target": (0, 1.4, -1), "up": (0.1, 1, 0),
@@ -146,7 +146,7 @@ def test_max_lanes_bounds_every_trace_call_even_below_the_film_size(scene, monke
     """``max_lanes`` (the memory bound) holds for the pilot, the adaptive rest and the probe when it is
     smaller than the film (1200 px): no Mitsuba call traces more paths; verdicts and image means
     (5 standard errors of the pixel differences) are those of the unsplit run."""
-    from renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba_trace import Tracer
 
     sizes: list[int] = []
     trace = Tracer.trace

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
-from renderer_jobs import demo
-from renderer_jobs.scene_load import dump_scene, load_scenes, scene_from_dict
-from renderer_jobs.scene_schema import SceneError, Transform, rotation_matrix
+from illumix.renderer_jobs import demo
+from illumix.renderer_jobs.scene_load import dump_scene, load_scenes, scene_from_dict
+from illumix.renderer_jobs.scene_schema import SceneError, Transform, rotation_matrix
 
 BASE = {
     "name": "t1",
@@ -63,7 +63,7 @@ def test_valid_scene_groups_emission_and_hash():
     assert len(s.scene_hash) == 64 and s.scene_hash == scene_from_dict(BASE).scene_hash
     assert [e.name for e in s.emitters_of("lamp")] == ["lamp"]
     # reflectance of ColorChecker patch 4 (foliage) is the library's band averages
-    from retarget.reflectances import get_reflectances
+    from illumix.retarget.reflectances import get_reflectances
 
     _, r = get_reflectances("ColorChecker N Ohta")
     np.testing.assert_array_equal(s.spectrum(s.materials["cc"].reflectance, "x"), r[3])
@@ -161,7 +161,7 @@ def test_transform_order_scale_rotate_translate():
 
 
 def test_library_emission_is_normalised_illuminant():
-    from retarget.illuminants import illuminant_spd
+    from illumix.retarget.illuminants import illuminant_spd
 
     s = scene_from_dict(doc(light_groups=[{"name": "lamp", "emission": "FL11"}, {"name": "day"}]))
     np.testing.assert_allclose(s.emission("lamp"), illuminant_spd("FL11"))
@@ -195,7 +195,7 @@ def test_chart_patch_layout_in_chart_order():
 def test_example_scene_loads():
     from pathlib import Path
 
-    import renderer_jobs
+    from illumix import renderer_jobs
 
     (s,) = load_scenes(Path(renderer_jobs.__file__).parent / "examples" / "two_lamps.yaml")
     assert s.group_names == ["ceiling", "lamp", "ambient"] and len(s.views) == 2

@@ -9,8 +9,8 @@ import re
 import numpy as np
 import pytest
 
-from renderer_jobs.scene_load import scene_from_dict
-from scenegen.generate import GeneratorConfig, generate_doc, layout_hash
+from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.scenegen.generate import GeneratorConfig, generate_doc, layout_hash
 
 pytest.importorskip("mitsuba")
 
@@ -24,7 +24,7 @@ def _object(name: str) -> str:
 
 
 def _boxes(scene):
-    from renderer_jobs.mitsuba_scene import shape_hull_points
+    from illumix.renderer_jobs.mitsuba_scene import shape_hull_points
 
     out = []
     for s in scene.shapes:
@@ -65,7 +65,7 @@ def test_layouts_windows_and_fixture_kinds_vary(rooms):
 
 
 def test_generated_room_loads_in_mitsuba(rooms):
-    from renderer_jobs.mitsuba_scene import load_mitsuba_scene
+    from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
 
     scene = scene_from_dict(rooms[1])
     ms, _ = load_mitsuba_scene(scene, scene.views[0].name, None, resolution=(8, 6))
@@ -102,7 +102,7 @@ def test_no_light_inside_furniture_and_no_intersections(rooms):
 def test_mixed_fraction_closed_cases():
     """Two equal lights mirrored about the view axis: every lit pixel shares 50/50 (fraction 1); one
     group alone: 0."""
-    from scenegen.views import mixed_fractions
+    from illumix.scenegen.views import mixed_fractions
 
     def doc(groups):
         shapes = [{"name": "floor", "type": "rectangle", "material": "w",
@@ -129,7 +129,7 @@ def test_config_errors_name_the_field():
 def test_clear_views_reject_a_wall_between_camera_and_target():
     """A view 0.5 m in front of a wall with its target behind the wall is not clear; the same view
     turned to the open floor is."""
-    from scenegen.views import clear_views
+    from illumix.scenegen.views import clear_views
 
     wall = {"name": "wall", "type": "rectangle", "material": "w",
             "transform": {"matrix": [[3, 0, 0, 0], [0, 3, 0, 1.5], [0, 0, 1, -0.5], [0, 0, 0, 1]]}}

@@ -15,11 +15,11 @@ from fastapi.testclient import TestClient  # noqa: E402
 
 import synthetic_store as synth  # noqa: E402
 from server_testutil import ThreadServer, synthetic_service_fixtures  # noqa: E402
-from retarget.groundtruth import gain_map, illuminant_weights, mixed_white_point, white_point  # noqa: E402
-from retarget.illuminants import illuminant_spd  # noqa: E402
-from retarget.sensors import get_sensor  # noqa: E402
-from service.app import create_app  # noqa: E402
-from store import CubeStore  # noqa: E402
+from illumix.retarget.groundtruth import gain_map, illuminant_weights, mixed_white_point, white_point  # noqa: E402
+from illumix.retarget.illuminants import illuminant_spd  # noqa: E402
+from illumix.retarget.sensors import get_sensor  # noqa: E402
+from illumix.service.app import create_app  # noqa: E402
+from illumix.store import CubeStore  # noqa: E402
 
 TOKEN = "s3cret"
 SENSOR_CSV = "wavelength,r,g,b\n" + "\n".join(
@@ -268,8 +268,8 @@ def test_group_recorded_empty_composes_as_no_light(tmp_path):
     """A light group the renderer recorded as empty for a view (dark: ``CubeStore.mark_empty``) is
     served like a group that is lit nowhere: 200, finite outputs, raw equals the lit group's alone,
     and the gain map is that group's white-point gain everywhere it lights (the core library's)."""
-    from store import CubeMeta, ViewMeta
-    from retarget.grid import DEFAULT_GRID
+    from illumix.store import CubeMeta, ViewMeta
+    from illumix.retarget.grid import DEFAULT_GRID
 
     path = tmp_path / "store"
     synth.build(path, extras=False)

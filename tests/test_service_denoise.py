@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from retarget.denoise import Guides, denoise
-from retarget.denoise_methods import DEFAULT_METHOD
-from service.app import create_app
-from store import CubeStore
+from illumix.retarget.denoise import Guides, denoise
+from illumix.retarget.denoise_methods import DEFAULT_METHOD
+from illumix.service.app import create_app
+from illumix.store import CubeStore
 from tests import synthetic_store as synth
 
 

@@ -3,9 +3,9 @@ shared by GET /sample and POST /batch (issue 34)."""
 
 from __future__ import annotations
 
-from engine.spec import FORMATS
-from service.encoders import ENCODERS, Encoder, encoder
-from service.encoding import MEDIA
+from illumix.engine.spec import FORMATS
+from illumix.service.encoders import ENCODERS, Encoder, encoder
+from illumix.service.encoding import MEDIA
 
 
 def test_every_format_has_one_encoder_with_its_media_type():

@@ -15,9 +15,9 @@ pytest.importorskip("pidng", reason="the export extra installs pidng")
 pytest.importorskip("OpenEXR", reason="the export extra installs OpenEXR")
 from server_testutil import synthetic_service_fixtures
 
-from retarget.grid import DEFAULT_GRID
-from retarget.illuminants import illuminant_spd
-from retarget.sensors import get_sensor
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.illuminants import illuminant_spd
+from illumix.retarget.sensors import get_sensor
 
 SENSOR = "Nikon 5100 (NPL)"
 BLACK, WHITE = 64, 4095  # the DNG's levels without noise= (the export's default sensor levels)
@@ -124,8 +124,8 @@ def test_exr_round_trip_equals_the_npz(client, tmp_path):
     with OpenEXR alone) equals the npz's array bit for bit; the spectra are Fichet et al.'s channels."""
     import OpenEXR
 
-    from imagefiles.layered_exr import read_layered_exr
-    from imagefiles.spectral_exr import read_spectral_exr
+    from illumix.imagefiles.layered_exr import read_layered_exr
+    from illumix.imagefiles.spectral_exr import read_spectral_exr
 
     outputs = "raw,gain,ccm,srgb,weights,mask,illum,mixture,reflectance,illumination,meta"
     q = {"view": "v0", "illuminants": "FL11,D50", "crop": "8,4,40,32"}
@@ -158,7 +158,7 @@ def test_exr_round_trip_equals_the_npz(client, tmp_path):
 
 def test_exr_of_a_bayer_raw_without_meta(client):
     r = get(client, format="exr", outputs="raw", bayer="RGGB", view="v0")
-    from imagefiles.layered_exr import read_layered_exr
+    from illumix.imagefiles.layered_exr import read_layered_exr
 
     back, header = read_layered_exr(r.content)
     ref, _ = npz(client, outputs="raw", bayer="RGGB", view="v0")
@@ -187,7 +187,7 @@ def test_refusals_are_one_line(client, params, status, words):
 def test_without_the_export_extra_a_501_names_the_install(client, monkeypatch, fmt, module):
     import importlib.util
 
-    from service import file_downloads
+    from illumix.service import file_downloads
 
     real = importlib.util.find_spec
     monkeypatch.setattr(file_downloads.importlib.util, "find_spec", lambda name, *a: None if name == module

@@ -16,10 +16,10 @@ import pytest
 from fastapi.testclient import TestClient
 
 import synthetic_store as synth
-from retarget.illuminants import illuminant_spd
-from retarget.sensors import get_sensor
-from service.app import create_app
-from store import CubeStore
+from illumix.retarget.illuminants import illuminant_spd
+from illumix.retarget.sensors import get_sensor
+from illumix.service.app import create_app
+from illumix.store import CubeStore
 
 V0 = {"scene": "synth", "view": "v0", "sensor": "XYZ"}
 PAIR = {"pair": "FL11,D65", "intensities": "1,0.5"}

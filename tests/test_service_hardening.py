@@ -17,8 +17,8 @@ from fastapi.testclient import TestClient
 
 import synthetic_store as synth
 from server_testutil import synthetic_service_fixtures
-from service.app import create_app
-from store import CubeStore
+from illumix.service.app import create_app
+from illumix.store import CubeStore
 
 TOKEN = "s3cret"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -93,7 +93,7 @@ def test_image_formats_need_exactly_one_image_output(client, params):
 
 
 def test_unexpected_errors_are_500_in_the_common_shape(store_path, monkeypatch):
-    import service.routes.samples as routes
+    import illumix.service.routes.samples as routes
 
     def boom(*a, **k):
         raise RuntimeError("synthetic bug")
@@ -165,7 +165,7 @@ def test_bad_authorization_headers_are_401_not_500(client, header):
 
 
 def test_upload_on_a_full_disk_is_507_and_writes_nothing(client, store_path, monkeypatch):
-    from store.backend import Backend
+    from illumix.store.backend import Backend
 
     def full(self, key, data, exclusive=False):
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -181,8 +181,8 @@ def test_upload_on_a_full_disk_is_507_and_writes_nothing(client, store_path, mon
 
 
 def test_one_upload_limit_for_store_and_service(client):
-    from engine.limits import Limits
-    from store.registry import DEFAULT_MAX_BYTES
+    from illumix.engine.limits import Limits
+    from illumix.store.registry import DEFAULT_MAX_BYTES
 
     assert Limits().max_upload_bytes == DEFAULT_MAX_BYTES
     big = b"380,1\n" + b"#" * DEFAULT_MAX_BYTES

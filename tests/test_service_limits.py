@@ -20,14 +20,14 @@ from fastapi.testclient import TestClient
 
 import synthetic_store as synth
 from server_testutil import ThreadServer
-from engine.budget import MemoryBudget
-from engine.errors import Busy, TooLarge
-from engine.limits import Limits
-from engine.sampling import build, plan, price
-from engine.spec import SampleSpec
-from service.app import create_app
-from service.encoding import encode_npz
-from store import CubeMeta, CubeStore
+from illumix.engine.budget import MemoryBudget
+from illumix.engine.errors import Busy, TooLarge
+from illumix.engine.limits import Limits
+from illumix.engine.sampling import build, plan, price
+from illumix.engine.spec import SampleSpec
+from illumix.service.app import create_app
+from illumix.service.encoding import encode_npz
+from illumix.store import CubeMeta, CubeStore
 
 H, W = 96, 128
 
@@ -139,7 +139,7 @@ def test_busy_and_too_large_map_to_503_and_413():
     from fastapi import FastAPI
     from fastapi.testclient import TestClient
 
-    from service import errors
+    from illumix.service import errors
 
     app = FastAPI()
     errors.install(app)
@@ -256,7 +256,7 @@ def test_png_raw_keeps_midtones_with_a_lamp_in_view(tmp_path):
 def test_default_outputs_pass_the_default_limits(tmp_path, h, w, crop):
     """Issue 34: with the CCM map back among the defaults, a 480x640 frame and a 256² crop are still
     within one request's working memory (the estimate made before any work)."""
-    from engine.context import make_context
+    from illumix.engine.context import make_context
 
     synth.build(tmp_path / "big", h=h, w=w)
     ctx = make_context(CubeStore.open(str(tmp_path / "big"), mode="r"))  # the service's default cache

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-from engine.context import make_context
-from engine.errors import NotFound
-from engine.sampling import plan
-from engine.spec import SampleSpec
-from store import CubeStore
+from illumix.engine.context import make_context
+from illumix.engine.errors import NotFound
+from illumix.engine.sampling import plan
+from illumix.engine.spec import SampleSpec
+from illumix.store import CubeStore
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ reads is what halving every count each ``_AGE_EVERY`` requests gave, without the
 
 from __future__ import annotations
 
-import engine.projections as pj
+import illumix.engine.projections as pj
 
 
 def test_counts_halve_per_age_without_touching_every_key(monkeypatch):

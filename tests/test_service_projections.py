@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import synthetic_store as synth
 
-from service.app import create_app
-from engine.sampling import build_sample
-from engine.spec import SampleSpec
-from store import CubeStore
+from illumix.service.app import create_app
+from illumix.engine.sampling import build_sample
+from illumix.engine.spec import SampleSpec
+from illumix.store import CubeStore
 
 V0 = {"scene": "synth", "view": "v0"}
 
@@ -88,7 +88,7 @@ def test_the_cache_bound_holds(store):
 
 
 def test_warmed_projections_serve_the_first_crop(store):
-    from engine.warm import warm_cache, warm_projections
+    from illumix.engine.warm import warm_cache, warm_projections
 
     ctx = ctx_of(store, 16)
     assert warm_projections(ctx, ["XYZ"], ["A"])["projections"] == 0  # only cubes already decoded
@@ -103,7 +103,7 @@ def test_warmed_projections_serve_the_first_crop(store):
 
 def test_admission_keeps_popular_frames_from_keys_used_once():
     """TinyLFU's rule: a key used once does not evict a frame asked for more often."""
-    from engine.projections import ProjectionCache
+    from illumix.engine.projections import ProjectionCache
 
     cube = np.ones((8, 8, 4), np.float32)
     w = np.ones((4, 3))

@@ -15,13 +15,13 @@ import pytest
 from scipy import integrate
 
 from independent import band_average_fine, fine_lattice, integral_fine, interp, product_bound
-from retarget import illuminants as ill
-from retarget import reflectances as refl
-from retarget import sensors as sen
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID, SpectralGrid
-from retarget.groundtruth import white_point
-from retarget.tables import read_csv_table, read_rawtoaces_camera
+from illumix.retarget import illuminants as ill
+from illumix.retarget import reflectances as refl
+from illumix.retarget import sensors as sen
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid
+from illumix.retarget.groundtruth import white_point
+from illumix.retarget.tables import read_csv_table, read_rawtoaces_camera
 
 X = fine_lattice()
 CMFS = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from store_testutil import add_view, new_store
 
-from store import CubeStore, StoreKeyError
-from store.codec import REL_BOUND_F16
-from store.report import verify
+from illumix.store import CubeStore, StoreKeyError
+from illumix.store.codec import REL_BOUND_F16
+from illumix.store.report import verify
 
 REPO = Path(__file__).resolve().parents[1]
 H, W = 128, 96  # 4 rows of 32 px chunks
@@ -27,8 +27,8 @@ WRITER = r"""
 import sys, time
 import numpy as np
 sys.path.insert(0, sys.argv[1])
-from retarget.grid import DEFAULT_GRID
-from store import CubeMeta, CubeStore
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.store import CubeMeta, CubeStore
 path, mode, values, slow = sys.argv[2], sys.argv[3], sys.argv[4], float(sys.argv[5])
 st = CubeStore.open(path, tile=32, atomic_rename=(mode == "rename"))
 yy, xx, bb = np.mgrid[0:128, 0:96, 0:63]

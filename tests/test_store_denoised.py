@@ -8,10 +8,10 @@ import shutil
 import numpy as np
 import pytest
 
-from retarget.grid import DEFAULT_GRID
-from store import CubeMeta, CubeStore, StoreError, ViewMeta
-from store.report import verify
-from store.schema import DenoisedInfo
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.store import CubeMeta, CubeStore, StoreError, ViewMeta
+from illumix.store.report import verify
+from illumix.store.schema import DenoisedInfo
 from tests import synthetic_store as synth
 
 H, W, NB = 16, 12, DEFAULT_GRID.n_bands

@@ -14,7 +14,7 @@ from hypothesis import strategies as hs
 from hypothesis.extra import numpy as hnp
 from store_testutil import NB, add_view, cube, meta, new_store
 
-from store.codec import REL_BOUND_F16, decode, encode
+from illumix.store.codec import REL_BOUND_F16, decode, encode
 
 
 def _rel(a: np.ndarray, ref: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 
-from store.lru import LRUCache, nbytes_cost
+from illumix.store.lru import LRUCache, nbytes_cost
 
 
 def test_count_bound_order_and_counters():

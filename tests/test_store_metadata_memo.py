@@ -12,7 +12,7 @@ import pytest
 
 from store_testutil import add_view, cube, meta, new_store
 
-from store import CubeStore, StoreKeyError, backend
+from illumix.store import CubeStore, StoreKeyError, backend
 
 
 def _age(path, seconds: float = 10.0) -> None:

@@ -7,7 +7,7 @@ import uuid
 import pytest
 from store_testutil import new_store
 
-from store import CubeStore, StoreError, StoreKeyError
+from illumix.store import CubeStore, StoreError, StoreKeyError
 
 CSV = b"wavelength,r,g,b\n400,0.1,0.2,0.3\n700,0.3,0.2,0.1\n"
 

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 from store_testutil import H, NB, TILE, W, add_view, cube, meta, new_store
 
-from store import CubeStore, StoreError, StoreKeyError, ViewMeta
-from store.codec import REL_BOUND_F16
+from illumix.store import CubeStore, StoreError, StoreKeyError, ViewMeta
+from illumix.store.codec import REL_BOUND_F16
 
 
 def _aovs(rng: np.random.Generator) -> dict:
@@ -210,7 +210,7 @@ def test_fsspec_url_backend_with_completion_marker():
     full = ro.read_cube("s", "v", "g")
     assert np.all(np.abs(full - c) <= REL_BOUND_F16 * np.abs(c))
     assert np.array_equal(ro.read_cube("s", "v", "g", crop=(7, 3, 40, 30)), full[3:33, 7:47])
-    from store.report import verify
+    from illumix.store.report import verify
 
     assert verify(ro)["ok"]
 

@@ -16,9 +16,9 @@ from store_testutil import NB, add_view, cube, meta, new_store
 from typer.testing import CliRunner
 
 from illumix import cmd_store
-from retarget.grid import SpectralGrid
-from store import CubeMeta, CubeStore, StoreError
-from store.report import verify
+from illumix.retarget.grid import SpectralGrid
+from illumix.store import CubeMeta, CubeStore, StoreError
+from illumix.store.report import verify
 
 REPO = Path(__file__).resolve().parents[1]
 CUBE = "scenes/s/v/cubes/g"

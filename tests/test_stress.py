@@ -29,14 +29,14 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from retarget.ccm import fit_ccm
-from retarget.errors import SpectralError
-from retarget.grid import DEFAULT_GRID
-from retarget.illuminants import illuminant_spd
-from retarget.reflectances import get_reflectances
-from retarget.sensors import sensor_from_samples
-from store import CubeMeta, CubeStore, StoreError, ViewMeta
-from store.codec import REL_BOUND_F16
+from illumix.retarget.ccm import fit_ccm
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.illuminants import illuminant_spd
+from illumix.retarget.reflectances import get_reflectances
+from illumix.retarget.sensors import sensor_from_samples
+from illumix.store import CubeMeta, CubeStore, StoreError, ViewMeta
+from illumix.store.codec import REL_BOUND_F16
 
 _SCALE = int(os.environ.get("ILLUMIX_HYPOTHESIS_SCALE", "1"))
 SETTINGS = dict(derandomize=_SCALE == 1, database=None, deadline=None,
@@ -194,7 +194,7 @@ def test_ill_conditioned_ccm_fits_are_optimal_and_white_preserving_or_refused(se
     m = fit.matrix
     assert np.all(np.isfinite(m)) and np.all(np.isfinite(fit.delta_e00))
     np.testing.assert_allclose(m @ np.ones(3), np.ones(3), rtol=0, atol=1e-6 * max(1.0, np.abs(m).max()))
-    from retarget.ccm import target_linear_srgb
+    from illumix.retarget.ccm import target_linear_srgb
 
     cw = s.weights()
     raw = (PALETTE * spd) @ cw / (spd @ cw)

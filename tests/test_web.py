@@ -42,8 +42,8 @@ ARTIFACT = Path(__file__).resolve().parents[1] / "bench" / "out" / "web-explorer
 
 @pytest.fixture(scope="module")
 def url(tmp_path_factory):
-    from service.app import create_app
-    from store import CubeStore
+    from illumix.service.app import create_app
+    from illumix.store import CubeStore
 
     path = tmp_path_factory.mktemp("web") / "store"
     synth.build(path, h=120, w=160, extras=False, illumination=True)

@@ -17,11 +17,11 @@ from illumix_client import arrays_format as dec
 from illumix_client.sample import parse_batch, parse_sample
 from server_testutil import ThreadServer
 
-from service import arrays_format as enc
-from service.app import create_app
-from service.encoding import half_precision
-from engine.spec import DEFAULT_OUTPUTS
-from store import CubeStore
+from illumix.service import arrays_format as enc
+from illumix.service.app import create_app
+from illumix.service.encoding import half_precision
+from illumix.engine.spec import DEFAULT_OUTPUTS
+from illumix.store import CubeStore
 
 V0 = {"scene": "synth", "view": "v0", "sensor": "XYZ", "pair": "FL11,D65", "intensities": "1,0.5", "seed": 3}
 EVERY = "raw,gain,ccm,srgb,weights,mask,illum,mixture,meta"

@@ -20,17 +20,17 @@ from fastapi import APIRouter, Query
 from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from engine.sampling import build, plan, price
-from engine.spec import MAX_NAME, SampleSpec
-from retarget import global_wb
-from retarget.grid import DEFAULT_GRID
-from retarget.groundtruth import white_point
-from retarget.locus import locus
-from service import arrays_format
-from service.deps import CtxDep
-from service.errors import error_responses, fail, refuses
-from service.models import IlluminantCurve, LocusPoint, Spectra
-from service.routes.samples import HeldResponse
+from illumix.engine.sampling import build, plan, price
+from illumix.engine.spec import MAX_NAME, SampleSpec
+from illumix.retarget import global_wb
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.groundtruth import white_point
+from illumix.retarget.locus import locus
+from illumix.service import arrays_format
+from illumix.service.deps import CtxDep
+from illumix.service.errors import error_responses, fail, refuses
+from illumix.service.models import IlluminantCurve, LocusPoint, Spectra
+from illumix.service.routes.samples import HeldResponse
 
 router = APIRouter(prefix="/explore", tags=["explore"])
 #: what a frame is composed with (meta carries each group's white point and CCM for the baseline)

@@ -11,16 +11,16 @@ from typing import Annotated
 
 from fastapi import APIRouter, File, Form, UploadFile
 
-from engine import catalogue
-from engine.library import check_upload_name, parse_illuminant, parse_sensor
-from retarget import illuminants as ill
-from retarget import sensors as sen
-from retarget.errors import SpectralError, unknown_name
-from retarget.grid import DEFAULT_GRID
-from service.deps import CtxDep, TokenDep
-from service.errors import error_responses, fail
-from service.models import Deleted, IlluminantList, SensorDetail, SensorList, Uploaded
-from store import StoreError
+from illumix.engine import catalogue
+from illumix.engine.library import check_upload_name, parse_illuminant, parse_sensor
+from illumix.retarget import illuminants as ill
+from illumix.retarget import sensors as sen
+from illumix.retarget.errors import SpectralError, unknown_name
+from illumix.retarget.grid import DEFAULT_GRID
+from illumix.service.deps import CtxDep, TokenDep
+from illumix.service.errors import error_responses, fail
+from illumix.service.models import Deleted, IlluminantList, SensorDetail, SensorList, Uploaded
+from illumix.store import StoreError
 
 router = APIRouter()
 _WRITE_ERRORS = error_responses(400, 401, 408, 409, 413, 422, 503, 507)

@@ -7,15 +7,15 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
 
-from engine import budget
-from engine.sampling import build, plan, price
-from engine.spec import SampleSpec
-from service import arrays_format
-from service.deps import CtxDep
-from service.encoders import ENCODERS, encoder, wire_arrays
-from service.encoding import MEDIA
-from service.errors import error_responses, fail
-from service.models import BatchRequest
+from illumix.engine import budget
+from illumix.engine.sampling import build, plan, price
+from illumix.engine.spec import SampleSpec
+from illumix.service import arrays_format
+from illumix.service.deps import CtxDep
+from illumix.service.encoders import ENCODERS, encoder, wire_arrays
+from illumix.service.encoding import MEDIA
+from illumix.service.errors import error_responses, fail
+from illumix.service.models import BatchRequest
 
 router = APIRouter(tags=["samples"])
 #: an arrays body is sent in slices of at most this many bytes (views, not copies): the server's

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
-from engine import catalogue
-from service.deps import CtxDep
-from service.errors import error_responses
-from service.models import CacheStats, Health, MemoryStats, Scenes
+from illumix.engine import catalogue
+from illumix.service.deps import CtxDep
+from illumix.service.errors import error_responses
+from illumix.service.models import CacheStats, Health, MemoryStats, Scenes
 
 router = APIRouter(tags=["status"])
 

@@ -30,14 +30,14 @@ from illumix_client.sample import Sample, as_specs, encode_spec
 try:
     from pydantic import ValidationError
 
-    from engine import catalogue
-    from engine.context import make_context
-    from engine.errors import Busy, NotFound, TooLarge
-    from engine.sampling import build, plan, price
-    from engine.spec import SampleSpec
-    from engine.torch_sampling import refusal as torch_refusal
-    from retarget.errors import SpectralError, UnknownName
-    from store import CubeStore, StoreError, StoreKeyError
+    from illumix.engine import catalogue
+    from illumix.engine.context import make_context
+    from illumix.engine.errors import Busy, NotFound, TooLarge
+    from illumix.engine.sampling import build, plan, price
+    from illumix.engine.spec import SampleSpec
+    from illumix.engine.torch_sampling import refusal as torch_refusal
+    from illumix.retarget.errors import SpectralError, UnknownName
+    from illumix.store import CubeStore, StoreError, StoreKeyError
 except ImportError as exc:  # pragma: no cover - depends on the install
     raise ImportError(f"the local mode needs the illumix physics core ({exc}); install it with "
                       "`pip install \"illumix-client[local]\"` or `pip install illumix`") from None
@@ -110,7 +110,7 @@ class LocalClient:
         ``sensors`` and ``illuminants`` also project every view through each pair into the
         projection cache, so crops drawn from that pool are slices from the first one on.
         Returns :func:`engine.warm.warm_cache`'s counts plus ``"projections"``."""
-        from engine.warm import warm_cache, warm_projections
+        from illumix.engine.warm import warm_cache, warm_projections
 
         log = print if progress else None
         out = warm_cache(self.ctx, log=log)
