@@ -31,7 +31,9 @@ except SystemExit as exc:
     code = exc.code
 else:
     code = 0
-print(json.dumps({"code": code, "heavy": sorted({m.split('.')[0] for m in sys.modules} & set(json.loads(%r)))}))
+# a package's name: its top level, or the room under the illumix namespace (illumix.store → store)
+names = {m.split('.')[1] if m.startswith('illumix.') else m.split('.')[0] for m in sys.modules}
+print(json.dumps({"code": code, "heavy": sorted(names & set(json.loads(%r)))}))
 """
 
 
