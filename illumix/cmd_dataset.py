@@ -43,6 +43,7 @@ def dataset(
     from illumix.render_options import check_executor, render_settings
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
+    from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.renderer_jobs.scene_schema import SceneError
     from illumix.scenegen import GENERATOR_VERSION
     from illumix.store import StoreError
@@ -56,11 +57,8 @@ def dataset(
             res = jobs.parse_resolution(r.resolution)
         except SceneError as exc:
             raise UserError(f"render.resolution: {exc}") from None
-        opts = dict(spp=r.spp, seed=r.seed, wavelengths=r.wavelengths, sampler=r.sampler,  # noqa: C408
-                    bands_per_path=r.bands_per_path, skip_dark=r.skip_dark, adaptive=r.adaptive,
-                    noise_target=r.noise_target, illumination=r.illumination, denoise=r.denoise,
-                    backend=r.backend, boost_factor=r.boost_factor, boost_reach=r.boost_reach, flag=config_flag)
-        render_settings(**opts)  # check before generating anything
+        opts = {name: getattr(r, name) for name in RenderSettings.cli_fields()}
+        render_settings(opts, flag=config_flag)  # check before generating anything
     except SceneError as exc:
         raise UserError(f"{config}: render: {exc}") from None
     except UserError as exc:
@@ -99,7 +97,7 @@ def dataset(
                       highlight=False)
     try:
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
-        settings = render_settings(**opts, scenes=scenes)
+        settings = render_settings(opts, scenes=scenes, flag=config_flag)
         p = jobs.plan(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None

@@ -16,10 +16,9 @@ import typer
 from rich.console import Console
 
 from illumix.errors import UserError
-from illumix.options import choice_option, described, seed_option, wavelengths_option
-from illumix.render_options import check_executor, render_settings
-from illumix.renderer_jobs.modes import BACKENDS, EXECUTORS, SAMPLERS
-from illumix.retarget.denoise_methods import DEFAULT_METHOD, DENOISE_CHOICES
+from illumix.options import choice_option, described, seed_option
+from illumix.render_options import check_executor, render_settings, with_settings_options
+from illumix.renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
 
@@ -54,6 +53,7 @@ def _split(text: str | None, flag: str) -> list[str] | None:
     return names
 
 
+@with_settings_options
 def render(
     config: Path | None = typer.Argument(None, help="Scene file (YAML or JSON; one scene or {scenes: [...]}), or a "
                                                     "scene to import: .gltf, .glb, .obj, Mitsuba .xml, .blend."),
@@ -63,54 +63,12 @@ def render(
     demo: bool = typer.Option(False, "--demo", help="Render the procedural demo room instead of CONFIG."),
     demo_seed: int = seed_option("--demo-seed", "Seed of the demo room's layout and materials."),
     resolution: str | None = typer.Option(None, "--resolution", help="WIDTHxHEIGHT for every view (e.g. 320x240)."),
-    spp: int = typer.Option(64, "--spp", min=1, help="Paths per pixel (all-bands: shared by the band sets, each path carrying "
-                                 "up to --bands-per-path bands, a multiple of the sets: 4 for 63 bands at 16; "
-                                 "stratified/random: 4 wavelengths each, >= 16 on 63 bands)."),
-    seed: int = seed_option("--seed", "Render seed (same seed, same cube)."),
-    wavelengths: str = wavelengths_option(),
-    sampler: str = choice_option(SAMPLERS, "--sampler", f"Pixel sampler of the all-bands mode — {described(SAMPLERS)}."),
-    bands_per_path: int = typer.Option(16, "--bands-per-path", min=4,
-                                       help="All-bands mode: the most bands one path carries (a multiple of 4); "
-                                            "the bands render in interleaved sets of this many sharing --spp "
-                                            "(bench/RENDER_PERF.md: fewer = cheaper paths, lower raw noise per "
-                                            "second; more = lower band noise per second)."),
+    settings_options: dict | None = None,  # every RenderSettings option (--spp, --seed, …: render_options)
     views: str | None = typer.Option(None, "--views", help="Only these views (comma-separated)."),
     groups: str | None = typer.Option(None, "--groups", help="Only these light groups (comma-separated)."),
     workers: int = typer.Option(1, "--workers", min=1, help="Local worker processes."),
     executor: str = choice_option(EXECUTORS, "--executor", f"Where jobs run — {described(EXECUTORS)}."),
     address: str | None = typer.Option(None, "--address", help="Ray cluster address (ray executor)."),
-    skip_dark: bool = typer.Option(True, "--skip-dark/--no-skip-dark",
-                                   help="Probe each view/group first (<= 1/16 of its paths) and record a group "
-                                        "that sends no light into the view as empty instead of rendering it."),
-    adaptive: bool = typer.Option(False, "--adaptive/--no-adaptive",
-                                  help="With --wavelengths stratified: spread the spp budget over the pixels by a "
-                                       "16-spp pilot's variance (same total paths); default: the same spp in "
-                                       "every pixel (bench/RENDER_PERF.md measures both)."),
-    noise_target: float | None = typer.Option(
-        None, "--noise-target",
-        help="With --wavelengths stratified: render each pixel to this relative noise of its spectral sum as "
-             "the pilot predicts it (e.g. 0.05 = 5 %); --spp becomes the per-pixel maximum."),
-    illumination: bool = typer.Option(True, "--illumination/--no-illumination",
-                                      help="Also render each cube's illumination cube (what a white surface would "
-                                           "show, bounce light included): the physical ground truth the service "
-                                           "serves; --no-illumination: transport only (the formula ground truth)."),
-    denoise: str = choice_option(DENOISE_CHOICES, "--denoise",
-                                 "Also store a denoised copy of every cube and illumination cube, made with this "
-                                 f"guide-only linear filter (relighting stays exact) — {described(DENOISE_CHOICES)}. "
-                                 "The raw cubes stay; /sample?denoise= picks.", default=DEFAULT_METHOD),
-    boost_factor: int | None = typer.Option(
-        None, "--boost-factor",
-        help="Targeted extra paths: pixels the dt-irradiance denoiser cannot average (see --boost-reach) get this "
-             "many times --spp; 1 = off; default 8 with --denoise dt-irradiance and all-bands, else 1 "
-             "(bench/DENOISE.md)."),
-    boost_reach: float | None = typer.Option(
-        None, "--boost-reach",
-        help="Boost pixels where the denoiser keeps more than this share of white noise, (0, 1] (default 0.6), "
-             "computed from the guides alone before rendering."),
-    backend: str = choice_option(BACKENDS, "--backend",
-                                 f"Renderer — {described(BACKENDS)}. Cycles needs Blender: bash scripts/install.sh "
-                                 "--blender; it uses --spp (per pass), --seed, --resolution, --illumination and "
-                                 "--denoise, and renders every group of a view at once."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Re-render and replace cubes already in the store."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the plan; render nothing."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
@@ -136,12 +94,7 @@ def render(
         else:
             scenes = load_scene_file(config, rules)
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
-        settings = render_settings(spp=spp, seed=seed, wavelengths=wavelengths, sampler=sampler,
-                                   bands_per_path=bands_per_path, skip_dark=skip_dark, adaptive=adaptive,
-                                   noise_target=noise_target, illumination=illumination, denoise=denoise,
-                                   backend=backend, scenes=scenes, boost_factor=boost_factor,
-                                   boost_reach=boost_reach)
-        adaptive = settings.adaptive
+        settings = render_settings(settings_options, scenes=scenes)
         if settings.backend != "mitsuba" and not dry_run:
             require_renderer(settings.backend)  # before planning: it may need another environment
         p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
@@ -160,10 +113,8 @@ def render(
     n_cubes = len(p.cube_jobs)
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
-               "spp": spp, "seed": seed, "wavelengths": wavelengths, "sampler": sampler, "bands_per_path": bands_per_path, "skip_dark": skip_dark,
-               "adaptive": adaptive, "noise_target": noise_target, "illumination": illumination,
-               "denoise": denoise, "executor": executor, "backend": settings.backend,
-               "boost_factor": settings.boost_factor, "boost_reach": settings.boost_reach}
+               "executor": executor,
+               **{k: getattr(settings, k) for k in settings.cli_fields()}}
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")

@@ -10,8 +10,9 @@ render: {spp: 64, seed: 0, illumination: true, workers: 2, executor: local}
 
 ``generated``: rooms ``room-{seed:06d}`` for seeds ``seed .. seed + count - 1`` from
 :func:`scenegen.generate.generate_doc` (``generator`` is :class:`scenegen.generate.GeneratorConfig`).
-``render`` mirrors ``illumix render``'s options (same names, ``_`` for ``-``; same defaults) and is
-checked by the same code (:mod:`illumix.render_options`). Every error is one line naming the field
+``render`` is ``illumix render``'s options: the fields of
+:class:`~renderer_jobs.render_settings.RenderSettings` (same names, ``_`` for ``-``; same defaults)
+plus where the jobs run, checked by the same code (:mod:`illumix.render_options`). Every error is one line naming the field
 (``render.spp``, ``generated.generator.windows``) and what to write instead.
 """
 
@@ -24,14 +25,14 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
-    StrictInt,
     ValidationError,
+    create_model,
     field_validator,
     model_validator,
 )
 
 from illumix.errors import UserError
-from illumix.retarget.denoise_methods import DEFAULT_METHOD
+from illumix.renderer_jobs.render_settings import RenderSettings
 from illumix.scenegen.generate import GeneratorConfig
 
 
@@ -52,29 +53,16 @@ class GeneratedSection(BaseModel):
         return range(self.seed, self.seed + self.count)
 
 
-class RenderSection(BaseModel):
-    """``illumix render``'s options (see ``illumix render --help``)."""
+class _RunOptions(BaseModel):
+    """Where and what of a dataset render, beside its :class:`RenderSettings` fields."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-    spp: int = Field(default=64, ge=1)
-    seed: int = Field(default=0, ge=0, le=2**32 - 1)
-    wavelengths: str = "all-bands"
-    sampler: str = "multijitter"
-    bands_per_path: int = Field(default=16, ge=4)
     resolution: str | None = None  # WIDTHxHEIGHT for every view, overriding the scenes' own
     views: list[str] | None = None
     groups: list[str] | None = None
     workers: int = Field(default=1, ge=1)
     executor: str = "local"
     address: str | None = None
-    skip_dark: bool = True
-    adaptive: bool = False
-    noise_target: float | None = None
-    illumination: bool = True
-    denoise: str = DEFAULT_METHOD
-    backend: str = "mitsuba"
-    boost_factor: StrictInt | None = None  # targeted extra paths (None: the renderer's default; strict: `true` is not 1)
-    boost_reach: float | None = None
 
     @field_validator("resolution", mode="before")
     @classmethod
@@ -91,6 +79,21 @@ class RenderSection(BaseModel):
         if v is not None and not v:
             raise ValueError("names nothing; give a list of names, or leave it out for all")
         return v
+
+
+def _settings_fields() -> dict[str, tuple]:
+    """:class:`RenderSettings`' command-line fields, as they are (name, type, range, default); an
+    option unset on the command line by default is unset here too."""
+    fields = {}
+    for name in RenderSettings.cli_fields():
+        f = RenderSettings.model_fields[name]
+        unset = (f.json_schema_extra or {}).get("cli_unset")
+        fields[name] = (f.annotation | None, Field(None, description=f.description)) if unset else (f.annotation, f)
+    return fields
+
+
+#: ``illumix render``'s options (see ``illumix render --help``): the RenderSettings fields, and where to run.
+RenderSection = create_model("RenderSection", __base__=_RunOptions, **_settings_fields())
 
 
 class DatasetConfig(BaseModel):

@@ -25,7 +25,7 @@ def run_cycles(plan_: Plan, store_path: str, settings_dict: dict, on_done, overw
     from illumix.renderer_jobs import cycles_render as cr
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
-    settings = RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v) for k, v in settings_dict.items()})
+    settings = RenderSettings(**settings_dict)
     st = _open_store(store_path, mode="a")
     results: list[dict] = []
 

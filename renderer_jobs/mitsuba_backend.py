@@ -44,8 +44,7 @@ class MitsubaBackend(JobBackend):
         if threads:
             os.environ.setdefault("DRJIT_NUM_THREADS", str(threads))
         scene = jobs._scene_from_payload(payload)
-        settings = mr.RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v)
-                                        for k, v in settings_dict.items()})
+        settings = mr.RenderSettings(**settings_dict)
         select_variant()
         if threads:
             import drjit as dr

@@ -74,7 +74,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -290,7 +290,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     (:func:`renderer_jobs.band_schedule.group_seed`): two groups' cubes are independent estimates.
     """
     groups = group_list(scene, group)
-    settings = replace(settings, seed=group_seed(settings.seed, groups))  # each group its own paths
+    settings = settings.model_copy(update={"seed": group_seed(settings.seed, groups)})  # each group its own paths
     t0 = time.perf_counter()
     passes = emitter_passes(scene, groups)
     if settings.wavelengths == "all-bands":

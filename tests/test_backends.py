@@ -48,7 +48,7 @@ class FakeBackend(JobBackend):
 
     def run_job(self, payload, job, store_path, settings_dict, threads=None, overwrite=False):
         scene = jobs._scene_from_payload(payload)
-        settings = RenderSettings(**{k: (tuple(v) if k == "resolution" and v else v) for k, v in settings_dict.items()})
+        settings = RenderSettings(**settings_dict)
         st = jobs._open_store(store_path, mode="a")
         if job.group is None:
             st.write_view(scene.name, job.view, jobs._view_meta(scene, job.view))
