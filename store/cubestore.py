@@ -47,7 +47,7 @@ class CubeStore:
     def __init__(self, backend: Backend, tile: int, codec: str, dtype_policy: Policy) -> None:
         self._b = backend
         self.tile, self.codec, self.dtype_policy = tile, codec, dtype_policy
-        self._arrays = array_handles()
+        self.array_handles = array_handles()  # open zarr arrays, reused by reads (keyed by write id)
 
     # ---- opening -------------------------------------------------------------------------------
     @classmethod
@@ -146,7 +146,7 @@ class CubeStore:
 
     def close(self) -> None:
         """Drop cached array handles (the store holds no other resources)."""
-        self._arrays = array_handles()
+        self.array_handles = array_handles()  # open zarr arrays, reused by reads (keyed by write id)
 
     # ---- listing -------------------------------------------------------------------------------
     def scenes(self) -> list[str]:
@@ -238,7 +238,10 @@ class CubeStore:
             raise StoreKeyError("view", view, self.views(scene), f"scene {scene!r}")
         return parse_stored(ViewMeta, attrs[VIEW_ATTR], f"{self.url}/{path}", required=("width", "height"))
 
-    def _complete_node(self, scene: str, view: str, group: str) -> tuple[str, dict, CubeMeta]:
+    def complete_node(self, scene: str, view: str, group: str) -> tuple[str, dict, CubeMeta]:
+        """``(node path, write state, metadata)`` of a complete cube: what a reader needs to read
+        its arrays untorn (the state's ``write_id`` is compared before and after; :mod:`store.reader`).
+        :class:`StoreKeyError` for an unknown or incomplete cube."""
         check_name(group, "group")
         path = layout.cube_path(scene, view, group)
         attrs = node_attrs(self._b, path)
@@ -260,11 +263,11 @@ class CubeStore:
 
     def cube_meta(self, scene: str, view: str, group: str) -> CubeMeta:
         """The complete cube's :class:`CubeMeta` (with ``stats`` and ``storage`` filled in)."""
-        return self._complete_node(scene, view, group)[2]
+        return self.complete_node(scene, view, group)[2]
 
     def cube_shape(self, scene: str, view: str, group: str) -> tuple[int, int, int]:
         """``(H, W, bands)`` of the complete cube."""
-        return tuple(self._complete_node(scene, view, group)[1]["shape"])  # type: ignore[return-value]
+        return tuple(self.complete_node(scene, view, group)[1]["shape"])  # type: ignore[return-value]
 
     # ---- reading -------------------------------------------------------------------------------
     def read_cube(self, scene: str, view: str, group: str, crop: Crop | None = None,

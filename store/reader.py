@@ -33,7 +33,7 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
         raise StoreError(f"unknown cube kind {kind!r}; use one of {', '.join(KINDS)}")
     b = st.backend
     for _ in range(RETRIES):
-        path, state, meta = st._complete_node(scene, view, group)
+        path, state, meta = st.complete_node(scene, view, group)
         h, w, nb = state["shape"]
         y0, y1, x0, x1 = crop_region(crop, h, w, f"{scene}/{view}/{group}")
         idx = band_index(bands, nb)
@@ -55,8 +55,8 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
         beta = None if beta is None else (beta if idx is None else np.asarray(beta)[idx])
         out = np.empty((y1 - y0, x1 - x0, k), np.float32)
         try:
-            data = open_array(st._arrays, b, f"{path}/data", wid)
-            exp = open_array(st._arrays, b, f"{path}/exponent", wid) if storage.dtype == "float16" else None
+            data = open_array(st.array_handles, b, f"{path}/data", wid)
+            exp = open_array(st.array_handles, b, f"{path}/exponent", wid) if storage.dtype == "float16" else None
             ex = exp[y0:y1, x0:x1] if exp is not None else None  # one byte per pixel: read it whole
             if ex is not None and np.any(ex == EXPONENT_FILL):
                 raise StoreError("missing exponent chunk")
@@ -103,7 +103,7 @@ def read_aov(st: CubeStore, scene: str, view: str, name: str, crop) -> np.ndarra
         if wid is None:
             raise StoreKeyError("AOV", name, vm.aovs, f"{scene}/{view}")
         try:
-            out = open_array(st._arrays, b, path, wid)[y0:y1, x0:x1]
+            out = open_array(st.array_handles, b, path, wid)[y0:y1, x0:x1]
         except Exception as exc:  # noqa: BLE001
             if current_write_id(b, path) != wid:
                 continue

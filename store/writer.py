@@ -257,25 +257,7 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             b.remove(final)  # in-place (marker) mode: the old version disappears first
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
         if enc is not None:
-            _write_encoded(st, wpath, enc, shape, chunks, progress)
-            if enc_u is not None:
-                write_group(b, f"{wpath}/{ILLUMINATION}", {})
-                _write_encoded(st, f"{wpath}/{ILLUMINATION}", enc_u, shape, chunks, None)
-                meta.illumination.storage.nbytes_stored = b.size(f"{wpath}/{ILLUMINATION}")
-            own = 0
-            for kind, e in enc_d.items():
-                sub = f"{wpath}/{DENOISED}" + (f"/{ILLUMINATION}" if kind == ILLUMINATION else "")
-                write_group(b, sub, {})
-                _write_encoded(st, sub, e, shape, chunks, None)
-            if enc_d:
-                dn_size = b.size(f"{wpath}/{DENOISED}")
-                u_size = b.size(f"{wpath}/{DENOISED}/{ILLUMINATION}") if ILLUMINATION in enc_d else 0
-                meta.denoised.storage.nbytes_stored = dn_size - u_size
-                if u_size:
-                    meta.denoised.illumination_storage.nbytes_stored = u_size
-                own += dn_size
-            meta.storage.nbytes_stored = b.size(wpath) - own - (meta.illumination.storage.nbytes_stored
-                                                                if enc_u is not None else 0)
+            _write_planes(st, wpath, _planes(meta, enc, enc_u, enc_d), shape, chunks, progress)
         state = {**state, "complete": True, "finished": utc_now()}
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
         try:
@@ -288,6 +270,38 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             b.discard(wpath)
         raise
     return meta
+
+
+def _planes(meta: CubeMeta, enc, enc_u, enc_d: dict) -> list[tuple[str, Any, StorageInfo]]:
+    """The cube's planes as ``(sub-path under the cube's node, encoded array, its StorageInfo)``:
+    the transport cube at the node itself, then its illumination cube and the denoised copies
+    (nested: ``denoised/illumination`` is inside ``denoised``)."""
+    planes = [("", enc, meta.storage)]
+    if enc_u is not None:
+        planes.append((ILLUMINATION, enc_u, meta.illumination.storage))
+    if "transport" in enc_d:
+        planes.append((DENOISED, enc_d["transport"], meta.denoised.storage))
+    if ILLUMINATION in enc_d:
+        planes.append((f"{DENOISED}/{ILLUMINATION}", enc_d[ILLUMINATION], meta.denoised.illumination_storage))
+    return planes
+
+
+def _write_planes(st: CubeStore, wpath: str, planes: list, shape, chunks, progress) -> None:
+    """Write every plane (one loop), then set each one's ``nbytes_stored`` to its own bytes: its
+    node's size less the planes nested in it (the progress callback follows the transport plane)."""
+    b = st.backend
+    for sub, enc, _ in planes:
+        path = f"{wpath}/{sub}" if sub else wpath
+        if sub:
+            write_group(b, path, {})
+        _write_encoded(st, path, enc, shape, chunks, progress if not sub else None)
+    full = {sub: b.size(f"{wpath}/{sub}" if sub else wpath) for sub, _, _ in planes}
+
+    def parent(sub: str) -> str:  # the nearest plane this one is nested in ("" holds them all)
+        return max((p for p in full if p != sub and (p == "" or sub.startswith(p + "/"))), key=len)
+
+    for sub, _, info in planes:
+        info.nbytes_stored = full[sub] - sum(full[c] for c in full if c and c != sub and parent(c) == sub)
 
 
 def _encode_denoised(meta: CubeMeta, denoised: Mapping[str, np.ndarray] | None, has_illumination: bool,
