@@ -51,7 +51,7 @@ def main(argv=None) -> dict:
     from illumix.renderer_jobs.jobs import apply_resolution
     from illumix.renderer_jobs.mitsuba_aovs import render_aovs
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
     from illumix.retarget.illuminants import illuminant_spd
     from illumix.retarget.sensors import get_sensor
 

@@ -649,7 +649,7 @@ def cache_dir(args) -> Path:
 def main(argv: list[str] | None = None) -> dict:
     args = parse(argv)
     t0, c0 = time.perf_counter(), time.process_time()
-    from illumix.renderer_jobs.demo import demo_room
+    from illumix.scene.demo import demo_room
     from illumix.renderer_jobs.mitsuba_variant import select_variant
     from illumix.retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
 

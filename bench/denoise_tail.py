@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--resolution", default="160x120")
     own, rest = ap.parse_known_args(argv)
     args = bd.parse(["--view", own.view, "--resolution", own.resolution, *rest])
-    from illumix.renderer_jobs.demo import demo_room
+    from illumix.scene.demo import demo_room
     from illumix.retarget.denoise import DEFAULT_METHOD, Guides
 
     scene = demo_room(args.room, args.res)

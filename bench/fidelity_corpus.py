@@ -103,15 +103,15 @@ def _obj_scene(work: Path) -> Path:
 
 
 def load(entry: Entry, cache: Path):
-    """The entry's :class:`renderer_jobs.scene_model.Scene`, its one view at the entry's resolution."""
+    """The entry's :class:`scene.model.Scene`, its one view at the entry's resolution."""
     from illumix.renderer_jobs.jobs import apply_resolution
-    from illumix.renderer_jobs.scene_load import load_scenes, scene_from_dict
+    from illumix.scene.load import load_scenes, scene_from_dict
 
     if entry.kind == "file":
         scene = load_scenes(ROOT / entry.source)[0]
         scene = scene.model_copy(update={"views": [v for v in scene.views if v.name == entry.view]})
     elif entry.kind == "demo":
-        from illumix.renderer_jobs.demo import demo_room_dict
+        from illumix.scene.demo import demo_room_dict
 
         doc = demo_room_dict(int(entry.source), entry.resolution)
         doc["views"] = [v for v in doc["views"] if v["name"] == entry.view]

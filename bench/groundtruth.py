@@ -53,7 +53,7 @@ def cpu_s() -> float:
 
 def bounce_scene(resolution: tuple[int, int]) -> dict:
     """A grey box and floor beside a saturated coloured wall under one ceiling lamp."""
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
 
     flat = lambda v: {"kind": "diffuse", "reflectance": {"value": v}}  # noqa: E731
     mats = {"grey": flat(0.5), "ceiling": flat(0.8), "dark": flat(0.3),
@@ -78,7 +78,7 @@ def bounce_scene(resolution: tuple[int, int]) -> dict:
 
 
 def control_scene(resolution: tuple[int, int]) -> dict:
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
 
     doc = demo.demo_room_dict(0, resolution, name="control")
     for m in doc["materials"].values():
@@ -92,7 +92,7 @@ def render(docs: list[dict], store: str, spp: int, seed: int = 0) -> float:
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     t = time.perf_counter()
     scenes = [scene_from_dict(d, source=d["name"]) for d in docs]
@@ -122,7 +122,7 @@ def cost_ratio(doc: dict, spp: int, repeats: int = 2) -> dict:
     """CPU time of a cube with its illumination cube over the transport cube alone, per group
     (interleaved repeats after a warm-up, so JIT compilation and load changes hit both alike)."""
     from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
     view = scene.views[0].name
@@ -226,7 +226,7 @@ def main() -> None:
     res = tuple(int(v) for v in args.resolution.lower().split("x"))
     os.environ["ILLUMIX_SENSOR_PATH"] = str(CAMERAS)  # the service names them by file stem
     sensors = args.sensors.split(",")
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
 
     docs = {"demo": demo.demo_room_dict(0, res, name="demo"), "bounce": bounce_scene(res),
             "control": control_scene(res)}

@@ -1,6 +1,6 @@
 """Render benchmark: time against noise for transport cubes, and what skipping and adaptivity buy.
 
-Eight parts (``--parts``, all by default), on the seeded demo room (``renderer_jobs.demo``):
+Eight parts (``--parts``, all by default), on the seeded demo room (``scene.demo``):
 
 ``curve`` — per image size, light group, sampling (``uniform`` spp or ``adaptive``, the default:
   ``renderer_jobs.adaptive_spp``), wavelength mode and spp: two cubes with different seeds, timed
@@ -227,7 +227,7 @@ def compare_adaptive(rows: list) -> list:
 def part_skip(args, scene_doc: dict, mr, log) -> list:
     from illumix.renderer_jobs.light_probe import probe_group
     from illumix.renderer_jobs.mitsuba_scene import scene_bounds
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     base = scene_from_dict(scene_doc)
     scene = scene_from_dict(with_cupboard(scene_doc, *scene_bounds(base)))
@@ -257,7 +257,7 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
     pixels, two seeds) and CPU time at the same spp."""
     from illumix.renderer_jobs.mitsuba_scene import group_emission
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     doc = json.loads(json.dumps(scene_doc, default=list))
     flat_scene = scene_from_dict(doc)
@@ -288,8 +288,8 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
 def part_background(args, size, mr, log) -> list:
     """Background-pixel skip (``renderer_jobs.view_coverage``): render time with and without it, the
     pixels skipped, and that the full render is exactly zero in every skipped pixel."""
-    from illumix.renderer_jobs import demo
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene import demo
+    from illumix.scene.load import scene_from_dict
     from illumix.renderer_jobs.view_coverage import covered_pixels
 
     out = []
@@ -361,7 +361,7 @@ def main(argv: list[str] | None = None) -> dict:
     parts = {p for p in args.parts.split(",") if p}
     args.targets = [float(t) for t in args.targets.split(",") if t] if "target" in parts else []
 
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
     from illumix.renderer_jobs import mitsuba_render as mr
     from illumix.renderer_jobs.mitsuba_variant import select_variant
     from illumix.retarget import illuminants, sensors
@@ -399,7 +399,7 @@ def main(argv: list[str] | None = None) -> dict:
 
         doc["samplers"] = part_samplers(args, log)
     if "backends" in parts:
-        from illumix.renderer_jobs.cycles_env import find_blender_python
+        from illumix.scene.blender_env import find_blender_python
 
         if find_blender_python(required=False) is None:
             doc["backends"] = {"skipped": "Blender (bpy) not installed: bash scripts/install.sh --blender"}

@@ -179,9 +179,9 @@ def validation(spp: int, log) -> dict:
 def part_backends(args, log) -> dict:
     from pathlib import Path
 
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
     from illumix.renderer_jobs.jobs import apply_resolution
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
     from illumix.retarget.illuminants import illuminant_spd
     from illumix.retarget.sensors import get_sensor
 

@@ -133,7 +133,7 @@ NARROW_BAND = {"wavelengths": [380, 539.9, 540, 560, 560.1, 780], "values": [0, 
 def open_scene_doc(res: tuple[int, int]) -> dict:
     """A floor and a back wall under a ceiling panel, seen from above so that about 2/3 of the
     pixels see nothing: the case where skipping background pixels could pay."""
-    from illumix.renderer_jobs.demo import frame_matrix as fm
+    from illumix.scene.demo import frame_matrix as fm
 
     return {"name": "open", "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.7}}},
             "shapes": [{"name": "floor", "type": "rectangle", "material": "white",

@@ -91,9 +91,9 @@ def measure(scene, view: str, groups: list[str], relight: dict, weights, spp: in
 def part_samplers(args, log) -> dict:
     from pathlib import Path
 
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
     from illumix.renderer_jobs.jobs import apply_resolution
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
     from illumix.retarget.illuminants import illuminant_spd
     from illumix.retarget.sensors import get_sensor
 

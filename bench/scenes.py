@@ -46,7 +46,7 @@ OUT = Path(__file__).resolve().parent / "out"
 
 
 def part_generate(rooms: int, validate_every: int) -> dict:
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
     from illumix.scenegen.generate import GeneratorConfig, generate_doc, layout_hash
 
     cfg = GeneratorConfig(probe=False)
@@ -73,7 +73,7 @@ def part_generate(rooms: int, validate_every: int) -> dict:
 
 
 def part_probe(rooms: int, sheet_rooms: int) -> dict:
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
     from illumix.scenegen.generate import GeneratorConfig, generate_doc
 
     generate_doc(10_000, GeneratorConfig())  # warm-up: Mitsuba start and first kernels

@@ -44,7 +44,7 @@ def dataset(
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
     from illumix.renderer_jobs.render_settings import RenderSettings
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
     from illumix.scenegen import GENERATOR_VERSION
     from illumix.store import StoreError
 

@@ -31,8 +31,8 @@ def import_cmd(
 ) -> None:
     """Convert a glTF / OBJ / Mitsuba XML scene into an illumix scene file."""
     from illumix.scene_files import write_yaml
-    from illumix.renderer_jobs.scene_load import scene_from_dict
-    from illumix.renderer_jobs.scene_spectra import SceneError
+    from illumix.scene.load import scene_from_dict
+    from illumix.scene.spectra import SceneError
     from illumix.scene_import import import_scene
 
     if out.suffix.lower() not in (".yaml", ".yml", ".json"):

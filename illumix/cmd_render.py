@@ -35,7 +35,7 @@ def require_renderer(backend: str = "mitsuba") -> None:
     """
     from illumix.renderer_jobs.backends import get_backend
     from illumix.renderer_jobs.mitsuba_variant import RenderError
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     try:
         get_backend(backend).require()
@@ -78,7 +78,7 @@ def render(
     from illumix.scene_files import load_scene_file
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     try:
         if rules is not None and config is None:
@@ -88,7 +88,7 @@ def render(
         executor = check_executor(executor, address)
         res = jobs.parse_resolution(resolution)
         if demo:
-            from illumix.renderer_jobs.demo import demo_room
+            from illumix.scene.demo import demo_room
 
             scenes = [demo_room(demo_seed)]
         else:

@@ -95,7 +95,7 @@ def generate(
 
 def _parse_size(text: str) -> tuple[int, int]:
     from illumix.renderer_jobs.jobs import parse_resolution
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     try:
         w, h = parse_resolution(text)
@@ -111,7 +111,7 @@ def _preview_scenes(inputs: list[Path], max_scenes: int | None, scenes_dir: Path
     from illumix import scene_corpus
     from illumix.dataset_config import is_dataset_config, parse_config, read_doc
     from illumix.scene_files import load_scene_file
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     scenes = []
     for path in inputs:

@@ -33,7 +33,7 @@ def validate(
     """Render a Lambertian ColorChecker under a distant light and compare it with closed form."""
     from illumix.cmd_render import require_renderer
     from illumix.renderer_jobs.jobs import parse_resolution
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
     from illumix.renderer_jobs.validate import run_validation
 
     require_renderer(BACKENDS.canonical(backend))

@@ -107,7 +107,7 @@ def render_settings(opts: dict, *, scenes: Iterable = (), flag: Callable[[str], 
     """The :class:`RenderSettings` of ``opts`` (field → value; ``None`` for an option left at its
     default), after the checks that need the scenes (a stratified render needs ``4 * spp`` ≥ the
     bands). A noise target implies adaptive spp. Raises :class:`UserError` (or
-    :class:`~renderer_jobs.scene_schema.SceneError` from the settings' own checks, which the caller
+    :class:`~scene.schema.SceneError` from the settings' own checks, which the caller
     reports as one line)."""
     from illumix.renderer_jobs.render_settings import RenderSettings
 

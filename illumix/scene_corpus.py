@@ -53,8 +53,8 @@ def room(seed: int, gen, out_dir: Path | None, *, write: bool = True):
     """Room ``seed``: ``(scene, status)`` with status ``"cached"`` (read from ``out_dir``),
     ``"generated"`` (and written there unless ``write`` is False) or ``"regenerated"`` (the cached
     file was from another generator version or config, or unreadable)."""
-    from illumix.renderer_jobs.scene_load import load_scenes
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.load import load_scenes
+    from illumix.scene.schema import SceneError
     from illumix.scenegen.generate import generate_scene
 
     want = header(gen)
@@ -90,7 +90,7 @@ def build(config, config_dir: Path, scenes_dir: Path | None, *, limit: int | Non
     """The scenes of a :class:`~illumix.dataset_config.DatasetConfig`: its generated rooms (at most
     ``limit`` scenes in all, generated rooms first), then the scenes of its files. ``on_start(n)``
     gets the number of rooms to make, ``on_room(name, status)`` is called after each."""
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     out = Corpus()
     seeds = list(config.generated.seeds) if config.generated is not None else []

@@ -19,8 +19,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
-IMPORTED = (".gltf", ".glb", ".obj", ".xml")
-NATIVE = (".yaml", ".yml", ".json", ".blend")
+NATIVE = (".yaml", ".yml", ".json")  # illumix scene files; the importable ones: scene_import.IMPORTERS
 
 
 def _key(path: Path, rules: Path | None) -> str:
@@ -44,7 +43,7 @@ def _cache_dir(path: Path, key: str) -> Path:
 
 def import_cached(path: str | Path, rules: str | Path | None = None) -> tuple[Path, list[str]]:
     """``(scene.yaml in the cache, warnings)`` for an importable file, converting it when not cached."""
-    from illumix.renderer_jobs.scene_spectra import SceneError
+    from illumix.scene.spectra import SceneError
     from illumix.scene_import import import_scene
 
     p = Path(path)
@@ -91,20 +90,27 @@ def write_yaml(doc: dict, path: Path, first_line: str | None = None) -> None:
 
 
 def load_scene_file(path: str | Path, rules: str | Path | None = None) -> list:
-    """The :class:`~renderer_jobs.scene_model.Scene` s of a scene file: ``.yaml``/``.yml``/``.json``/``.blend``
-    via :func:`renderer_jobs.scene_load.load_scenes`; ``.gltf``/``.glb``/``.obj``/``.xml`` imported
-    (module docstring), each import warning re-issued as a ``UserWarning``. ``rules`` applies to
-    imported files only."""
-    from illumix.renderer_jobs.scene_load import load_scenes
-    from illumix.renderer_jobs.scene_spectra import SceneError
+    """The :class:`~scene.model.Scene` s of a scene file: ``.yaml``/``.yml``/``.json`` via
+    :func:`scene.load.load_scenes`; the importable ones by their importer (:data:`scene_import.IMPORTERS`:
+    ``.blend`` through Blender, ``.gltf``/``.glb``/``.obj``/``.xml`` converted into the cache of the
+    module docstring, each import warning re-issued as a ``UserWarning``). ``rules`` applies to the
+    converted files only."""
+    from illumix.scene.load import load_scenes
+    from illumix.scene.spectra import SceneError
+    from illumix.scene_import import IMPORTERS, SUPPORTED
 
     p = Path(path)
-    if p.suffix.lower() not in IMPORTED + NATIVE and p.is_file():  # (load_scenes words a missing file or a folder)
+    ext = p.suffix.lower()
+    if ext not in IMPORTERS and ext not in NATIVE and p.is_file():  # (load_scenes words a missing file or a folder)
         raise SceneError(f"{p}: cannot read {p.suffix or 'a file without extension'!r} scenes; give "
-                         f"{', '.join(NATIVE)} (illumix scene files) or {', '.join(IMPORTED)} (imported)")
-    if p.suffix.lower() not in IMPORTED:
+                         f"{', '.join(NATIVE)} (illumix scene files) or {', '.join(IMPORTERS)} (imported)")
+    if ext not in SUPPORTED:
         if rules is not None:
-            raise SceneError(f"--rules applies to imported files ({', '.join(IMPORTED)}), not {p.suffix!r}")
+            raise SceneError(f"--rules applies to imported files ({', '.join(SUPPORTED)}), not {p.suffix!r}")
+        if ext == ".blend":
+            from illumix.scene_import.blend import load_blend
+
+            return load_blend(p)
         return load_scenes(p)
     yaml_path, warns = import_cached(p, rules)
     for w in warns:

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from illumix.renderer_jobs.jobs import Job, Plan, ProgressFn
     from illumix.renderer_jobs.mitsuba_render import CubeResult
     from illumix.renderer_jobs.render_settings import RenderSettings
-    from illumix.renderer_jobs.scene_model import Scene
+    from illumix.scene.model import Scene
 
 
 class Backend(Protocol):

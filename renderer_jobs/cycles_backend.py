@@ -1,6 +1,6 @@
 """The Blender Cycles backend (:mod:`renderer_jobs.backends`), the thesis method: one Blender run per
 view renders every pending light group (:mod:`renderer_jobs.cycles_jobs`), on this machine only
-(Blender uses every core). Blender runs in its own Python (:mod:`renderer_jobs.cycles_env`); this
+(Blender uses every core). Blender runs in its own Python (:mod:`scene.blender_env`); this
 process never imports ``bpy``."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ class CyclesBackend:
 
     def require(self) -> None:
         """Blender's ``bpy`` environment must be installed (``bash scripts/install.sh --blender``)."""
-        from illumix.renderer_jobs.cycles_env import find_blender_python
+        from illumix.scene.blender_env import find_blender_python
 
         find_blender_python()
 

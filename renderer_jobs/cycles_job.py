@@ -1,4 +1,4 @@
-"""Scene translation for Cycles: a :class:`~renderer_jobs.scene_model.Scene` view as the plain-data job
+"""Scene translation for Cycles: a :class:`~scene.model.Scene` view as the plain-data job
 the Blender worker (:mod:`renderer_jobs.cycles_worker`) renders.
 
 Everything spectral is resolved here, on the scene grid, so the worker only copies numbers:
@@ -10,7 +10,7 @@ Everything spectral is resolved here, on the scene grid, so the worker only copi
   roughness ``√α`` — Blender squares it —, IOR ``η = int/ext``) with base colour ``c ρ``: Mitsuba's
   roughplastic darkens its diffuse term by the rough-interface transmittances,
   ``ρ t(θ_i) t(θ_o) / (η² (1 − F_int))``, which the Principled BSDF does not, so ``c`` is fitted to
-  Mitsuba's own term (:func:`renderer_jobs.plastic_scale.plastic_diffuse_scale`: 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08).
+  Mitsuba's own term (:func:`scene.plastic_scale.plastic_diffuse_scale`: 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08).
   Measured on the probe scene: without ``c`` Cycles is 43 % brighter; with it, within 1.3 % on the
   lit floor. (A Fresnel-weighted mix of Diffuse and Glossy was 4–16 % off: its specular weight
   ``F(n·ω_o)`` overshoots at grazing views.) ``roughconductor`` → Metallic BSDF with the
@@ -44,10 +44,10 @@ import numpy as np
 
 from illumix.renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
 from illumix.renderer_jobs.mitsuba_scene import group_emission
-from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_textures import is_texture
-from illumix.renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
+from illumix.scene.plastic_scale import plastic_diffuse_scale
+from illumix.scene.model import Scene
+from illumix.scene.textures import is_texture
+from illumix.scene.schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,
                                         Sphere, SpotLight)
 

@@ -16,7 +16,7 @@ from illumix.renderer_jobs.jobs import (
     store_result,
 )
 from illumix.renderer_jobs.local_executor import run_guarded
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 
 
 def run_cycles(plan_: Plan, store_path: str, settings_dict: dict, on_done, overwrite: bool = False,

@@ -1,7 +1,7 @@
 """The Cycles backend: a view's transport cubes (every light group in one render) and its AOVs.
 
 :mod:`renderer_jobs.cycles_job` writes the job, :mod:`renderer_jobs.cycles_worker` renders it in
-Blender's Python (:mod:`renderer_jobs.cycles_env`), and this module reads the multilayer EXRs back
+Blender's Python (:mod:`scene.blender_env`), and this module reads the multilayer EXRs back
 with OpenEXR: pass ``p``'s ``Combined_<group>`` R, G, B are the cube's bands ``p, p+21, p+42``.
 The cube has the Mitsuba backend's layout, units (radiance per unit of the group's emission
 spectrum, band averages) and metadata, plus ``renderer.method`` = the thesis method.
@@ -19,13 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.cycles_env import find_blender_python
+from illumix.scene.blender_env import find_blender_python
 from illumix.renderer_jobs.cycles_exr import read_exr
 from illumix.renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
 from illumix.renderer_jobs.mitsuba_render import CubeResult, RenderSettings
 from illumix.renderer_jobs.mitsuba_scene import group_emission
 from illumix.renderer_jobs.mitsuba_variant import RenderError
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene.model import Scene
 
 WORKER = Path(__file__).with_name("cycles_worker.py")
 Progress = Callable[[int, int, str], None]

@@ -1,7 +1,7 @@
 """Cycles worker: renders one plain-data job with Blender's ``bpy`` and writes multilayer EXRs.
 
 Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2, which the rest of illumix cannot use, so it
-lives in its own environment: :mod:`renderer_jobs.cycles_env`). It imports only the standard
+lives in its own environment: :mod:`scene.blender_env`). It imports only the standard
 library, numpy, bpy and its sibling :mod:`renderer_jobs.cycles_nodes` (the material node trees) —
 nothing of illumix — and knows nothing of spectra: the job
 (:mod:`renderer_jobs.cycles_job` writes it) already holds band values, and each *pass* names the

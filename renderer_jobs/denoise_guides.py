@@ -34,7 +34,7 @@ import numpy as np
 
 from illumix.renderer_jobs.band_schedule import group_seed, mix_seed
 from illumix.renderer_jobs.mitsuba_trace import Tracer
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene.model import Scene
 
 ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
 DIRECT_SAMPLES = 64  # next-event samples per pixel of the direct-light guide

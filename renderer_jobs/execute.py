@@ -9,7 +9,7 @@ from collections.abc import Callable
 from illumix.renderer_jobs import jobs
 from illumix.renderer_jobs.backends import get_backend
 from illumix.renderer_jobs.modes import EXECUTORS
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 
 
 def execute(plan_: jobs.Plan, store_path: str, settings, *, executor: str = "local", workers: int = 1,

@@ -28,9 +28,9 @@ from pathlib import Path
 
 
 from illumix.renderer_jobs.modes import EXECUTORS
-from illumix.renderer_jobs.scene_load import scene_from_dict
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import Dielectric, SceneError
+from illumix.scene.load import scene_from_dict
+from illumix.scene.model import Scene
+from illumix.scene.schema import Dielectric, SceneError
 
 
 class JobError(RuntimeError):

@@ -42,8 +42,8 @@ from illumix.renderer_jobs.band_schedule import mix_seed
 from illumix.renderer_jobs.mitsuba_render import RenderSettings, emitter_passes, group_list
 from illumix.renderer_jobs.mitsuba_scene import group_emission
 from illumix.renderer_jobs.mitsuba_trace import Tracer
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.model import Scene
+from illumix.scene.schema import SceneError
 
 PROBE_DOWNSAMPLE = 4  # pilot blocks are PROBE_DOWNSAMPLE × PROBE_DOWNSAMPLE film pixels
 

@@ -13,7 +13,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from illumix.renderer_jobs import jobs  # jobs.run_job looked up at call time (tests replace it)
 from illumix.renderer_jobs.jobs import Job, JobError, Plan, ProgressFn, _scene_payload
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 
 
 def run_guarded(job: Job, fn: Callable[[], dict], on_done: ProgressFn, results: list[dict],

@@ -9,7 +9,7 @@ from illumix.renderer_jobs.denoise_guides import albedo_bands as spectral_albedo
 from illumix.renderer_jobs.denoise_guides import guides_needed, straddle
 from illumix.renderer_jobs.mitsuba_render import RenderSettings
 from illumix.renderer_jobs.mitsuba_trace import Tracer
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene.model import Scene
 
 # Broad bands (nm) whose mean reflectance forms the RGB albedo AOV.
 ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))

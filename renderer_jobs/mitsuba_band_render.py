@@ -19,8 +19,8 @@ from illumix.renderer_jobs.boost_paths import extra_path_sums
 from illumix.renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
 from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
 from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
-from illumix.renderer_jobs.scene_model import EnvMapSky, Scene
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.model import EnvMapSky, Scene
+from illumix.scene.schema import SceneError
 
 # spp Mitsuba's samplers can take without rounding it up (they would, with a warning): the settings
 # are checked against these so that the metadata's spp is the spp rendered.

@@ -1,6 +1,6 @@
 """Rendering: one spectral transport cube per (view, light group), plus view AOVs.
 
-Mitsuba stays behind the ``mitsuba_*`` modules: callers pass a :class:`renderer_jobs.scene_model.Scene`
+Mitsuba stays behind the ``mitsuba_*`` modules: callers pass a :class:`scene.model.Scene`
 and get numpy. Variant: :mod:`renderer_jobs.mitsuba_variant`; scene dictionary:
 :mod:`renderer_jobs.mitsuba_scene`; tracing: :mod:`renderer_jobs.mitsuba_trace`.
 
@@ -85,8 +85,8 @@ from illumix.renderer_jobs.mitsuba_scene import band_guard, group_emission
 from illumix.renderer_jobs.mitsuba_trace import Tracer
 from illumix.renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
 from illumix.renderer_jobs.render_settings import RenderSettings  # noqa: F401 — re-exported
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.model import Scene
+from illumix.scene.schema import SceneError
 from illumix.renderer_jobs.view_coverage import covered_pixels, group_sees_sky
 
 

@@ -1,4 +1,4 @@
-"""Scene translation: a :class:`~renderer_jobs.scene_model.Scene` as a Mitsuba 3 scene dictionary.
+"""Scene translation: a :class:`~scene.model.Scene` as a Mitsuba 3 scene dictionary.
 
 One (view, set of light groups) at a time: :func:`build_scene_dict` keeps every shape's geometry and
 material, turns on only the chosen groups' emitters — each emitting ``strength × Ē_g`` with ``Ē_g``
@@ -20,8 +20,8 @@ import numpy as np
 
 from illumix.renderer_jobs.mitsuba_textures import reflectance_dict
 from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
+from illumix.scene.model import Scene
+from illumix.scene.schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,
                                         Sphere, SpotLight)
 

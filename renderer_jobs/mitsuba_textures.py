@@ -1,12 +1,12 @@
-"""Textures in Mitsuba: the scene model's :mod:`~renderer_jobs.scene_textures` as Mitsuba textures.
+"""Textures in Mitsuba: the scene model's :mod:`~scene.textures` as Mitsuba textures.
 
-- A :class:`~renderer_jobs.scene_textures.PatternTexture` becomes ``illumix_pattern``, a texture
+- A :class:`~scene.textures.PatternTexture` becomes ``illumix_pattern``, a texture
   written in Python over Dr.Jit (traced into the render's kernel like Mitsuba's own): a nearest-texel
   lookup of the label map, then for each sampled wavelength the band it falls in and the linear mix of
   the two neighbouring spectra's band averages — two gathers per wavelength. The map and the spectra
   table live in this process's registry under a content key (a scene dictionary carries only the key;
   every process that builds a scene dictionary fills its own registry first).
-- A :class:`~renderer_jobs.scene_textures.BitmapTexture` becomes Mitsuba's ``bitmap`` (its spectral
+- A :class:`~scene.textures.BitmapTexture` becomes Mitsuba's ``bitmap`` (its spectral
   variants lift sRGB texels with the Jakob–Hanika 2019 model), repeated ``scale`` times per UV unit.
 """
 
@@ -17,7 +17,7 @@ import hashlib
 import numpy as np
 
 from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
-from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture
+from illumix.scene.textures import BitmapTexture, PatternTexture
 
 PLUGIN = "illumix_pattern"
 _REGISTRY: dict[str, dict] = {}  # content key -> {"labels", "table", "start", "step", "scale"}

@@ -22,7 +22,7 @@ import numpy as np
 
 from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
 from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene.model import Scene
 
 
 def _numpy4(spec) -> np.ndarray:

@@ -15,7 +15,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, ValidationError, model_validator
 
 from illumix.renderer_jobs import modes
-from illumix.renderer_jobs.scene_spectra import SceneError  # (scene_schema imports numpy)
+from illumix.scene.spectra import SceneError  # (scene_schema imports numpy)
 from illumix.retarget.denoise_methods import DEFAULT_METHOD
 from illumix.retarget.errors import UnknownName
 
@@ -28,7 +28,7 @@ CLI = {"cli": True}  # a field offered as an `illumix render` option (--name, or
 class RenderSettings(BaseModel):
     """Every option of a render (field descriptions). Frozen; any accepted spelling of a registry
     name (``"Stratified"``, ``"blender"``) becomes its canonical name; an invalid combination raises
-    :class:`~renderer_jobs.scene_schema.SceneError` with one line naming the fix."""
+    :class:`~scene.schema.SceneError` with one line naming the fix."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 

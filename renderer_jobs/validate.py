@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import colour
 import numpy as np
 
-from illumix.renderer_jobs import demo
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene import demo
+from illumix.scene.model import Scene
 
 DEFAULT_ILLUMINANTS = ("D65", "A", "FL2", "FL11", "FL12", "blackbody:2300")
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from illumix.renderer_jobs.mitsuba_scene import shape_hull_points
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import ConstantSky, EnvMapSky
+from illumix.scene.model import Scene
+from illumix.scene.schema import ConstantSky, EnvMapSky
 
 NEAR = 1e-6  # metres: hull points nearer than this to the camera plane make the projection unbounded
 

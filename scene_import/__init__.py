@@ -1,7 +1,8 @@
-"""Importers: existing scenes (glTF 2.0, Wavefront OBJ + MTL, Mitsuba 3 XML) as illumix scene documents.
+"""Importers: existing scenes (glTF 2.0, Wavefront OBJ + MTL, Mitsuba 3 XML, Blender .blend) as illumix scenes.
 
-:func:`import_scene` converts one file into a scene document (a dict the schema validates:
-:func:`renderer_jobs.scene_load.scene_from_dict`) plus the list of warnings — everything the
+One registry keyed by file extension (:data:`IMPORTERS`). :func:`import_scene` converts a glTF, OBJ
+or Mitsuba XML file into a scene document (a dict the schema validates:
+:func:`scene.load.scene_from_dict`) plus the list of warnings — everything the
 importer could not represent, each naming the object (never a silent wrong colour). Meshes and
 texture images are written under ``out_dir/<assets>/`` and referenced relative to ``out_dir``, where
 the scene file belongs. Light groups come from a rule file (:mod:`scene_import.rules`).
@@ -11,9 +12,37 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene.spectra import SceneError
 
-SUPPORTED = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".xml": "mitsuba"}
+#: file extension → importer. "document" importers write a scene document and its assets into a
+#: folder (:func:`import_scene`; the CLI caches it: illumix/scene_files.py); "blend" reads the file
+#: with Blender (:func:`scene_import.blend.load_blend`, which caches Blender's export itself).
+IMPORTERS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".xml": "mitsuba", ".blend": "blend"}
+SUPPORTED = {ext: fmt for ext, fmt in IMPORTERS.items() if fmt != "blend"}  # the document importers
+
+
+def load_file(path: str | Path, rules=None, out_dir: str | Path | None = None) -> list:
+    """The scenes of any importable file (:data:`IMPORTERS`), validated: a ``.blend`` through Blender,
+    the others converted into ``out_dir`` (default: a temporary folder) and loaded from there.
+    ``rules`` applies to the document importers."""
+    import tempfile
+
+    from illumix.scene.load import load_scenes
+
+    p = Path(path)
+    fmt = IMPORTERS.get(p.suffix.lower())
+    if fmt == "blend":
+        if rules is not None:
+            raise SceneError(f"a rule file applies to {', '.join(SUPPORTED)} imports, not {p.suffix!r}")
+        from illumix.scene_import.blend import load_blend
+
+        return load_blend(p)
+    out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="illumix-import-"))
+    doc, _ = import_scene(p, out, rules)
+    import yaml
+
+    (out / "scene.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    return load_scenes(out / "scene.yaml")
 
 
 def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: str | None = None
@@ -24,7 +53,7 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
     light). ``assets``: the sub-folder of ``out_dir`` for meshes and images (default
     ``<file stem>_assets``). Raises :class:`SceneError` (one line) for files it cannot read.
     """
-    from illumix.renderer_jobs.blend_import import sanitize
+    from illumix.scene_import.blend import sanitize
     from illumix.scene_import.builder import SceneBuilder
     from illumix.scene_import.rules import Rules, load_rules
 
@@ -32,7 +61,7 @@ def import_scene(path: str | Path, out_dir: str | Path, rules=None, *, assets: s
     fmt = SUPPORTED.get(p.suffix.lower())
     if fmt is None:
         raise SceneError(f"{p}: cannot import {p.suffix or 'a file without extension'!r}; supported: "
-                         f"{', '.join(SUPPORTED)} (and .yaml/.yml/.json scene files, .blend)")
+                         f"{', '.join(IMPORTERS)} (and .yaml/.yml/.json scene files)")
     if not p.is_file():
         raise SceneError(f"{p}: {'is a directory' if p.is_dir() else 'does not exist'}")
     if rules is not None and not isinstance(rules, Rules):

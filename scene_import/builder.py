@@ -2,7 +2,7 @@
 image files beside it, and the light groups (:mod:`scene_import.rules`, :mod:`scene_import.colour_match`).
 
 Importers call :class:`SceneBuilder` with plain data; :meth:`SceneBuilder.finish` returns the
-document (a dict for :func:`renderer_jobs.scene_load.scene_from_dict`). Files go under
+document (a dict for :func:`scene.load.scene_from_dict`). Files go under
 ``out_dir/assets`` and are referenced relative to ``out_dir``, where the scene file is written.
 
 Conventions: metres, right-handed, +y up (glTF's and illumix's frame; other frames are the
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.blend_import import _Names, sanitize
-from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene_import.blend import _Names, sanitize
+from illumix.scene.spectra import SceneError
 from illumix.scene_import.colour_match import illuminant_for, uv_distance
 from illumix.scene_import.rules import Rules
 

@@ -2,7 +2,7 @@
 
 - **Reflectances**: a linear sRGB colour (glTF ``baseColorFactor``, MTL ``Kd``, Mitsuba ``<rgb>``) becomes
   the smooth Jakob & Hanika (2019) spectrum whose colour under D65 (CIE 1931 2°) is that colour
-  (:func:`renderer_jobs.blend_import.rgb_to_spectrum`: colour-science's ``XYZ_to_sd_Jakob2019``,
+  (:func:`scene_import.blend.rgb_to_spectrum`: colour-science's ``XYZ_to_sd_Jakob2019``,
   380–780 nm / 5 nm, given inline). Grey colours become a constant spectrum (exact, and no optimiser run).
 - **Light colours** are reduced to a chromaticity ``xy`` (CIE 1931) and a luminance factor ``Y``
   (linear sRGB white ``(1, 1, 1)`` and the flat unit spectrum both have ``Y = 1``). A light group's
@@ -50,7 +50,7 @@ def reflectance(rgb, what: str, warn: Callable[[str], None]) -> dict:
         c = np.clip(c, 0.0, 1.0)
     if float(c.max() - c.min()) <= GREY_SPREAD:
         return {"value": round(float(c.mean()), 6)}
-    from illumix.renderer_jobs.blend_import import rgb_to_spectrum
+    from illumix.scene_import.blend import rgb_to_spectrum
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

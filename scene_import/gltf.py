@@ -14,10 +14,10 @@ What maps to what
 - **Materials** (metallic-roughness PBR): ``metallicFactor ≥ 0.5`` → ``roughconductor`` (a perfect
   mirror, ``conductor: none``, tinted by the base colour's spectrum: glTF's metal Fresnel F0 is the
   base colour); otherwise ``roughplastic`` (IOR 1.5, glTF's dielectric specular) with the base
-  colour divided by :func:`renderer_jobs.plastic_scale.plastic_diffuse_scale` (Mitsuba's coating
+  colour divided by :func:`scene.plastic_scale.plastic_diffuse_scale` (Mitsuba's coating
   darkens the diffuse term; glTF's does not), or ``diffuse`` when roughness is 1. ``α = roughness²``.
   ``baseColorFactor`` (linear) → a Jakob–Hanika spectrum; ``baseColorTexture`` → a PNG written beside
-  the scene with the factor baked in (sRGB), a :class:`~renderer_jobs.scene_textures.BitmapTexture`.
+  the scene with the factor baked in (sRGB), a :class:`~scene.textures.BitmapTexture`.
   ``doubleSided`` → ``two_sided``. ``KHR_materials_transmission`` ≥ 0.5 → ``dielectric``
   (``KHR_materials_ior``). Normal, occlusion, metallic-roughness and emissive textures, alpha
   blending and other extensions are warnings naming the material.
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene.spectra import SceneError
 from illumix.scene_import.builder import DEFAULT_WIDTH, SceneBuilder
 from illumix.scene_import.colour_match import mean_rgb, reflectance, rgb_light, write_texture
 
@@ -214,7 +214,7 @@ def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | 
     plastic = not metal and rough < 0.999
     scale = 1.0
     if plastic:
-        from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
+        from illumix.scene.plastic_scale import plastic_diffuse_scale
 
         scale = plastic_diffuse_scale(alpha, 1.5)
     if texture is not None and metal:

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.scene_schema import CONDUCTORS, SceneError
+from illumix.scene.schema import CONDUCTORS, SceneError
 from illumix.scene_import.builder import SceneBuilder
 from illumix.scene_import.colour_match import reflectance, rgb_light, spectrum_light
 from illumix.scene_import.mitsuba_xml_values import XmlDoc, ior, spectrum_samples, to_world, transform, vec

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 from illumix.scene_import.builder import SceneBuilder
 
 IOR = {"vacuum": 1.0, "helium": 1.00004, "hydrogen": 1.00013, "air": 1.00028, "carbon dioxide": 1.00045,
@@ -90,7 +90,7 @@ def transform(d: XmlDoc, el: ET.Element | None) -> np.ndarray:
     m = np.eye(4)
     if el is None:
         return m
-    from illumix.renderer_jobs.scene_schema import rotation_matrix
+    from illumix.scene.schema import rotation_matrix
 
     for op in el:
         t = np.eye(4)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.scene_spectra import SceneError
+from illumix.scene.spectra import SceneError
 from illumix.scene_import.builder import SceneBuilder
 from illumix.scene_import.colour_match import mean_rgb, reflectance, rgb_light, write_texture
 
@@ -131,7 +131,7 @@ def _material(b: SceneBuilder, base: Path, name: str, m: dict) -> tuple[str, tup
     plastic = not metal and ks.max() > 0 and alpha < 0.999
     scale = 1.0
     if plastic:
-        from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
+        from illumix.scene.plastic_scale import plastic_diffuse_scale
 
         scale = plastic_diffuse_scale(alpha, 1.5)
         if np.ptp(ks) > 1e-6:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from pydantic import Field, ValidationError, field_validator
 
-from illumix.renderer_jobs.scene_spectra import Name, SceneError, StrictModel
+from illumix.scene.spectra import Name, SceneError, StrictModel
 
 
 class GroupRule(StrictModel):

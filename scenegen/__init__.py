@@ -1,6 +1,6 @@
 """Procedural interiors: rooms, windows, light fixtures, furniture and clutter, materials drawn from
 measured reflectance sets, and camera views chosen for mixed light — each scene a plain
-:class:`renderer_jobs.scene_model.Scene` document, reproducible from (:data:`GENERATOR_VERSION`, seed).
+:class:`scene.model.Scene` document, reproducible from (:data:`GENERATOR_VERSION`, seed).
 
 Imports flow one way: ``retarget, renderer_jobs ← scenegen`` (the CLI wires it to the render jobs).
 """

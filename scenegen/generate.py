@@ -243,7 +243,7 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
     if not config.probe or len(doc["views"]) <= 1:
         doc["views"] = doc["views"][:n_views]
         return doc
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
     from illumix.scenegen.views import clear_views, probe
 
     scene = scene_from_dict(doc, source=doc["name"], check=False)
@@ -259,8 +259,8 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
 
 
 def generate_scene(seed: int, config: GeneratorConfig = GeneratorConfig()):
-    """The validated :class:`~renderer_jobs.scene_model.Scene` of room ``seed``."""
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    """The validated :class:`~scene.model.Scene` of room ``seed``."""
+    from illumix.scene.load import scene_from_dict
 
     return scene_from_dict(generate_doc(seed, config), source=f"generated room (seed {seed})")
 

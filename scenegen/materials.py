@@ -5,7 +5,7 @@ clothes, DuPont paints, Munsell, the Gretag SG chart, CIE 2017 TCS, ColorChecker
 colour the class should have — CIELAB lightness, chroma and hue under D65 (e.g. wood: hue 35–85°,
 L* 25–75) — and gives the class its surface: diffuse paint and paper, rough plastic for ceramic,
 plastic and leather (GGX alpha by class), rough conductors for metal, glass as a dielectric, and
-**spectral textures** (:class:`renderer_jobs.scene_textures.PatternTexture`) where real surfaces
+**spectral textures** (:class:`scene.textures.PatternTexture`) where real surfaces
 have them: wood grain mixing two woods, woven fabric and rugs mixing two or three cloths, book
 covers in stripes, pictures mixing five to six spectra, floor tiles.
 

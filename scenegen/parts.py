@@ -3,7 +3,7 @@ item is placed in a room.
 
 An :class:`Item` is described in its own frame: origin at the centre of its footprint on the floor
 (``y = 0`` is what it stands on), its front facing ``+z``, ``x`` to its right. Its ``shapes`` are scene
-shape documents (:mod:`renderer_jobs.scene_schema`) in that frame; :func:`place` turns them by a
+shape documents (:mod:`scene.schema`) in that frame; :func:`place` turns them by a
 multiple of 90° about ``y`` and moves them into the room. Materials are names handed out by a
 :class:`MaterialPicker` (:mod:`scenegen.materials`), so an item never defines materials itself.
 """
@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from illumix.renderer_jobs.demo import frame_matrix
+from illumix.scene.demo import frame_matrix
 
 
 class MaterialPicker(Protocol):

@@ -3,7 +3,7 @@
 ``add_windows`` cuts 0–3 windows (varied width, sill and head height) into exterior walls long
 enough to hold them. Daylight is one light group (``daylight``) at a daylight CCT
 (``daylight:<K>``, 5000–7500 K): a **sky portal** filling each window (a Lambertian emitter of the
-sky's radiance — exact for a uniform sky, see :class:`renderer_jobs.scene_schema.AreaEmission`) and
+sky's radiance — exact for a uniform sky, see :class:`scene.schema.AreaEmission`) and
 a **sun** (directional) arriving through one of the windows, 20–55° above the horizon and within
 ±35° of that window's normal, so that a sunlit patch lands inside the room.
 """

@@ -1,6 +1,6 @@
 """Build the small deterministic ``.blend`` scene the blend-import tests read.
 
-Run with Blender's Python (``bpy`` 4.5; see :mod:`renderer_jobs.cycles_env`)::
+Run with Blender's Python (``bpy`` 4.5; see :mod:`scene.blender_env`)::
 
     ~/.cache/illumix/blender-venv/bin/python scripts/make_test_blend.py OUT.blend [--no-camera]
 

@@ -12,7 +12,7 @@ from illumix.renderer_jobs.backends import JobBackend, get_backend
 from illumix.renderer_jobs.execute import execute
 from illumix.renderer_jobs.modes import BACKENDS, EXECUTORS, BackendEntry
 from illumix.renderer_jobs.render_settings import RenderSettings
-from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.scene.load import scene_from_dict
 from illumix.retarget.errors import UnknownName
 from test_render_cli import tiny_scene_file
 

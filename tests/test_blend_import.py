@@ -1,4 +1,4 @@
-"""Importing Blender ``.blend`` files (:mod:`renderer_jobs.blend_import`): the scene that
+"""Importing Blender ``.blend`` files (:mod:`scene_import.blend`): the scene that
 ``scripts/make_test_blend.py`` builds, read back through Blender's Python and checked piece by piece."""
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from illumix.renderer_jobs import blend_import, scene_load
-from illumix.renderer_jobs.scene_schema import LibrarySpectrum, SceneError, TableSpectrum
+from illumix.scene_import import blend as blend_import
+from illumix.scene.schema import LibrarySpectrum, SceneError, TableSpectrum
 
 try:
-    from illumix.renderer_jobs.cycles_env import find_blender_python
+    from illumix.scene.blender_env import find_blender_python
 except ImportError:  # a checkout without the Cycles backend: the importer's own copy of the search
-    from illumix.renderer_jobs.blend_import import find_blender_python
+    from illumix.scene_import.blend import find_blender_python
 
 BLENDER = find_blender_python(required=False)
 pytestmark = pytest.mark.skipif(BLENDER is None, reason="Blender's Python (bpy) is not installed; "
@@ -42,7 +42,7 @@ def imported(blend, tmp_path_factory):
     cache = tmp_path_factory.mktemp("blend-cache") / "out"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        scenes = scene_load.load_blend(blend, cache_dir=cache)
+        scenes = blend_import.load_blend(blend, cache_dir=cache)
     assert len(scenes) == 1
     return scenes[0], [str(w.message) for w in caught if issubclass(w.category, UserWarning)], cache
 
@@ -119,7 +119,7 @@ def test_materials_kinds(imported):
     floor = scene.materials[_shape(scene, "Floor").material]
     assert floor.kind == "roughplastic" and floor.alpha == pytest.approx(0.25)  # roughness 0.5 squared
     # A grey upsamples to a flat spectrum, divided by the rough-plastic scale that keeps Blender's look
-    from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
+    from illumix.scene.plastic_scale import plastic_diffuse_scale
 
     assert np.allclose(floor.reflectance.values, 0.5 / plastic_diffuse_scale(0.25, floor.int_ior), atol=3e-3)
 
@@ -175,13 +175,13 @@ def test_cache_reused(blend, imported):
     before = (cache / "scene.json").stat().st_mtime_ns
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        again = scene_load.load_blend(blend, cache_dir=cache)[0]
+        again = blend_import.load_blend(blend, cache_dir=cache)[0]
     assert (cache / "scene.json").stat().st_mtime_ns == before
     assert again.scene_hash == imported[0].scene_hash
 
 
-def test_load_scenes_hook(blend, tmp_path, monkeypatch):
-    from illumix.renderer_jobs.scene_load import load_scenes
+def test_the_cli_loads_a_blend_file_by_its_extension(blend, tmp_path, monkeypatch):
+    from illumix.scene_files import load_scene_file as load_scenes
 
     monkeypatch.setenv("ILLUMIX_CACHE", str(tmp_path / "cache"))
     upper = tmp_path / "Upper.BLEND"  # the suffix is matched case-insensitively
@@ -196,7 +196,7 @@ def test_load_scenes_hook(blend, tmp_path, monkeypatch):
 
 def _one_line_error(path, **kw) -> str:
     with pytest.raises(SceneError) as exc:
-        scene_load.load_blend(path, **kw)
+        blend_import.load_blend(path, **kw)
     msg = str(exc.value)
     assert "\n" not in msg
     return msg

@@ -26,7 +26,7 @@ def rooms(tmp_path_factory):
 
 
 def test_generate_writes_files_that_load_and_resumes(rooms, capsys):
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
     from illumix.scenegen import GENERATOR_VERSION
 
     out = rooms / "out"
@@ -84,7 +84,7 @@ def test_preview_writes_a_contact_sheet(rooms, capsys):
     code, _, err = run_cli(capsys, "scenes", "generate", "--count", "2", "--seed", "7", "--out", str(src),
                            "--config", str(rooms / "gen.yaml"))
     assert code == 0, err
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
 
     n_views = [len(load_scenes(src / f"room-00000{s}.yaml")[0].views) for s in (7, 8)]
     sheet = rooms / "sheet.png"

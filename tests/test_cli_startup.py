@@ -109,7 +109,7 @@ def test_render_settings_and_executor_accept_registry_spellings():
     from illumix.renderer_jobs.execute import execute
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
     from illumix.renderer_jobs.modes import WAVELENGTH_MODES
-    from illumix.renderer_jobs.scene_schema import SceneError
+    from illumix.scene.schema import SceneError
 
     assert RenderSettings(wavelengths="Stratified").wavelengths == "stratified"
     assert list(WAVELENGTH_MODES) == ["all-bands", "stratified", "random"] and list(jobs.EXECUTORS) == ["local", "ray"]

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from cli_testutil import run_cli
-from illumix.renderer_jobs.cycles_env import find_blender_python
+from illumix.scene.blender_env import find_blender_python
 from illumix.renderer_jobs.cycles_job import band_passes
-from illumix.renderer_jobs.plastic_scale import diffuse_fresnel
-from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.scene.plastic_scale import diffuse_fresnel
+from illumix.scene.load import scene_from_dict
 
 needs_blender = pytest.mark.skipif(find_blender_python(required=False) is None,
                                    reason="the cycles backend needs Blender: bash scripts/install.sh --blender")
@@ -140,7 +140,7 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
-    from illumix.renderer_jobs.scene_load import load_scenes
+    from illumix.scene.load import load_scenes
 
     scene = jobs.apply_resolution(load_scenes(Path(__file__).parents[1] / "bench/fidelity_scenes/lamps_in_frame.yaml")[0],
                                   (48, 36))

@@ -77,7 +77,7 @@ def test_unreadable_configs(tmp_path, capsys):
 
 
 def test_a_scene_named_twice_is_refused(tmp_path, capsys):
-    from illumix.renderer_jobs.scene_load import dump_scene
+    from illumix.scene.load import dump_scene
     from illumix.scenegen.generate import GeneratorConfig, generate_scene
 
     dump_scene(generate_scene(3, GeneratorConfig(**GEN)), tmp_path / "dup.yaml")  # also room-000003
@@ -167,7 +167,7 @@ def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
     """A failed view job fails its cubes without running them; other jobs go on (local executor)."""
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.demo import demo_room
+    from illumix.scene.demo import demo_room
     from illumix.renderer_jobs.mitsuba_render import RenderSettings
 
     scene = demo_room(0, resolution=(8, 6))

@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
-from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.scene import demo  # noqa: E402
 from illumix.renderer_jobs import denoise_guides as dg  # noqa: E402
 from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
 from illumix.renderer_jobs.mitsuba_render import RenderSettings  # noqa: E402
@@ -86,7 +86,7 @@ def _box_with_ball(material: str | None) -> object:
     and the floor, so its straight shadow lies on the floor in view."""
     from test_render import box_scene
 
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     d = box_scene()
     d["materials"]["glass"] = {"kind": "dielectric", "int_ior": 1.5}
@@ -231,7 +231,7 @@ def test_the_direct_guide_states_its_own_noise():
     light; a point light's guide has no sampling noise, and says so."""
     from test_render import box_scene
 
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     res = (32, 24)
@@ -255,7 +255,7 @@ def test_the_guide_as_seen_is_the_guide_on_a_lambertian_chart_and_more_on_a_glos
     for m in doc["materials"].values():
         if m.get("kind") == "diffuse":
             m.update(kind="roughplastic", alpha=0.05)
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     glossy = dg.direct_guide(scene_from_dict(doc), "head-on", "light", None, seed=3)
     assert (glossy.seen[lit] >= 0.5 * glossy.direct[lit]).all() and np.isfinite(glossy.seen).all()
@@ -266,7 +266,7 @@ def test_metal_has_no_diffuse_albedo():
     (up to 2.7 on a silver mirror, which the filter then averaged: a blurred reflection); the
     ``albedo_bands`` AOV reads the lobe from the BSDF's flags, so metal is 0 (left as rendered)."""
     from illumix.renderer_jobs.mitsuba_trace import Tracer
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     doc = demo.validation_chart_dict()
     for m in doc["materials"].values():

@@ -14,8 +14,8 @@ import pytest
 
 import import_testutil as t
 from cli_testutil import run_cli
-from illumix.renderer_jobs.scene_load import load_scenes, scene_from_dict
-from illumix.renderer_jobs.scene_schema import SceneError, rotation_matrix
+from illumix.scene.load import load_scenes, scene_from_dict
+from illumix.scene.schema import SceneError, rotation_matrix
 from illumix.scene_import import import_scene
 from illumix.scene_import.colour_match import illuminant_for, illuminant_xy, rgb_light
 from illumix.scene_import.rules import load_rules
@@ -223,7 +223,7 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     pytest.importorskip("mitsuba")
     import colour
 
-    from illumix.renderer_jobs.blend_import import _upsample
+    from illumix.scene_import.blend import _upsample
     from illumix.renderer_jobs.mitsuba_render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.retarget.grid import resample
@@ -285,3 +285,21 @@ def test_degenerate_cameras_and_materials(tmp_path):
     (tmp_path / "t.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n")
     doc, _ = import_scene(tmp_path / "t.obj", tmp_path / "o3")
     assert all(np.isfinite(m.get("alpha", 1.0)) for m in doc["materials"].values())
+
+
+def test_one_importer_registry_keyed_by_extension(tmp_path):
+    """Issue 34: every importable extension, .blend included, is one registry (scene_import.IMPORTERS);
+    the scene room's loader reads illumix's own files and points a Blender file at its importer."""
+    import warnings
+
+    from illumix.scene.load import load_scenes
+    from illumix.scene_import import IMPORTERS, load_file
+
+    assert set(IMPORTERS) == {".gltf", ".glb", ".obj", ".xml", ".blend"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        (scene,) = load_file(t.write_obj(tmp_path / "room.obj"), out_dir=tmp_path / "out")
+    assert scene.group_names and (tmp_path / "out" / "scene.yaml").is_file()
+    (tmp_path / "x.blend").write_bytes(b"BLENDER")
+    with pytest.raises(SceneError, match="Blender file: import it"):
+        load_scenes(tmp_path / "x.blend")

@@ -12,15 +12,16 @@ ROOT = Path(__file__).resolve().parents[1]
 ALLOWED = {
     "retarget": set(),
     "store": {"retarget"},
-    "renderer_jobs": {"retarget", "store"},
-    "scenegen": {"retarget", "renderer_jobs"},
-    "scene_import": {"retarget", "renderer_jobs"},
+    "scene": {"retarget"},
+    "renderer_jobs": {"retarget", "store", "scene"},
+    "scenegen": {"retarget", "scene", "renderer_jobs"},
+    "scene_import": {"retarget", "scene"},
     "imagefiles": {"retarget"},
     "engine": {"retarget", "store"},
     "service": {"retarget", "store", "engine", "imagefiles"},
     "dataset_export": {"retarget", "store", "engine", "imagefiles"},
     "awb_eval": {"retarget", "store", "engine"},
-    "illumix": {"retarget", "store", "renderer_jobs", "scenegen", "scene_import", "imagefiles", "engine", "service",
+    "illumix": {"retarget", "store", "scene", "renderer_jobs", "scenegen", "scene_import", "imagefiles", "engine", "service",
                 "dataset_export", "awb_eval"},
 }
 CLIENT = ROOT / "clients" / "python" / "illumix_client"

@@ -98,7 +98,7 @@ def test_relative_variance_excludes_the_pixel_itself():
 def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
     """Image means of adaptive and uniform renders agree within 5 standard errors (the error of a
     difference of means over independent pixels); the adaptive cube reports its per-pixel spp."""
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
     from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
@@ -134,7 +134,7 @@ def test_noise_target_render_meets_its_target():
     (the pilot's neighbourhood variance is an estimate from 384 paths: ±25 % covers its error; a
     miscalibrated rule such as v/target for v/target² lands at 1.6×), and halving the target costs
     ~4× the paths."""
-    from illumix.renderer_jobs import demo
+    from illumix.scene import demo
     from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))

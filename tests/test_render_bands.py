@@ -19,8 +19,8 @@ from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
 from illumix.renderer_jobs.band_schedule import mix_seed  # noqa: E402
 from illumix.renderer_jobs.mitsuba_band_render import band_sets, spp_allowed  # noqa: E402
 from illumix.renderer_jobs.mitsuba_bands import band_quadruples  # noqa: E402
-from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
-from illumix.renderer_jobs.scene_schema import SceneError  # noqa: E402
+from illumix.scene.load import scene_from_dict  # noqa: E402
+from illumix.scene.schema import SceneError  # noqa: E402
 
 
 @pytest.fixture(scope="module")

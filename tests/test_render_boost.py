@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from illumix.renderer_jobs.render_settings import RenderSettings
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 from illumix.retarget.denoise import Guides
 
 RES = (24, 16)
@@ -72,7 +72,7 @@ def renders():
     from test_render import box_scene
 
     from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     mask = np.zeros(RES[::-1], bool)
@@ -119,7 +119,7 @@ def test_a_mask_of_another_size_is_a_clear_error():
     from test_render import box_scene
 
     from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     with pytest.raises(SceneError, match="boost mask"):
         mr.render_cube(scene_from_dict(box_scene()), "cam", "lamp", RenderSettings(spp=16, resolution=RES),
@@ -134,7 +134,7 @@ def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
 
     from illumix.renderer_jobs import mitsuba_band_render as mb
     from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
 
     box = scene_from_dict(box_scene())
     s = RenderSettings(spp=128, seed=3, resolution=RES)
@@ -156,7 +156,7 @@ def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path,
     from illumix.renderer_jobs import denoise_guides as dg
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.scene_load import scene_from_dict
+    from illumix.scene.load import scene_from_dict
     from illumix.store import CubeStore
 
     calls = []

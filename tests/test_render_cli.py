@@ -12,8 +12,8 @@ import yaml
 from cli_testutil import run_cli
 from illumix.renderer_jobs import jobs
 from illumix.renderer_jobs.execute import execute
-from illumix.renderer_jobs.demo import demo_room_dict
-from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.scene.demo import demo_room_dict
+from illumix.scene.load import scene_from_dict
 
 TINY = ["--resolution", "24x16", "--spp", "16"]
 needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsuba") is None,

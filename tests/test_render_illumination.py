@@ -17,10 +17,10 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from test_render import assert_same_within_noise, box_scene  # noqa: E402
 
-from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.scene import demo  # noqa: E402
 from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
 from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from illumix.scene.load import scene_from_dict  # noqa: E402
 from illumix.renderer_jobs.validate import patch_masks  # noqa: E402
 
 

@@ -12,11 +12,11 @@ import yaml
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
 from illumix.cli import main  # noqa: E402
-from illumix.renderer_jobs import demo  # noqa: E402
+from illumix.scene import demo  # noqa: E402
 from illumix.renderer_jobs.light_probe import probe_group  # noqa: E402
 from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
 from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube  # noqa: E402
-from illumix.renderer_jobs.scene_load import scene_from_dict  # noqa: E402
+from illumix.scene.load import scene_from_dict  # noqa: E402
 
 RES = (40, 30)
 

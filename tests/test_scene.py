@@ -1,4 +1,4 @@
-"""Scene description (renderer_jobs.scene_schema, scene_model, scene_load) and procedural scenes (renderer_jobs.demo): no rendering."""
+"""Scene description (scene.schema, scene_model, scene_load) and procedural scenes (scene.demo): no rendering."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
-from illumix.renderer_jobs import demo
-from illumix.renderer_jobs.scene_load import dump_scene, load_scenes, scene_from_dict
-from illumix.renderer_jobs.scene_schema import SceneError, Transform, rotation_matrix
+from illumix.scene import demo
+from illumix.scene.load import dump_scene, load_scenes, scene_from_dict
+from illumix.scene.schema import SceneError, Transform, rotation_matrix
 
 BASE = {
     "name": "t1",

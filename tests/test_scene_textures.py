@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from illumix.renderer_jobs.scene_load import scene_from_dict
-from illumix.renderer_jobs.scene_schema import SceneError
-from illumix.renderer_jobs.scene_textures import PATTERNS, PatternTexture
+from illumix.scene.load import scene_from_dict
+from illumix.scene.schema import SceneError
+from illumix.scene.textures import PATTERNS, PatternTexture
 
 SPECTRA = [{"library": "ColorChecker N Ohta", "index": 14}, {"library": "ColorChecker N Ohta", "index": 2}]
 

@@ -9,7 +9,7 @@ import re
 import numpy as np
 import pytest
 
-from illumix.renderer_jobs.scene_load import scene_from_dict
+from illumix.scene.load import scene_from_dict
 from illumix.scenegen.generate import GeneratorConfig, generate_doc, layout_hash
 
 pytest.importorskip("mitsuba")

@@ -1,8 +1,8 @@
 """Scene description, part 1: the pieces of a scene — spectra, materials, transforms, shapes,
 lights, light groups and views — as strict pydantic v2 models.
 
-The whole scene (:class:`renderer_jobs.scene_model.Scene`) is assembled from these and loaded from
-YAML/JSON by :mod:`renderer_jobs.scene_load`. This is the renderer-independent description: the
+The whole scene (:class:`scene.model.Scene`) is assembled from these and loaded from
+YAML/JSON by :mod:`scene.load`. This is the renderer-independent description: the
 Mitsuba backend (:mod:`renderer_jobs.mitsuba_scene`) turns it into a Mitsuba scene; nothing here
 imports Mitsuba.
 
@@ -31,10 +31,10 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from illumix.renderer_jobs.scene_spectra import (NAME_PATTERN, SCHEMA_VERSION, ConstantSpectrum, FileSpectrum,  # noqa: F401
+from illumix.scene.spectra import (NAME_PATTERN, SCHEMA_VERSION, ConstantSpectrum, FileSpectrum,  # noqa: F401
                                          LibrarySpectrum, Name, SceneError, SpectrumSpec, StrictModel,
                                          TableSpectrum, Vec3)
-from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture, Reflectance  # noqa: F401
+from illumix.scene.textures import BitmapTexture, PatternTexture, Reflectance  # noqa: F401
 
 
 # ---------------------------------------------------------------------------------------------

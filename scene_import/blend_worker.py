@@ -1,8 +1,8 @@
 """Blend worker: reads a ``.blend`` file with Blender's ``bpy`` into plain data for illumix.
 
-Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2; see :mod:`renderer_jobs.cycles_env`) and
+Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2; see :mod:`scene.blender_env`) and
 imports only the standard library, numpy and bpy — nothing of illumix.
-:mod:`renderer_jobs.blend_import` runs it and turns its output into a scene::
+:mod:`scene_import.blend` runs it and turns its output into a scene::
 
     python blend_worker.py FILE.blend OUT_DIR     # writes OUT_DIR/scene.json and OUT_DIR/meshes/*.ply
 

@@ -1,4 +1,4 @@
-"""Scene description, part 2: the whole :class:`Scene` — its parts (:mod:`renderer_jobs.scene_schema`)
+"""Scene description, part 2: the whole :class:`Scene` — its parts (:mod:`scene.schema`)
 cross-checked, looked up by name, resolved to spectra on the scene's grid, and hashed.
 
 - **Cross-checks** name every broken reference (materials, light groups), duplicate names, a
@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
-from illumix.renderer_jobs.scene_schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpectrum, Dielectric, EnvMapSky,
+from illumix.scene.schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpectrum, Dielectric, EnvMapSky,
                                         FileSpectrum, Light, LightGroup, LibrarySpectrum, Material, MeshFile,
                                         Name, RoughConductor, SceneError, Shape, SpectrumSpec, StrictModel,
                                         TableSpectrum, View)
-from illumix.renderer_jobs.scene_textures import BitmapTexture, PatternTexture
+from illumix.scene.textures import BitmapTexture, PatternTexture
 from illumix.retarget.errors import SpectralError
 from illumix.retarget.grid import SpectralGrid
 from illumix.retarget.illuminants import illuminant_spd as _library_spd

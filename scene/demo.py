@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from illumix.renderer_jobs.scene_load import scene_from_dict
-from illumix.renderer_jobs.scene_model import Scene
+from illumix.scene.load import scene_from_dict
+from illumix.scene.model import Scene
 
 CHART_SET = "ColorChecker N Ohta"
 CHART_ROWS, CHART_COLS = 4, 6

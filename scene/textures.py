@@ -26,7 +26,7 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Discriminator, Field, Tag, model_validator
 
-from illumix.renderer_jobs.scene_spectra import SpectrumSpec, StrictModel
+from illumix.scene.spectra import SpectrumSpec, StrictModel
 
 PATTERNS = ("wood", "weave", "tiles", "stripes", "checker", "blobs", "picture")
 

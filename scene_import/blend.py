@@ -1,8 +1,8 @@
-"""Import a Blender ``.blend`` file as an illumix :class:`~renderer_jobs.scene_model.Scene`.
+"""Import a Blender ``.blend`` file as an illumix :class:`~scene.model.Scene`.
 
-:mod:`renderer_jobs.blend_worker` reads the file in Blender's Python (:mod:`renderer_jobs.cycles_env`)
+:mod:`scene_import.blend_worker` reads the file in Blender's Python (:mod:`scene.blender_env`)
 into ``scene.json`` plus one world-space PLY per mesh object and material; this module turns that
-into a scene document and validates it (:func:`~renderer_jobs.scene_load.scene_from_dict`).
+into a scene document and validates it (:func:`~scene.load.scene_from_dict`).
 
 Conventions
 -----------
@@ -26,7 +26,7 @@ Conventions
   given inline. Metallic > 0.5 → ``roughconductor`` (Al, α = roughness²), transmission > 0.5 →
   ``dielectric`` (the Principled IOR), a Principled BSDF with roughness < 0.999 → ``roughplastic``
   (α = roughness², IOR; an upsampled base colour divided by
-  :func:`renderer_jobs.plastic_scale.plastic_diffuse_scale`, so it renders as bright as in Blender —
+  :func:`scene.plastic_scale.plastic_diffuse_scale`, so it renders as bright as in Blender —
   Mitsuba's rough plastic loses 7–27 % of its diffuse light in the coating, the Principled BSDF
   does not), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
   inputs, other shader nodes, no material) is replaced by a stated value with a ``UserWarning``.
@@ -53,8 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.cycles_env import find_blender_python
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.blender_env import find_blender_python
+from illumix.scene.schema import SceneError
 
 WORKER = Path(__file__).with_name("blend_worker.py")
 WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
@@ -177,8 +177,8 @@ def material_doc(info: dict, what: str) -> dict | None:
     elif plastic:
         # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
         # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
-        # Cycles backend's mapping, renderer_jobs.plastic_scale.plastic_diffuse_scale).
-        from illumix.renderer_jobs.plastic_scale import plastic_diffuse_scale
+        # Cycles backend's mapping, scene.plastic_scale.plastic_diffuse_scale).
+        from illumix.scene.plastic_scale import plastic_diffuse_scale
 
         base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
         if np.any(base > 1):
@@ -384,7 +384,7 @@ def export_blend(path: Path, cache_dir: Path | None = None) -> Path:
 
 def blend_doc(path: str | Path, *, cache_dir: str | Path | None = None) -> tuple[dict, Path]:
     """``(scene document, its base folder)`` of a ``.blend`` file (one scene, named after the file's
-    stem): see the module docstring. :func:`renderer_jobs.scene_load.load_blend` validates it.
+    stem): see the module docstring. :func:`scene.load.load_blend` validates it.
 
     ``cache_dir``: where the worker's output goes (default: the cache described above).
     Problems that have a stated substitute are ``UserWarning`` s; the rest raise :class:`SceneError`.
@@ -396,3 +396,12 @@ def blend_doc(path: str | Path, *, cache_dir: str | Path | None = None) -> tuple
     out = export_blend(p, None if cache_dir is None else Path(cache_dir))
     data = json.loads((out / "scene.json").read_text())
     return scene_doc(data, out.resolve(), p.stem, str(p)), out.resolve()
+
+
+def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list:
+    """The scene of a Blender ``.blend`` file (:func:`blend_doc`: read by Blender in a worker
+    process, ``cache_dir`` its output), validated: ``[Scene]``."""
+    from illumix.scene.load import scene_from_dict
+
+    doc, base = blend_doc(path, cache_dir=cache_dir)
+    return [scene_from_dict(doc, source=str(path), base=base)]

@@ -1,5 +1,5 @@
 """Scene description, part 0: the names, the base model and the spectrum specs every other part
-uses (split from :mod:`renderer_jobs.scene_schema` so that textures, which mix spectra, can be
+uses (split from :mod:`scene.schema` so that textures, which mix spectra, can be
 described beside them without an import cycle)."""
 
 from __future__ import annotations

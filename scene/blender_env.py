@@ -19,7 +19,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.schema import SceneError
 
 INSTALL_HINT = ("install it with `bash scripts/install.sh --blender` (a Python environment with bpy 4.5 "
                 "at ~/.cache/illumix/blender-venv), or set ILLUMIX_BLENDER_PYTHON to a Python that can import bpy")

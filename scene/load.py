@@ -1,9 +1,9 @@
-"""Scene description, part 3: files ↔ :class:`~renderer_jobs.scene_model.Scene`.
+"""Scene description, part 3: files ↔ :class:`~scene.model.Scene`.
 
 A YAML or JSON file holds one scene, or ``{scenes: [...]}`` several. Loading validates everything —
 names that must resolve (materials, light groups, library spectra, files) included — and reports
 every problem as ``<file>: <object path> (<name>): <field>: <what is wrong>`` on one line
-(:class:`~renderer_jobs.scene_schema.SceneError`).
+(:class:`~scene.schema.SceneError`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from illumix.renderer_jobs.scene_model import Scene
-from illumix.renderer_jobs.scene_schema import SceneError
+from illumix.scene.model import Scene
+from illumix.scene.schema import SceneError
 
 
 def _format_loc(doc: Any, loc: tuple) -> str:
@@ -78,21 +78,13 @@ def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None
     return scene
 
 
-def load_blend(path: str | Path, *, cache_dir: str | Path | None = None) -> list[Scene]:
-    """The scene of a Blender ``.blend`` file (:func:`renderer_jobs.blend_import.blend_doc`: read by
-    Blender in a worker process, ``cache_dir`` its output), validated."""
-    from illumix.renderer_jobs.blend_import import blend_doc
-
-    doc, base = blend_doc(path, cache_dir=cache_dir)
-    return [scene_from_dict(doc, source=str(path), base=base)]
-
-
 def load_scenes(path: str | Path, *, check: bool = True) -> list[Scene]:
-    """Load a YAML or JSON file holding one scene or ``{scenes: [...]}``, or a Blender ``.blend`` file
-    (:func:`load_blend`)."""
+    """Load a YAML or JSON file holding one scene or ``{scenes: [...]}`` (other formats are imported:
+    :data:`scene_import.IMPORTERS`)."""
     p = Path(path)
     if p.suffix.lower() == ".blend":
-        return load_blend(p)
+        raise SceneError(f"{p} is a Blender file: import it (illumix.scene_import.load_file, or give it to "
+                         "`illumix render` / `illumix import`)")
     if not p.is_file():
         what = "is a directory; give a YAML or JSON file" if p.is_dir() else "does not exist"
         raise SceneError(f"scene file {str(p)!r} {what}")
