@@ -18,6 +18,7 @@ import typer
 from rich.console import Console
 
 from illumix.errors import UserError
+from illumix.render_run import refuse_conflicts, run_jobs
 
 console = Console(stderr=True)
 
@@ -36,84 +37,18 @@ def dataset(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Render a dataset: generated rooms and scene files × views × light groups, resumable."""
-    from illumix import scene_corpus
-    from illumix.cmd_render import require_renderer
-    from illumix.dataset_config import config_flag, load_config
-    from illumix.progress import progress_bar
-    from illumix.render_options import check_executor, render_settings
-    from illumix.renderer_jobs import jobs
-    from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.render_settings import RenderSettings
-    from illumix.scene.schema import SceneError
-    from illumix.scenegen import GENERATOR_VERSION
-    from illumix.store import StoreError
+    from illumix.dataset_config import load_config
 
     t0 = time.perf_counter()
     cfg = load_config(config)
     r = cfg.render
-    try:
-        executor = check_executor(r.executor, r.address, config_flag)
-        try:
-            res = jobs.parse_resolution(r.resolution)
-        except SceneError as exc:
-            raise UserError(f"render.resolution: {exc}") from None
-        opts = {name: getattr(r, name) for name in RenderSettings.cli_fields()}
-        render_settings(opts, flag=config_flag)  # check before generating anything
-    except SceneError as exc:
-        raise UserError(f"{config}: render: {exc}") from None
-    except UserError as exc:
-        raise UserError(f"{config}: {exc}") from None
-    from illumix.store.backend import is_local
-
-    if scenes_dir is None and is_local(store):
-        scenes_dir = Path(store.removeprefix("file://")) / scene_corpus.SCENES_DIR
-    elif scenes_dir is None and not dry_run and cfg.generated is not None and cfg.generated.count:
-        raise UserError(f"--store {store} is a URL: give --scenes-dir DIR for the generated rooms' scene files")
-    if not dry_run:
-        try:  # made now: the scene cache lives in it, and a bad location should stop us before hours of work
-            from illumix.store import CubeStore
-
-            CubeStore.open(store, mode="a")
-        except StoreError as exc:
-            raise UserError(f"store {store}: {exc}") from None
-
+    executor, res, opts = _checked_options(cfg, config)
+    scenes_dir = _scenes_dir(store, scenes_dir, cfg, dry_run)
     quiet = as_json and not console.is_terminal
-    with progress_bar(console, disable=quiet, transient=True) as prog:  # an error after it stays one line
-        task = None
-
-        def on_start(n: int) -> None:
-            nonlocal task
-            if n:
-                task = prog.add_task("scenes", total=n, last="")
-
-        def on_room(name: str, status: str) -> None:
-            prog.update(task, advance=1, last=f"{name} {status}")
-
-        corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
-                                    on_room=on_room, on_start=on_start)
-    scenes = corpus.scenes
-    if corpus.generated or corpus.cached:
-        console.print(f"rooms: {corpus.generated} generated, {corpus.cached} cached in {scenes_dir or '(memory)'}",
-                      highlight=False)
-    try:
-        scenes = [jobs.apply_resolution(s, res) for s in scenes]
-        settings = render_settings(opts, scenes=scenes, flag=config_flag)
-        p = jobs.plan(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
-    except SceneError as exc:
-        raise UserError(str(exc)) from None
-    except StoreError as exc:
-        raise UserError(f"store {store}: {exc}") from None
-    if p.conflicts and not overwrite:
-        raise UserError(f"{p.conflicts[0]}" + (f" (and {len(p.conflicts) - 1} more)" if len(p.conflicts) > 1 else "")
-                        + "; use another store, or --overwrite to re-render")
+    corpus = _corpus(cfg, config, scenes_dir, limit, dry_run, quiet)
+    scenes, settings, p = _plan(corpus.scenes, store, res, opts, r, overwrite)
     n_views = len(p.view_jobs) + sum(j.group is None for j in p.skipped)
-    summary = {
-        "name": cfg.name, "store": store, "scenes_dir": str(scenes_dir) if scenes_dir else None,
-        "generator_version": GENERATOR_VERSION, "scenes": len(scenes), "rooms_generated": corpus.generated,
-        "rooms_cached": corpus.cached, "scene_files": corpus.files, "views": n_views,
-        "cubes_planned": len(p.cube_jobs), "cubes_skipped": len([j for j in p.skipped if j.group]),
-        "executor": executor, "workers": r.workers, "settings": settings.to_dict(),
-    }
+    summary = _summary(cfg, store, scenes_dir, corpus, scenes, p, n_views, executor, settings)
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")
@@ -127,36 +62,121 @@ def dataset(
     t_render = time.perf_counter()
     if p.jobs:
         if executor == "local":
+            from illumix.cmd_render import require_renderer
+
             require_renderer(settings.backend)
-        with progress_bar(console, disable=quiet) as prog:
-            task = prog.add_task("rendering", total=len(p.jobs), last="")
+        done, failed = run_jobs(console, p, store, settings, executor=executor, workers=r.workers,
+                                address=r.address, overwrite=overwrite, quiet=quiet, keep_going=True)
+    _report(summary, cfg, store, corpus, scenes, p, n_views, done, failed, time.perf_counter() - t0,
+            time.perf_counter() - t_render, as_json)
 
-            def on_done(job, result, exc) -> None:
-                if exc is None:
-                    done.append(result)
-                    prog.update(task, advance=1, last=f"{job.label} {result['seconds']:.1f}s")
-                else:
-                    line = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-                    failed.append({"job": job.label, "error": line})
-                    prog.update(task, advance=1, last=f"[red]{job.label} failed")
-                    prog.console.print(f"[red]failed[/red] {job.label}: {line}", markup=True, highlight=False)
 
-            try:
-                execute(p, store, settings, executor=executor, workers=r.workers, address=r.address,
-                             on_done=on_done, overwrite=overwrite, keep_going=True)
-            except SceneError as exc:
-                raise UserError(str(exc)) from None
-            except jobs.JobError as exc:  # Ray stops at its first failure
-                raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
-                                "and are kept; run again to resume)") from None
-    wall = time.perf_counter() - t0
+def _checked_options(cfg, config: Path):
+    """``(executor, resolution, the render options)`` of the config, checked before anything is generated."""
+    from illumix.dataset_config import config_flag
+    from illumix.render_options import check_executor, render_settings
+    from illumix.renderer_jobs import jobs
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.scene.schema import SceneError
+
+    r = cfg.render
+    try:
+        executor = check_executor(r.executor, r.address, config_flag)
+        try:
+            res = jobs.parse_resolution(r.resolution)
+        except SceneError as exc:
+            raise UserError(f"render.resolution: {exc}") from None
+        opts = {name: getattr(r, name) for name in RenderSettings.cli_fields()}
+        render_settings(opts, flag=config_flag)
+    except SceneError as exc:
+        raise UserError(f"{config}: render: {exc}") from None
+    except UserError as exc:
+        raise UserError(f"{config}: {exc}") from None
+    return executor, res, opts
+
+
+def _scenes_dir(store: str, scenes_dir: Path | None, cfg, dry_run: bool) -> Path | None:
+    """Where generated rooms are cached (beside a local store by default); the store is made now:
+    the scene cache lives in it, and a bad location should stop us before hours of work."""
+    from illumix import scene_corpus
+    from illumix.store import CubeStore, StoreError
+    from illumix.store.backend import is_local
+
+    if scenes_dir is None and is_local(store):
+        scenes_dir = Path(store.removeprefix("file://")) / scene_corpus.SCENES_DIR
+    elif scenes_dir is None and not dry_run and cfg.generated is not None and cfg.generated.count:
+        raise UserError(f"--store {store} is a URL: give --scenes-dir DIR for the generated rooms' scene files")
+    if not dry_run:
+        try:
+            CubeStore.open(store, mode="a")
+        except StoreError as exc:
+            raise UserError(f"store {store}: {exc}") from None
+    return scenes_dir
+
+
+def _corpus(cfg, config: Path, scenes_dir: Path | None, limit: int | None, dry_run: bool, quiet: bool):
+    """The config's scenes (rooms generated or read from the cache, scene files), with a progress bar."""
+    from illumix import scene_corpus
+    from illumix.progress import progress_bar
+
+    with progress_bar(console, disable=quiet, transient=True) as prog:  # an error after it stays one line
+        task = None
+
+        def on_start(n: int) -> None:
+            nonlocal task
+            if n:
+                task = prog.add_task("scenes", total=n, last="")
+
+        def on_room(name: str, status: str) -> None:
+            prog.update(task, advance=1, last=f"{name} {status}")
+
+        corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
+                                    on_room=on_room, on_start=on_start)
+    if corpus.generated or corpus.cached:
+        console.print(f"rooms: {corpus.generated} generated, {corpus.cached} cached in {scenes_dir or '(memory)'}",
+                      highlight=False)
+    return corpus
+
+
+def _plan(scenes: list, store: str, res, opts: dict, r, overwrite: bool):
+    """``(scenes at the config's resolution, RenderSettings, plan)``; every problem one line."""
+    from illumix.dataset_config import config_flag
+    from illumix.render_options import render_settings
+    from illumix.renderer_jobs import jobs
+    from illumix.scene.schema import SceneError
+    from illumix.store import StoreError
+
+    try:
+        scenes = [jobs.apply_resolution(s, res) for s in scenes]
+        settings = render_settings(opts, scenes=scenes, flag=config_flag)
+        p = jobs.plan(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
+    except SceneError as exc:
+        raise UserError(str(exc)) from None
+    except StoreError as exc:
+        raise UserError(f"store {store}: {exc}") from None
+    refuse_conflicts(p, overwrite, "use another store, or --overwrite to re-render")
+    return scenes, settings, p
+
+
+def _summary(cfg, store, scenes_dir, corpus, scenes, p, n_views, executor, settings) -> dict:
+    from illumix.scenegen import GENERATOR_VERSION
+
+    return {"name": cfg.name, "store": store, "scenes_dir": str(scenes_dir) if scenes_dir else None,
+            "generator_version": GENERATOR_VERSION, "scenes": len(scenes), "rooms_generated": corpus.generated,
+            "rooms_cached": corpus.cached, "scene_files": corpus.files, "views": n_views,
+            "cubes_planned": len(p.cube_jobs), "cubes_skipped": len([j for j in p.skipped if j.group]),
+            "executor": executor, "workers": cfg.render.workers, "settings": settings.to_dict()}
+
+
+def _report(summary, cfg, store, corpus, scenes, p, n_views, done, failed, wall, render_wall, as_json) -> None:
+    """The run's one-line summary (and JSON); exit 1 when jobs failed (the rest are kept)."""
     cubes = [d for d in done if d["kind"] == "cube"]
     lit = [d for d in cubes if not d.get("empty")]
     cpu = [d["cpu_s"] for d in done if d.get("cpu_s") is not None]
     summary.update({
         "cubes_rendered": len(lit), "cubes_empty": len([d for d in cubes if d.get("empty")]),
         "views_written": len([d for d in done if d["kind"] == "view"]), "failed": failed,
-        "wall_s": round(wall, 3), "render_wall_s": round(time.perf_counter() - t_render, 3),
+        "wall_s": round(wall, 3), "render_wall_s": round(render_wall, 3),
         "cpu_s": round(sum(cpu), 3) if cpu and len(cpu) == len(done) else None,
         "cube_mean_s": round(sum(d["seconds"] for d in lit) / len(lit), 3) if lit else None,
     })

@@ -18,6 +18,7 @@ from rich.console import Console
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option
 from illumix.render_options import check_executor, render_settings, with_settings_options
+from illumix.render_run import refuse_conflicts, run_jobs
 from illumix.renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
@@ -74,18 +75,51 @@ def render(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
 ) -> None:
     """Render spectral transport cubes (one per view and light group) into a cube store."""
-    from illumix.progress import progress_bar
-    from illumix.scene_files import load_scene_file
+    executor = check_executor(executor, address)
+    scenes, settings, p = _plan(config, rules, store, demo, demo_seed, resolution, settings_options, views, groups,
+                                overwrite, dry_run)
+    refuse_conflicts(p, overwrite, "use another store or scene name, or --overwrite to re-render")
+    summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": len(p.cube_jobs),
+               "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
+               "executor": executor, **{k: getattr(settings, k) for k in settings.cli_fields()}}
+    if dry_run:
+        for j in p.jobs:
+            console.print(f"would render {j.label}")
+        if as_json:
+            print(json.dumps({**summary, "jobs": [j.label for j in p.jobs]}))
+        return
+    if not p.jobs:
+        console.print(f"nothing to do: all {summary['already_complete']} cube(s) are complete in {store}")
+        if as_json:
+            print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
+        return
+    if executor == "local":
+        require_renderer(settings.backend)  # ray: the workers render (their image has it); the driver needs none
+    t0 = time.perf_counter()
+    done, _ = run_jobs(console, p, store, settings, executor=executor, workers=workers, address=address,
+                       overwrite=overwrite, quiet=as_json and not console.is_terminal)
+    elapsed = time.perf_counter() - t0
+    empty = [d["job"] for d in done if d.get("empty")]
+    console.print(f"rendered {len([d for d in done if d['kind'] == 'cube'])} cube(s) and "
+                  f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s"
+                  + (f"; {len(empty)} group(s) light nothing in their view, recorded as empty" if empty else ""))
+    if as_json:
+        print(json.dumps({**summary, "rendered": [d["job"] for d in done], "empty": empty,
+                          "seconds": round(elapsed, 3)}))
+
+
+def _plan(config, rules, store, demo, demo_seed, resolution, settings_options, views, groups, overwrite, dry_run):
+    """``(scenes, RenderSettings, plan)`` of the command's arguments; every problem one line."""
     from illumix.renderer_jobs import jobs
-    from illumix.renderer_jobs.execute import execute
     from illumix.scene.schema import SceneError
+    from illumix.scene_files import load_scene_file
+    from illumix.store import StoreError
 
     try:
         if rules is not None and config is None:
             raise UserError("--rules applies to an imported scene file CONFIG")
         if demo == (config is not None):
             raise UserError("give either a scene file CONFIG or --demo (not both, not neither)")
-        executor = check_executor(executor, address)
         res = jobs.parse_resolution(resolution)
         if demo:
             from illumix.scene.demo import demo_room
@@ -101,70 +135,9 @@ def render(
                       overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
-    except Exception as exc:
-        from illumix.store import StoreError
-
-        if isinstance(exc, StoreError):
-            raise UserError(f"store {store}: {exc}") from None
-        raise
-    if p.conflicts and not overwrite:
-        raise UserError(f"{p.conflicts[0]}" + (f" (and {len(p.conflicts) - 1} more)" if len(p.conflicts) > 1 else "")
-                        + "; use another store or scene name, or --overwrite to re-render")
-    n_cubes = len(p.cube_jobs)
-    summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": n_cubes,
-               "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
-               "executor": executor,
-               **{k: getattr(settings, k) for k in settings.cli_fields()}}
-    if dry_run:
-        for j in p.jobs:
-            console.print(f"would render {j.label}")
-        if as_json:
-            print(json.dumps({**summary, "jobs": [j.label for j in p.jobs]}))
-        return
-    if not p.jobs:
-        console.print(f"nothing to do: all {summary['already_complete']} cube(s) are complete in {store}")
-        if as_json:
-            print(json.dumps({**summary, "rendered": [], "seconds": 0.0}))
-        return
-    if executor == "local":
-        require_renderer(settings.backend)  # ray: the workers render (their image has it); the driver needs none
-    t0 = time.perf_counter()
-    done: list[dict] = []
-    with progress_bar(console, disable=as_json and not console.is_terminal) as prog:
-        task = prog.add_task("rendering", total=len(p.jobs), last="")
-        passes = None
-
-        def on_pass(n: int, total: int, label: str) -> None:  # the Cycles backend's passes
-            nonlocal passes
-            if passes is None:
-                passes = prog.add_task("cycles passes", total=total, last="")
-            if n == 0:
-                prog.reset(passes, total=total, last="")
-            prog.update(passes, completed=n, last=label)
-
-        def on_done(job, result, exc) -> None:
-            if exc is None:
-                done.append(result)
-                prog.update(task, advance=1, last=f"{job.label} {result['seconds']:.1f}s")
-            else:
-                prog.update(task, last=f"[red]{job.label} failed")
-
-        try:
-            execute(p, store, settings, executor=executor, workers=workers, address=address,
-                         on_done=on_done, overwrite=overwrite, on_pass=on_pass)
-        except SceneError as exc:
-            raise UserError(str(exc)) from None
-        except jobs.JobError as exc:
-            raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
-                            "and are kept; run again to resume)") from None
-    elapsed = time.perf_counter() - t0
-    empty = [d["job"] for d in done if d.get("empty")]
-    console.print(f"rendered {len([d for d in done if d['kind'] == 'cube'])} cube(s) and "
-                  f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s"
-                  + (f"; {len(empty)} group(s) light nothing in their view, recorded as empty" if empty else ""))
-    if as_json:
-        print(json.dumps({**summary, "rendered": [d["job"] for d in done], "empty": empty,
-                          "seconds": round(elapsed, 3)}))
+    except StoreError as exc:
+        raise UserError(f"store {store}: {exc}") from None
+    return scenes, settings, p
 
 
 def register(app: typer.Typer) -> None:
