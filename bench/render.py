@@ -256,6 +256,7 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     Against the full 63-band schedule (the flat cube × the emission: the same cube in expectation,
     and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
     pixels, two seeds) and CPU time at the same spp."""
+    from illumix.renderer_jobs.band_schedule import live_bands
     from illumix.renderer_jobs.mitsuba_scene import group_emission
     from illumix.scene.load import scene_from_dict
 
@@ -269,7 +270,7 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
         warm_up(scene, args.view, "ceiling")
         (pair,), _, cpus = seed_pairs(argparse.Namespace(pairs=1, view=args.view), scene, mr, "ceiling",
                                       spp=args.skip_spp)
-        live = mr.live_bands(e)
+        live = live_bands(e)
         a, b = (r.cube[..., live].astype(np.float64) * (1.0 if label == "emitting_bands_only" else e[live])
                 for r in pair)
         m = (a + b) / 2

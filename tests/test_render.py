@@ -15,6 +15,7 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from illumix.scene import demo  # noqa: E402
 from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
+from illumix.renderer_jobs.band_schedule import band_counts, live_bands  # noqa: E402
 from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
 from illumix.renderer_jobs import mitsuba_scene as ms  # noqa: E402
 from illumix.renderer_jobs import mitsuba_variant as mv  # noqa: E402
@@ -218,10 +219,10 @@ def test_narrowband_emission_samples_only_its_bands_and_low_spp_refused():
     s = scene_from_dict(d)
     r = mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=16, seed=1, wavelengths="stratified"))
     wl = s.spectral_grid.wavelengths
-    live = mr.live_bands(r.emission)
+    live = live_bands(r.emission)
     assert wl[live].tolist() == [540, 545, 550, 555, 560]
     assert np.all(r.cube[..., ~((wl >= 537.5) & (wl <= 562.5))] == 0)
-    counts = mr.band_counts(12, len(wl), 16, seed=1, live=live)
+    counts = band_counts(12, len(wl), 16, seed=1, live=live)
     assert np.all(counts.sum(axis=1) == 64) and np.all(counts[:, live] >= 12) and counts.sum() == counts[:, live].sum()
     flat = mr.render_cube(scene_from_dict(box_scene()), "cam", "bulb", mr.RenderSettings(spp=64, seed=2))
     bands = mr.render_cube(s, "cam", "bulb", mr.RenderSettings(spp=16, seed=1))  # all-bands: 2 quadruples

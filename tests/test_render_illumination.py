@@ -18,6 +18,7 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 from test_render import assert_same_within_noise, box_scene  # noqa: E402
 
 from illumix.scene import demo  # noqa: E402
+from illumix.renderer_jobs import mitsuba_hero_paths as hero  # noqa: E402
 from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
 from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
 from illumix.scene.load import scene_from_dict  # noqa: E402
@@ -58,7 +59,7 @@ def test_glossy_estimates_match_the_closed_form_on_glossy_patches(monkeypatch, w
     estimate all give the closed form."""
     from illumix.renderer_jobs import mitsuba_bands
 
-    monkeypatch.setattr(mr, "TRACE_BUDGET", 1.0)  # trace every sample: no subsampling noise
+    monkeypatch.setattr(hero, "TRACE_BUDGET", 1.0)  # trace every sample: no subsampling noise
     monkeypatch.setattr(mitsuba_bands, "FORCE_FIRST", force)
     s = scene_from_dict(_chart_plastic())
     r = mr.render_cube(s, "head-on", "light", mr.RenderSettings(spp=16, seed=2, wavelengths=wavelengths))
@@ -124,8 +125,8 @@ def test_illumination_is_finite_non_negative_and_unbiased_against_demodulation(m
         assert demod.stats["illumination"]["demodulated"] > 0
         for force in forced:
             with monkeypatch.context() as m:
-                m.setattr(mr, "RHO_MIN", np.inf)
-                m.setattr(mr, "TRACE_BUDGET", 1.0)
+                m.setattr(hero, "RHO_MIN", np.inf)
+                m.setattr(hero, "TRACE_BUDGET", 1.0)
                 m.setattr(mitsuba_bands, "FORCE_FIRST", force)
                 other = mr.render_cube(box, "cam", "lamp", settings)
             for r in (demod, other):
