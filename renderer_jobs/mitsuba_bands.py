@@ -75,198 +75,247 @@ FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists)
 def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
                     flat_emission: bool = False):
     """A ``BandPathIntegrator`` carrying the bands whose lower edges are ``quads`` (nm; width
-    ``step``), for Mitsuba's ``mi.render``. The class is defined here, not at import: it subclasses
-    Mitsuba's, which needs the variant selected. Mitsuba's loop runs every sample of the film in one
-    symbolic-loop kernel: the per-lane state lives in registers, the memory is the film's.
+    ``step``), for Mitsuba's ``mi.render``. The class is made here, not at import: it subclasses
+    Mitsuba's, which needs the variant selected (its methods are :class:`_BandPath`'s, copied in:
+    nanobind classes take a single base, so no mixin). Mitsuba's loop runs every sample of the film in
+    one symbolic-loop kernel: the per-lane state lives in registers, the memory is the film's.
     ``flat_emission``: every emitter's spectrum is flat (the caller scales the bands by the emission
     after), so emitters are evaluated once per vertex, not once per quadruple."""
-    mi, dr = import_mitsuba()
+    mi, _ = import_mitsuba()
+    methods = {k: v for k, v in vars(_BandPath).items() if k not in ("__dict__", "__weakref__", "__qualname__")}
+    cls = type("BandPathIntegrator", (mi.SamplingIntegrator,), methods)
+    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission)
 
-    def flagged(flags, flag):
-        return mi.has_flag(flags, flag)
 
-    class BandPathIntegrator(mi.SamplingIntegrator):
-        """See the module docstring. Loop state per lane: a throughput and a radiance per quadruple,
-        and for the illumination estimate (``illumination``) a second throughput and radiance that
-        follow the same path from its second vertex on (the "in-path" white estimate)."""
+class _BandPath:
+    """See the module docstring. Loop state per lane: a throughput and a radiance per quadruple,
+    and for the illumination estimate (``illumination``) a second throughput and radiance that
+    follow the same path from its second vertex on (the "in-path" white estimate).
 
-        def __init__(self, props):
-            super().__init__(props)
-            self.lows = [mi.Spectrum(*q) for q in quads]
-            self.quads = list(self.lows)  # this path's wavelengths, set per sample (sample())
-            self.guard = band_guard(step)
-            self.width = float(step) - 2 * self.guard
-            self.force = FORCE_FIRST
-            self.flat = bool(flat_emission)
-            self.max_depth = int(max_depth)
-            self.illumination = bool(illumination)
+    The methods of :func:`make_integrator`'s ``BandPathIntegrator`` (a ``mi.SamplingIntegrator``).
+    The loop-body steps (``_classify_first`` … ``_direction_and_roulette``) run symbolically inside
+    ``dr.while_loop``: they update the per-quadruple lists ``paths = (beta, L, beta_u, U)`` (and
+    ``rho``) in place and return the other loop values they change."""
 
-        def aov_names(self):
-            names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
-            if self.illumination:
-                names += [f"u{i:03d}" for i in range(4 * len(self.quads))]
-                names += ["first_pure", "first_mixed", "first_traced"]
-            return names + ["bad"]
+    def __init__(self, props, quads, step, max_depth, illumination, flat_emission):
+        mi, _ = import_mitsuba()
+        mi.SamplingIntegrator.__init__(self, props)
+        self.lows = [mi.Spectrum(*q) for q in quads]
+        self.quads = list(self.lows)  # this path's wavelengths, set per sample (sample())
+        self.guard = band_guard(step)
+        self.width = float(step) - 2 * self.guard
+        self.force = FORCE_FIRST
+        self.flat = bool(flat_emission)
+        self.max_depth = int(max_depth)
+        self.illumination = bool(illumination)
 
-        def _path(self, scene, sampler, ray, active, white0, split: bool):
-            """Trace one path per lane. Returns per quadruple: the radiance ``L``, and (``split``) the
-            first vertex's diffuse reflectance ``rho``, and the in-path white estimate ``U``, with the
-            masks ``hit0`` (the camera ray hit something), ``diffuse0`` (first vertex purely diffuse:
-            U = L/ρ) and ``mixed0`` (first vertex has a diffuse lobe and no delta one: U from this
-            path, module docstring).
-            ``white0``: lanes whose first vertex *is* a white Lambertian surface (the separate
-            illumination path, for every other first vertex)."""
-            nq = len(self.quads)
-            ctx = mi.BSDFContext()
-            zeros = [mi.Spectrum(0.0) for _ in range(nq)]
-            state = (sampler, mi.Ray3f(ray), mi.UInt32(0), [mi.Spectrum(1.0) for _ in range(nq)], list(zeros),
-                     list(zeros), list(zeros), list(zeros),
-                     mi.Bool(False), mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0),
-                     mi.Bool(True), mi.Bool(active))
+    def aov_names(self):
+        names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
+        if self.illumination:
+            names += [f"u{i:03d}" for i in range(4 * len(self.quads))]
+            names += ["first_pure", "first_mixed", "first_traced"]
+        return names + ["bad"]
 
-            def cond(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                     prev_delta, active):
-                return active
+    def _path(self, scene, sampler, ray, active, white0, split: bool):
+        """Trace one path per lane. Returns per quadruple: the radiance ``L``, and (``split``) the
+        first vertex's diffuse reflectance ``rho``, and the in-path white estimate ``U``, with the
+        masks ``hit0`` (the camera ray hit something), ``diffuse0`` (first vertex purely diffuse:
+        U = L/ρ) and ``mixed0`` (first vertex has a diffuse lobe and no delta one: U from this
+        path, module docstring).
+        ``white0``: lanes whose first vertex *is* a white Lambertian surface (the separate
+        illumination path, for every other first vertex)."""
+        mi, dr = import_mitsuba()
+        nq = len(self.quads)
+        zeros = [mi.Spectrum(0.0) for _ in range(nq)]
+        state = (sampler, mi.Ray3f(ray), mi.UInt32(0), [mi.Spectrum(1.0) for _ in range(nq)], list(zeros),
+                 list(zeros), list(zeros), list(zeros),
+                 mi.Bool(False), mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0),
+                 mi.Bool(True), mi.Bool(active))
 
-            def body(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                     prev_delta, active):
-                si = scene.ray_intersect(ray, mi.RayFlags.All, coherent=depth == 0, active=active)
-                white = white0 & (depth == 0)
-                first = active & (depth == 0) & si.is_valid()
-                hit0 |= first
-                bsdf = si.bsdf(ray)
-                flags = bsdf.flags()
-                if split:  # what the first vertex is, for the illumination estimate
-                    emits = si.shape.is_emitter()
-                    pure = flagged(flags, mi.BSDFFlags.DiffuseReflection) & ~emits
-                    for other in (mi.BSDFFlags.Glossy, mi.BSDFFlags.Delta, mi.BSDFFlags.Transmission):
-                        pure &= ~flagged(flags, other)
-                    for q in range(nq):
-                        si.wavelengths = self.quads[q]
-                        r = bsdf.eval_diffuse_reflectance(si, first & pure)
-                        rho[q] = dr.select(first, r, rho[q])
-                        pure &= dr.min(r) > RHO_MIN
-                    mixed = (flagged(flags, mi.BSDFFlags.DiffuseReflection) & ~flagged(flags, mi.BSDFFlags.Delta)
-                             & ~emits & ~pure)
-                    if self.force is not None:
-                        mixed = (pure | mixed) if self.force == "mixed" else mi.Bool(False)
-                        pure = mi.Bool(False)
-                    diffuse0 = dr.select(first, pure, diffuse0)
-                    mixed0 = dr.select(first, mixed, mixed0)
-                u_first = split & first & mixed0  # the white estimate starts here (its own light sample)
-                # --- emission found by this ray, MIS-weighted against the light sample that could have found it
-                ds = mi.DirectionSample3f(scene, si, prev)
-                em_pdf = scene.pdf_emitter_direction(prev, ds, ~prev_delta)
-                mis = dr.select(prev_delta, 1.0, _power_heuristic(dr, prev_pdf, em_pdf))
-                count = active & ~white  # a white first vertex does not emit
-                emitter = si.emitter(scene)
-                if self.flat:
-                    le_flat = mis * emitter.eval(si, count)
-                for q in range(nq):
-                    si.wavelengths = self.quads[q]
-                    le = le_flat if self.flat else mis * emitter.eval(si, count)
-                    L[q] = dr.select(count, L[q] + beta[q] * le, L[q])
-                    if split:
-                        U[q] = dr.select(count, U[q] + beta_u[q] * le, U[q])
-                go = active & si.is_valid() & (depth + 1 < self.max_depth)
-                # --- light sample: drawn once (hero quadruple), valued at every quadruple; and the
-                # continuation: one direction (s1, s2), every quadruple's weight, from the same call
-                si.wavelengths = self.quads[0]
-                em_on = go & (white | flagged(flags, mi.BSDFFlags.Smooth))
-                ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
-                em_on &= ds_em.pdf != 0.0
-                em_on &= ~scene.ray_test(si.spawn_ray_to(ds_em.p), em_on)
-                wo_em = si.to_local(ds_em.d)
-                # a white surface faces the camera, whichever side of the shape it sees
-                side = dr.select(mi.Frame3f.cos_theta(si.wi) < 0.0, -1.0, 1.0)
-                cos_em = dr.maximum(side * mi.Frame3f.cos_theta(wo_em), 0.0)
-                s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
-                if self.flat:
-                    le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
-                bs = None
-                for q in range(nq):
-                    si.wavelengths = self.quads[q]
-                    if not self.flat:
-                        le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
-                    f, f_pdf, bs_q, w_q = bsdf.eval_pdf_sample(ctx, si, wo_em, s1, s2, go)
-                    bs = bs_q if bs is None else bs
-                    f = dr.select(white, cos_em / dr.pi, f)
-                    f_pdf = dr.select(white, cos_em / dr.pi, f_pdf)
-                    mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(dr, ds_em.pdf, f_pdf))
-                    L[q] = dr.select(em_on, L[q] + beta[q] * mis_em * f * le, L[q])
-                    if split:  # the white surface sampled with the BSDF's pdf: same MIS weights
-                        f_u = dr.select(u_first, cos_em / dr.pi, beta_u[q] * f)
-                        U[q] = dr.select(em_on, U[q] + mis_em * f_u * le, U[q])
-                    beta[q] = beta[q] * w_q
-                    if split:
-                        beta_u[q] = beta_u[q] * w_q
-                wo_white = mi.warp.square_to_cosine_hemisphere(s2)
-                pdf_white = mi.warp.square_to_cosine_hemisphere_pdf(wo_white)
-                wo_white.z = side * wo_white.z
-                wo = dr.select(white, wo_white, bs.wo)
-                pdf = dr.select(white, pdf_white, bs.pdf)
-                delta = ~white & flagged(bs.sampled_type, mi.BSDFFlags.Delta)
-                if split:  # white surface, BSDF-sampled direction: weight (cos/π)/pdf
-                    cos_u = dr.maximum(side * mi.Frame3f.cos_theta(bs.wo), 0.0)
-                    w_u = dr.select(bs.pdf > 0.0, cos_u / (dr.pi * bs.pdf), 0.0)
-                bmax = mi.Float(0.0)
-                for q in range(nq):
-                    beta[q] = dr.select(white, mi.Spectrum(1.0), beta[q])
-                    if split:
-                        beta_u[q] = dr.select(u_first, mi.Spectrum(w_u), beta_u[q])
-                        bmax = dr.maximum(bmax, dr.max(beta_u[q]))
-                    bmax = dr.maximum(bmax, dr.max(beta[q]))
-                go &= bmax > 0.0
-                # Russian roulette on the largest throughput over every band (and both estimates)
-                rr = go & (depth + 1 >= RR_DEPTH)
-                q_rr = dr.minimum(bmax * dr.square(dr.select(delta, bs.eta, 1.0)), 0.95)
-                go &= ~rr | (sampler.next_1d(rr) < q_rr)
-                for q in range(nq):
-                    beta[q] = dr.select(rr, beta[q] / q_rr, beta[q])
-                    if split:
-                        beta_u[q] = dr.select(rr, beta_u[q] / q_rr, beta_u[q])
-                ray = si.spawn_ray(si.to_world(wo))
-                prev = dr.select(go, mi.Interaction3f(si), prev)
-                prev_pdf = dr.select(go, pdf, prev_pdf)
-                prev_delta = dr.select(go, delta, prev_delta)
-                return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                        prev_delta, go)
+        def cond(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
+                 prev_delta, active):
+            return active
 
-            out = dr.while_loop(state, cond, body, label="illumix band path")
-            return out[4], out[6], out[7], out[8], out[9], out[10]
+        def body(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
+                 prev_delta, active):
+            paths = (beta, L, beta_u, U)  # per quadruple, updated in place by the steps below
+            si = scene.ray_intersect(ray, mi.RayFlags.All, coherent=depth == 0, active=active)
+            white = white0 & (depth == 0)
+            first = active & (depth == 0) & si.is_valid()
+            hit0 |= first
+            bsdf = si.bsdf(ray)
+            flags = bsdf.flags()
+            if split:  # what the first vertex is, for the illumination estimate
+                diffuse0, mixed0 = self._classify_first(si, bsdf, flags, first, rho, diffuse0, mixed0)
+            u_first = split & first & mixed0  # the white estimate starts here (its own light sample)
+            self._add_emission(scene, si, prev, prev_pdf, prev_delta, active, white, paths, split)
+            go = active & si.is_valid() & (depth + 1 < self.max_depth)
+            bs, side, s2 = self._light_and_continue(scene, sampler, si, bsdf, flags, white, u_first, go, paths,
+                                                    split)
+            go, wo, pdf, delta = self._direction_and_roulette(sampler, bs, side, s2, white, u_first, go, depth,
+                                                              paths, split)
+            ray = si.spawn_ray(si.to_world(wo))
+            prev = dr.select(go, mi.Interaction3f(si), prev)
+            prev_pdf = dr.select(go, pdf, prev_pdf)
+            prev_delta = dr.select(go, delta, prev_delta)
+            return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
+                    prev_delta, go)
 
-        def sample(self, scene, sampler, ray, medium=None, active=True):
-            nq = len(self.quads)
-            split = self.illumination
-            # One offset inside the bands per path: step spectra are constant there (their band
-            # average exactly), other spectra (envmap D65, conductor tables) averaged over the band.
-            offset = self.guard + self.width * sampler.next_1d(active)
-            self.quads = [low + offset for low in self.lows]
-            L, Uin, rho, hit0, diffuse0, mixed0 = self._path(scene, sampler, ray, active, mi.Bool(False), split)
-            bad = mi.Float(0.0)
-            aovs = []
+        out = dr.while_loop(state, cond, body, label="illumix band path")
+        return out[4], out[6], out[7], out[8], out[9], out[10]
 
-            def keep(v):
-                nonlocal bad
-                ok = dr.isfinite(v)
-                bad += dr.select(ok, 0.0, 1.0)
-                aovs.append(dr.select(ok, v, 0.0))
+    def _classify_first(self, si, bsdf, flags, first, rho, diffuse0, mixed0):
+        """What the first vertex is, for the illumination estimate: purely diffuse, not emitting and
+        ρ > ``RHO_MIN`` in every band (U = L/ρ; its diffuse reflectance per quadruple set in ``rho``,
+        in place), or with a diffuse lobe and no delta one (the in-path estimate); ``FORCE_FIRST``
+        overrides. Returns ``(diffuse0, mixed0)``, changed on ``first`` lanes only."""
+        mi, dr = import_mitsuba()
+        emits = si.shape.is_emitter()
+        pure = mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection) & ~emits
+        for other in (mi.BSDFFlags.Glossy, mi.BSDFFlags.Delta, mi.BSDFFlags.Transmission):
+            pure &= ~mi.has_flag(flags, other)
+        for q in range(len(self.quads)):
+            si.wavelengths = self.quads[q]
+            r = bsdf.eval_diffuse_reflectance(si, first & pure)
+            rho[q] = dr.select(first, r, rho[q])
+            pure &= dr.min(r) > RHO_MIN
+        mixed = (mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection) & ~mi.has_flag(flags, mi.BSDFFlags.Delta)
+                 & ~emits & ~pure)
+        if self.force is not None:
+            mixed = (pure | mixed) if self.force == "mixed" else mi.Bool(False)
+            pure = mi.Bool(False)
+        return dr.select(first, pure, diffuse0), dr.select(first, mixed, mixed0)
 
+    def _add_emission(self, scene, si, prev, prev_pdf, prev_delta, active, white, paths, split):
+        """The emission found by this ray, MIS-weighted against the light sample (from ``prev``) that
+        could have found it, added to every quadruple's ``L`` (and ``U``) in place."""
+        mi, dr = import_mitsuba()
+        beta, L, beta_u, U = paths
+        ds = mi.DirectionSample3f(scene, si, prev)
+        em_pdf = scene.pdf_emitter_direction(prev, ds, ~prev_delta)
+        mis = dr.select(prev_delta, 1.0, _power_heuristic(dr, prev_pdf, em_pdf))
+        count = active & ~white  # a white first vertex does not emit
+        emitter = si.emitter(scene)
+        if self.flat:
+            le_flat = mis * emitter.eval(si, count)
+        for q in range(len(self.quads)):
+            si.wavelengths = self.quads[q]
+            le = le_flat if self.flat else mis * emitter.eval(si, count)
+            L[q] = dr.select(count, L[q] + beta[q] * le, L[q])
+            if split:
+                U[q] = dr.select(count, U[q] + beta_u[q] * le, U[q])
+
+    def _light_and_continue(self, scene, sampler, si, bsdf, flags, white, u_first, go, paths, split):
+        """The light sample: drawn once (hero quadruple), valued at every quadruple and added to ``L``
+        (and ``U``); and the continuation: one direction (s1, s2), every quadruple's throughput weight,
+        from the same call. Updates ``paths`` in place; returns the BSDF sample ``bs``, the side the
+        white surface faces (±1 along the local normal) and ``s2`` (the white surface's direction)."""
+        mi, dr = import_mitsuba()
+        beta, L, beta_u, U = paths
+        ctx = mi.BSDFContext()
+        si.wavelengths = self.quads[0]
+        em_on = go & (white | mi.has_flag(flags, mi.BSDFFlags.Smooth))
+        ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
+        em_on &= ds_em.pdf != 0.0
+        em_on &= ~scene.ray_test(si.spawn_ray_to(ds_em.p), em_on)
+        wo_em = si.to_local(ds_em.d)
+        # a white surface faces the camera, whichever side of the shape it sees
+        side = dr.select(mi.Frame3f.cos_theta(si.wi) < 0.0, -1.0, 1.0)
+        cos_em = dr.maximum(side * mi.Frame3f.cos_theta(wo_em), 0.0)
+        s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
+        if self.flat:
+            le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
+        bs = None
+        for q in range(len(self.quads)):
+            si.wavelengths = self.quads[q]
+            if not self.flat:
+                le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
+            f, f_pdf, bs_q, w_q = bsdf.eval_pdf_sample(ctx, si, wo_em, s1, s2, go)
+            bs = bs_q if bs is None else bs
+            f = dr.select(white, cos_em / dr.pi, f)
+            f_pdf = dr.select(white, cos_em / dr.pi, f_pdf)
+            mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(dr, ds_em.pdf, f_pdf))
+            L[q] = dr.select(em_on, L[q] + beta[q] * mis_em * f * le, L[q])
+            if split:  # the white surface sampled with the BSDF's pdf: same MIS weights
+                f_u = dr.select(u_first, cos_em / dr.pi, beta_u[q] * f)
+                U[q] = dr.select(em_on, U[q] + mis_em * f_u * le, U[q])
+            beta[q] = beta[q] * w_q
+            if split:
+                beta_u[q] = beta_u[q] * w_q
+        return bs, side, s2
+
+    def _direction_and_roulette(self, sampler, bs, side, s2, white, u_first, go, depth, paths, split):
+        """The next direction (a white first vertex: cosine-sampled from ``s2`` on its ``side``; else
+        the BSDF's ``bs``), the white estimate's first weight, and Russian roulette. Updates the
+        throughputs of ``paths`` in place; returns ``(go, wo, pdf, delta)``."""
+        mi, dr = import_mitsuba()
+        beta, _, beta_u, _ = paths
+        wo_white = mi.warp.square_to_cosine_hemisphere(s2)
+        pdf_white = mi.warp.square_to_cosine_hemisphere_pdf(wo_white)
+        wo_white.z = side * wo_white.z
+        wo = dr.select(white, wo_white, bs.wo)
+        pdf = dr.select(white, pdf_white, bs.pdf)
+        delta = ~white & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+        if split:  # white surface, BSDF-sampled direction: weight (cos/π)/pdf
+            cos_u = dr.maximum(side * mi.Frame3f.cos_theta(bs.wo), 0.0)
+            w_u = dr.select(bs.pdf > 0.0, cos_u / (dr.pi * bs.pdf), 0.0)
+        bmax = mi.Float(0.0)
+        for q in range(len(self.quads)):
+            beta[q] = dr.select(white, mi.Spectrum(1.0), beta[q])
+            if split:
+                beta_u[q] = dr.select(u_first, mi.Spectrum(w_u), beta_u[q])
+                bmax = dr.maximum(bmax, dr.max(beta_u[q]))
+            bmax = dr.maximum(bmax, dr.max(beta[q]))
+        go &= bmax > 0.0
+        # Russian roulette on the largest throughput over every band (and both estimates)
+        rr = go & (depth + 1 >= RR_DEPTH)
+        q_rr = dr.minimum(bmax * dr.square(dr.select(delta, bs.eta, 1.0)), 0.95)
+        go &= ~rr | (sampler.next_1d(rr) < q_rr)
+        for q in range(len(self.quads)):
+            beta[q] = dr.select(rr, beta[q] / q_rr, beta[q])
+            if split:
+                beta_u[q] = dr.select(rr, beta_u[q] / q_rr, beta_u[q])
+        return go, wo, pdf, delta
+
+    def sample(self, scene, sampler, ray, medium=None, active=True):
+        mi, _ = import_mitsuba()
+        # One offset inside the bands per path: step spectra are constant there (their band
+        # average exactly), other spectra (envmap D65, conductor tables) averaged over the band.
+        offset = self.guard + self.width * sampler.next_1d(active)
+        self.quads = [low + offset for low in self.lows]
+        path = self._path(scene, sampler, ray, active, mi.Bool(False), self.illumination)
+        aovs = self._aovs(scene, sampler, ray, path)
+        return mi.Spectrum(0.0), mi.Bool(active), aovs
+
+    def _aovs(self, scene, sampler, ray, path):
+        """The sample's AOVs (:meth:`aov_names`) from ``path`` (:meth:`_path`'s outputs): the bands,
+        and (``illumination``) the illumination bands — L/ρ, the in-path estimate, or a separate white
+        path — with which estimator each sample used; non-finite values set to 0, counted in ``bad``."""
+        mi, dr = import_mitsuba()
+        nq = len(self.quads)
+        L, Uin, rho, hit0, diffuse0, mixed0 = path
+        bad = mi.Float(0.0)
+        aovs = []
+
+        def keep(v):
+            nonlocal bad
+            ok = dr.isfinite(v)
+            bad += dr.select(ok, 0.0, 1.0)
+            aovs.append(dr.select(ok, v, 0.0))
+
+        for q in range(nq):
+            for k in range(4):
+                keep(L[q][k])
+        if self.illumination:
+            # first vertices that are neither purely diffuse nor have a diffuse lobe (glass, metal,
+            # emitters, black): a separate path whose first vertex is a white Lambertian surface
+            need = hit0 & ~diffuse0 & ~mixed0
+            W = self._path(scene, sampler, ray, need, need, False)[0]
             for q in range(nq):
                 for k in range(4):
-                    keep(L[q][k])
-            if split:
-                # first vertices that are neither purely diffuse nor have a diffuse lobe (glass, metal,
-                # emitters, black): a separate path whose first vertex is a white Lambertian surface
-                need = hit0 & ~diffuse0 & ~mixed0
-                W = self._path(scene, sampler, ray, need, need, False)[0]
-                for q in range(nq):
-                    for k in range(4):
-                        u_pure = L[q][k] / dr.maximum(rho[q][k], RHO_MIN)
-                        keep(dr.select(diffuse0, u_pure, dr.select(mixed0, Uin[q][k], W[q][k])))
-                aovs += [dr.select(hit0 & diffuse0, 1.0, 0.0), dr.select(hit0 & mixed0, 1.0, 0.0),
-                         dr.select(need, 1.0, 0.0)]
-            aovs.append(bad)
-            return mi.Spectrum(0.0), mi.Bool(active), aovs
-
-    return BandPathIntegrator(mi.Properties())
+                    u_pure = L[q][k] / dr.maximum(rho[q][k], RHO_MIN)
+                    keep(dr.select(diffuse0, u_pure, dr.select(mixed0, Uin[q][k], W[q][k])))
+            aovs += [dr.select(hit0 & diffuse0, 1.0, 0.0), dr.select(hit0 & mixed0, 1.0, 0.0),
+                     dr.select(need, 1.0, 0.0)]
+        aovs.append(bad)
+        return aovs
