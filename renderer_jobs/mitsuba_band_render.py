@@ -89,90 +89,124 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
     t0 = time.perf_counter()
-    grid = scene.spectral_grid
-    nb = grid.n_bands
     sets = band_sets(live_bands(emission), max(1, settings.bands_per_path // 4))
     spp = set_spp(settings.sampler, settings.spp, len(sets))
     # One group without an envmap: every emitter emits strength × the group's emission, so the bands
     # render with flat emission (emitters evaluated once per vertex, not per quadruple) and are
     # scaled by the emission after — the relighting identity, exact per band.
     flat = len(groups) == 1 and not any(isinstance(e, EnvMapSky) for e in scene.emitters_of(groups[0]))
-    cube = illum = None
-    bad = 0.0
-    kinds = np.zeros(3)  # samples whose first hit's illumination was demodulated / in-path / traced
-    t_load = t_render = 0.0
-    n_quads = 0
     boosting = boost is not None
     boost = np.asarray([] if boost is None else boost, np.int64)
     extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
-    t_boost = 0.0
-    e_live = np.where(np.asarray(emission, np.float64) > 0, emission, 0.0) if flat else np.ones(nb)
+    e_live = np.where(np.asarray(emission, np.float64) > 0, emission, 0.0) if flat else np.ones(scene.spectral_grid.n_bands)
     noise = np.zeros((2,), np.float64) if len(sets) > 1 else None
+    run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
     for k, portals in enumerate(passes):
-        t1 = time.perf_counter()
-        ms, sensor = load_mitsuba_scene(scene, view, groups, settings.resolution, portals=portals, flat_emission=flat,
-                                        sampler={"type": settings.sampler, "sample_count": spp})
-        w, h = (int(x) for x in sensor.film().crop_size())
-        # the film's paths per pixel, which weight its estimate against the extra paths': what the sampler
-        # renders (multijitter rounds some counts up, e.g. 32 -> 35: the stats state both)
-        n_film = int(sensor.sampler().sample_count())
-        t_load += time.perf_counter() - t1
-        estimates: list[np.ndarray] = []  # this pass's band sets' estimates of the band sum
-        if cube is None:
-            cube = np.zeros((h, w, nb), np.float64)
-            illum = np.zeros((h, w, nb), np.float64) if settings.illumination else None
-        for j, bands in enumerate(sets):
-            quads, lanes = band_quadruples(grid.edges, bands)
-            n_quads += len(quads)
-            integrator = make_integrator(quads, grid.step, scene.max_depth, settings.illumination, flat)
-            n_aov = len(integrator.aov_names())
-            seed = mix_seed(settings.seed, k, j)
-            t2 = time.perf_counter()
-            out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=spp, seed=seed))
-            t_render += time.perf_counter() - t2
-            aov = out[..., out.shape[-1] - n_aov:]
-            if illum is not None:  # every set sees the same first hits: count them once (the film's paths)
-                part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
-                kinds += part * n_film / len(sets)
-            bad += float(aov[..., -1].sum(dtype=np.float64)) * n_film  # per-pixel means -> counts
-            if extra:
-                t3 = time.perf_counter()
-                sums = extra_path_sums(ms, sensor, integrator, boost, extra, seed,
-                                       settings.max_lanes, np.asarray(quads[0], np.float32))
-                bad += float(sums[:, -1].sum())
-                aov = aov.reshape(-1, n_aov).astype(np.float64)  # exact: the others add as before
-                aov[boost] = (n_film * aov[boost] + sums) / (n_film + extra)
-                aov = aov.reshape(h, w, n_aov)
-                t_boost += time.perf_counter() - t3
-            on = lanes >= 0
-            cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
-            if illum is not None:
-                illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
-            if noise is not None:
-                estimates.append(_set_estimate(aov[..., :len(lanes)][..., on], lanes[on], e_live, sets))
+        ms, sensor = run.load_pass(view, groups, portals)
+        # this pass's band sets' estimates of the band sum
+        estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
         if noise is not None:
             noise = noise + set_noise(np.stack(estimates))
+    cube, illum = run.cube, run.illum
     if flat:
         cube *= emission
         if illum is not None:
             illum *= emission
-    stats = {"load_s": round(t_load, 4), "trace_s": round(t_render, 4),
-             "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": int(round(bad)),
-             "band_sets": len(sets), "quadruples": n_quads // max(1, len(passes)),
-             "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": settings.sampler,
-             # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
-             "paths_per_pixel_rendered": n_film * len(sets), "samples_per_band_rendered": n_film,
-             "flat_emission_scaled": flat}
-    if boosting:
-        stats["targeted_paths"] = {"pixels": int(boost.size), "pixel_fraction": round(boost.size / (h * w), 5),
-                                   "paths_per_pixel": (spp + extra) * len(sets),
-                                   "extra_paths_fraction": round(boost.size * extra / (h * w * spp), 5),
-                                   "trace_s": round(t_boost, 4)}
-    if illum is not None:
-        stats["illumination"] = {"samples": int(round(kinds.sum())), "demodulated": int(round(kinds[0])),
-                                 "in_path": int(round(kinds[1])), "traced": int(round(kinds[2]))}
+    stats = run.stats(t0, len(passes), boosting)
     return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats,
             None if noise is None else noise.astype(np.float32))
+
+
+class _Run:
+    """One cube's render through Mitsuba's loop: the sums over passes and band sets, and what the
+    stats report (times, non-finite samples, how each first hit's illumination was estimated)."""
+
+    def __init__(self, scene: Scene, settings, spp: int, flat: bool, boost: np.ndarray, extra: int,
+                 sets: list[np.ndarray], e_live: np.ndarray) -> None:
+        self.scene, self.settings, self.spp, self.flat = scene, settings, spp, flat
+        self.boost, self.extra, self.sets, self.e_live = boost, extra, sets, e_live
+        self.cube = self.illum = None
+        self.bad = 0.0
+        self.kinds = np.zeros(3)  # samples whose first hit's illumination was demodulated / in-path / traced
+        self.t_load = self.t_render = self.t_boost = 0.0
+        self.n_quads = self.n_film = 0
+        self.shape = (0, 0)
+
+    def load_pass(self, view: str, groups: list[str], portals):
+        """The Mitsuba scene and sensor of one emitter pass (the film allocated on the first)."""
+        t1 = time.perf_counter()
+        st = self.settings
+        ms, sensor = load_mitsuba_scene(self.scene, view, groups, st.resolution, portals=portals,
+                                        flat_emission=self.flat, sampler={"type": st.sampler, "sample_count": self.spp})
+        w, h = (int(x) for x in sensor.film().crop_size())
+        # the film's paths per pixel, which weight its estimate against the extra paths': what the sampler
+        # renders (multijitter rounds some counts up, e.g. 32 -> 35: the stats state both)
+        self.n_film = int(sensor.sampler().sample_count())
+        self.t_load += time.perf_counter() - t1
+        self.shape = (h, w)
+        if self.cube is None:
+            nb = self.scene.spectral_grid.n_bands
+            self.cube = np.zeros((h, w, nb), np.float64)
+            self.illum = np.zeros((h, w, nb), np.float64) if st.illumination else None
+        return ms, sensor
+
+    def render_set(self, mi, ms, sensor, bands: np.ndarray, k: int, j: int, estimate: bool) -> np.ndarray | None:
+        """Render band set ``j`` of pass ``k`` and add it to the sums; its estimate of the band sum
+        (``estimate``) for the noise."""
+        grid, st = self.scene.spectral_grid, self.settings
+        quads, lanes = band_quadruples(grid.edges, bands)
+        self.n_quads += len(quads)
+        integrator = make_integrator(quads, grid.step, self.scene.max_depth, st.illumination, self.flat)
+        n_aov = len(integrator.aov_names())
+        seed = mix_seed(st.seed, k, j)
+        t2 = time.perf_counter()
+        out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=self.spp, seed=seed))
+        self.t_render += time.perf_counter() - t2
+        aov = out[..., out.shape[-1] - n_aov:]
+        if self.illum is not None:  # every set sees the same first hits: count them once (the film's paths)
+            part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
+            self.kinds += part * self.n_film / len(self.sets)
+        self.bad += float(aov[..., -1].sum(dtype=np.float64)) * self.n_film  # per-pixel means -> counts
+        if self.extra:
+            aov = self._boosted(ms, sensor, integrator, aov, seed, quads, n_aov)
+        on = lanes >= 0
+        self.cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
+        if self.illum is not None:
+            self.illum[..., lanes[on]] += aov[..., len(lanes):2 * len(lanes)][..., on]
+        return _set_estimate(aov[..., :len(lanes)][..., on], lanes[on], self.e_live, self.sets) if estimate else None
+
+    def _boosted(self, ms, sensor, integrator, aov: np.ndarray, seed: int, quads, n_aov: int) -> np.ndarray:
+        """``aov`` with the boosted pixels' targeted extra paths combined in by path counts."""
+        t3 = time.perf_counter()
+        h, w = self.shape
+        sums = extra_path_sums(ms, sensor, integrator, self.boost, self.extra, seed,
+                               self.settings.max_lanes, np.asarray(quads[0], np.float32))
+        self.bad += float(sums[:, -1].sum())
+        aov = aov.reshape(-1, n_aov).astype(np.float64)  # exact: the others add as before
+        aov[self.boost] = (self.n_film * aov[self.boost] + sums) / (self.n_film + self.extra)
+        self.t_boost += time.perf_counter() - t3
+        return aov.reshape(h, w, n_aov)
+
+    def stats(self, t0: float, n_passes: int, boosting: bool) -> dict:
+        spp, sets, (h, w) = self.spp, self.sets, self.shape
+        stats = {"load_s": round(self.t_load, 4), "trace_s": round(self.t_render, 4),
+                 "total_s": round(time.perf_counter() - t0, 4), "nonfinite_samples": int(round(self.bad)),
+                 "band_sets": len(sets), "quadruples": self.n_quads // max(1, n_passes),
+                 "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": self.settings.sampler,
+                 # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
+                 "paths_per_pixel_rendered": self.n_film * len(sets), "samples_per_band_rendered": self.n_film,
+                 "flat_emission_scaled": self.flat}
+        if boosting:
+            b = self.boost
+            stats["targeted_paths"] = {"pixels": int(b.size), "pixel_fraction": round(b.size / (h * w), 5),
+                                       "paths_per_pixel": (spp + self.extra) * len(sets),
+                                       "extra_paths_fraction": round(b.size * self.extra / (h * w * spp), 5),
+                                       "trace_s": round(self.t_boost, 4)}
+        if self.illum is not None:
+            k = self.kinds
+            stats["illumination"] = {"samples": int(round(k.sum())), "demodulated": int(round(k[0])),
+                                     "in_path": int(round(k[1])), "traced": int(round(k[2]))}
+        return stats
 
 
 def _set_estimate(values: np.ndarray, lanes: np.ndarray, weight: np.ndarray, sets: list[np.ndarray]) -> np.ndarray:
