@@ -81,22 +81,10 @@ def evaluate(
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON on stdout instead of the table."),
 ) -> None:
     """Score white-balance methods on a store or an LSMI dataset: angular error and ΔE00 grid."""
-    from illumix.awb_eval.method_names import split_methods
-    from illumix.awb_eval.methods import resolve
     from illumix.awb_eval.report import aggregate, markdown
-    from illumix.awb_eval.run import evaluate as run
-    from illumix.awb_eval.statistical import INTERPOLATIONS
-    from illumix.progress import progress_bar
 
     t0 = time.perf_counter()
-    if interpolation not in INTERPOLATIONS:
-        raise UserError(f"--interpolation {interpolation!r}: choose {' or '.join(INTERPOLATIONS)}")
-    if gt is not None and gt.lower() not in ("physical", "formula"):
-        raise UserError(f"--gt {gt!r}: choose physical or formula")
-    names = split_methods(methods)
-    if not names:
-        raise UserError(f"--methods {methods!r} names no method; e.g. \"Gray World, Ground Truth\"")
-    chosen = resolve(names, grid=_grid(grid), interpolation=interpolation)
+    chosen = _methods(methods, grid, interpolation, gt)
     labels = [m.label for m in chosen]
     source = _source(data, sensor=sensor, pairs=pairs, count=count, seed=seed, size=size,
                      gt=None if gt is None else gt.lower(), split=split, black_level=black_level, white_level=white_level)
@@ -107,11 +95,7 @@ def evaluate(
         # after the input checks (a refused run leaves no folder), before scoring (an unwritable --out
         # fails in a second, not after the run)
         prepare_folder(out)
-    quiet = as_json and not console.is_terminal
-    with progress_bar(console, disable=quiet, transient=True) as prog:
-        task = prog.add_task("evaluating", total=len(source), last="")
-        res = run(source, chosen, maps=maps if out is not None else 0,
-                  on_case=lambda case, name: prog.update(task, advance=1, last=name))
+    res = _score(source, chosen, maps if out is not None else 0, quiet=as_json and not console.is_terminal)
     if not res.images:
         why = f"{res.skipped[0]['name']}: {res.skipped[0]['why']}" if res.skipped else "no images"
         raise UserError(f"{data}: no image could be scored ({len(res.skipped)} skipped; {why})")
@@ -126,6 +110,40 @@ def evaluate(
 
         written = write_outputs(out, doc, table, res, labels)
         console.print(f"wrote {', '.join(written[:4])}{' …' if len(written) > 4 else ''} to {out}", highlight=False)
+    _print(doc, table, as_json)
+    if res.skipped:
+        console.print(f"skipped {len(res.skipped)} image(s): {res.skipped[0]['name']}: {res.skipped[0]['why']}",
+                      highlight=False)
+
+
+def _methods(methods: str, grid: str, interpolation: str, gt: str | None) -> list:
+    """The chosen methods, after the option checks (one line each)."""
+    from illumix.awb_eval.method_names import split_methods
+    from illumix.awb_eval.methods import resolve
+    from illumix.awb_eval.statistical import INTERPOLATIONS
+
+    if interpolation not in INTERPOLATIONS:
+        raise UserError(f"--interpolation {interpolation!r}: choose {' or '.join(INTERPOLATIONS)}")
+    if gt is not None and gt.lower() not in ("physical", "formula"):
+        raise UserError(f"--gt {gt!r}: choose physical or formula")
+    names = split_methods(methods)
+    if not names:
+        raise UserError(f"--methods {methods!r} names no method; e.g. \"Gray World, Ground Truth\"")
+    return resolve(names, grid=_grid(grid), interpolation=interpolation)
+
+
+def _score(source, chosen: list, maps: int, quiet: bool):
+    """Every image of ``source`` scored by every method, with a progress bar."""
+    from illumix.awb_eval.run import evaluate as run
+    from illumix.progress import progress_bar
+
+    with progress_bar(console, disable=quiet, transient=True) as prog:
+        task = prog.add_task("evaluating", total=len(source), last="")
+        return run(source, chosen, maps=maps, on_case=lambda case, name: prog.update(task, advance=1, last=name))
+
+
+def _print(doc: dict, table: str, as_json: bool) -> None:
+    """The results on stdout: JSON, the table rendered on a terminal, or its markdown when piped."""
     if as_json:
         print(json.dumps(doc))
     elif (stdout := Console()).is_terminal:
@@ -134,9 +152,6 @@ def evaluate(
         stdout.print(Markdown(table))
     else:  # piped: the markdown itself, ready to paste
         print(table, end="")
-    if res.skipped:
-        console.print(f"skipped {len(res.skipped)} image(s): {res.skipped[0]['name']}: {res.skipped[0]['why']}",
-                      highlight=False)
 
 
 def register(app: typer.Typer) -> None:

@@ -65,30 +65,11 @@ def export(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Write a frozen dataset (LSMI layout, DNG or spectral EXR) with splits, manifest and card."""
-    from illumix.dataset_export.run import ExportOptions, export_dataset
-    from illumix.dataset_export.splits import parse_fractions
+    from illumix.dataset_export.run import export_dataset
     from illumix.progress import progress_bar
-    from illumix.retarget.sensor_model import BAYER_PATTERNS
-    from illumix.engine.spec import parse_noise
 
-    name = EXPORT_FORMATS.canonical(fmt)
-    if gt is not None and gt.lower() not in ("physical", "formula"):
-        raise UserError(f"--gt {gt!r}: choose physical or formula")
-    if exr_dtype not in ("float32", "float16"):
-        raise UserError(f"--exr-dtype {exr_dtype!r}: choose float32 or float16")
-    noise = None if noise is None or noise.strip().lower() == "none" else noise
-    if noise is not None:
-        parse_noise(noise)
-    given = {}  # the rest keep ExportOptions' defaults (export_dataset refuses what a format ignores)
-    if sensors is not None:
-        given["sensors"] = [s.strip() for s in sensors.split(",") if s.strip()]
-        if not given["sensors"]:
-            raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
-    if bayer is not None:
-        given["bayer"] = None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer)
-    opts = ExportOptions(store=store, out=out, format=name, pairs=pairs, illuminants=illuminants,
-                         count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
-                         split=parse_fractions(split), noise=noise, exr_dtype=exr_dtype, **given)
+    opts = _options(store, out, fmt, sensors, pairs, illuminants, count, size, seed, gt, split, noise, bayer, exr_dtype)
+    name = opts.format
     quiet = as_json and not console.is_terminal
     with progress_bar(console, disable=quiet) as prog:
         task = None
@@ -107,6 +88,33 @@ def export(
                   f"{len(summary['skipped'])} skipped)", highlight=False)
     if as_json:
         print(json.dumps({k: v for k, v in summary.items() if k not in ("layout", "reading")}))
+
+
+def _options(store, out, fmt, sensors, pairs, illuminants, count, size, seed, gt, split, noise, bayer, exr_dtype):
+    """The :class:`ExportOptions` of the command's arguments, each checked (one line naming the flag)."""
+    from illumix.dataset_export.run import ExportOptions
+    from illumix.dataset_export.splits import parse_fractions
+    from illumix.engine.spec import parse_noise
+    from illumix.retarget.sensor_model import BAYER_PATTERNS
+
+    name = EXPORT_FORMATS.canonical(fmt)
+    if gt is not None and gt.lower() not in ("physical", "formula"):
+        raise UserError(f"--gt {gt!r}: choose physical or formula")
+    if exr_dtype not in ("float32", "float16"):
+        raise UserError(f"--exr-dtype {exr_dtype!r}: choose float32 or float16")
+    noise = None if noise is None or noise.strip().lower() == "none" else noise
+    if noise is not None:
+        parse_noise(noise)
+    given = {}  # the rest keep ExportOptions' defaults (export_dataset refuses what a format ignores)
+    if sensors is not None:
+        given["sensors"] = [s.strip() for s in sensors.split(",") if s.strip()]
+        if not given["sensors"]:
+            raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
+    if bayer is not None:
+        given["bayer"] = None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer)
+    return ExportOptions(store=store, out=out, format=name, pairs=pairs, illuminants=illuminants,
+                         count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
+                         split=parse_fractions(split), noise=noise, exr_dtype=exr_dtype, **given)
 
 
 def register(app: typer.Typer) -> None:
