@@ -86,7 +86,6 @@ def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray
 def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
     """Write every camera's LSMI folder (module docstring); fills ``summary``."""
     from illumix.imagefiles.dng import color_matrix, template_bytes
-    from illumix.retarget.errors import SpectralError
 
     levels = _levels(o.noise)
     bayer = o.bayer if fmt.bayer else None  # dng without a pattern (--bayer none): LinearRaw RGB frames
@@ -103,45 +102,19 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         raise ExportError(f"sensors {o.sensors} map to the same folder name; export them separately")
     if on_progress:
         on_progress(len(sensors) * len(places), None)
-    corner_cache: dict = {}
-    errors, counts = [], {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0,
-                          "ground-truth maps": 0}
+    tally = {"errors": [], "skipped": set(), "corners": {},
+             "counts": {"cameras": len(sensors), "places": 0, "raw frames": 0, "mixture maps": 0,
+                        "ground-truth maps": 0}}
+    counts = tally["counts"]
     summary |= {"cameras": [], "illuminants": {n: ccts[n] for n in names if n != "D65" or
                                                any("D65" in p.lighting for p in places)}}
-    skipped_places: set[str] = set()
     for (sensor_name, (sensor, skey)), cam in zip(sensors.items(), folders):
         ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
         matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
         dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
                   "matrix": matrix, "model": sensor_name}
-        entries = {}
-        for place in places:
-            key = f"{cam}/{place.name}"
-            rec = journal.done(key)
-            if rec is None:
-                try:
-                    cap = composer.capture(place, sensor_name)
-                except ExportError:
-                    raise  # the options, not this place: nothing else would export either
-                except SpectralError as exc:
-                    summary["skipped"].append(f"{sensor_name} {place.scene}/{place.view}: {exc}")
-                    skipped_places.add(key)
-                    if on_progress:
-                        on_progress(1, f"{key} skipped")
-                    continue
-                corners = _corners(st, place, o.size, corner_cache)
-                rec = _write_place(journal, cam, cap, fmt, dng_kw)
-                rec["entry"] = lsmi.place_entry(cap, corners, cap.frames[-1].meta["ground_truth"]["method"], ccts)
-                journal.record(key, rec)
-            entries[place.name] = rec["entry"]
-            errors.append(rec["entry"]["LSMIModelErrorDeg"])
-            summary["samples"] += rec["samples"]
-            counts["places"] += 1
-            counts["raw frames"] += len(rec["samples"])
-            counts["ground-truth maps"] += sum(f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
-            counts["mixture maps"] += sum(f.endswith(".npy") and not f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
-            if on_progress:
-                on_progress(1, key)
+        entries = _export_places(st, places, journal, composer, o, fmt, cam, sensor_name, dng_kw, ccts, tally,
+                                 summary, on_progress)
         splits = {name: [p for p in ps if p in entries] for name, ps in by_split.items()}
         journal.write_json(f"{cam}/meta.json", entries)
         journal.write_json(f"{cam}/split.json", splits)
@@ -152,14 +125,52 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         summary["cameras"].append({"sensor": sensor_name, "folder": cam, "licence": sensor_licence(sensor.source)})
     if not counts["places"]:
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
-    summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in skipped_places for c in folders)})
+    summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in tally["skipped"] for c in folders)})
                          for name, ps in by_split.items()}
     summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": bayer,
                 "levels": {"black": int(levels.black_level), "white": int(levels.white)},
-                "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in errors])),
-                                   "max": float(np.max([e["max"] for e in errors]))},
+                "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in tally["errors"]])),
+                                   "max": float(np.max([e["max"] for e in tally["errors"]]))},
                 "layout": LAYOUT[fmt.name], "reading": READING[fmt.name],
                 "licences": sorted({c["licence"] for c in summary["cameras"]} | {LICENCES["illuminants"], LICENCES["scenes"]})}
+
+
+def _export_places(st, places, journal, composer, o, fmt, cam: str, sensor_name: str, dng_kw: dict, ccts: dict,
+                   tally: dict, summary: dict, on_progress) -> dict:
+    """One camera's places (each resumed from the journal when done): their ``meta.json`` entries;
+    a place the engine refuses is skipped with its reason (``tally``: errors, skipped, counts)."""
+    from illumix.retarget.errors import SpectralError
+
+    entries = {}
+    for place in places:
+        key = f"{cam}/{place.name}"
+        rec = journal.done(key)
+        if rec is None:
+            try:
+                cap = composer.capture(place, sensor_name)
+            except ExportError:
+                raise  # the options, not this place: nothing else would export either
+            except SpectralError as exc:
+                summary["skipped"].append(f"{sensor_name} {place.scene}/{place.view}: {exc}")
+                tally["skipped"].add(key)
+                if on_progress:
+                    on_progress(1, f"{key} skipped")
+                continue
+            corners = _corners(st, place, o.size, tally["corners"])
+            rec = _write_place(journal, cam, cap, fmt, dng_kw)
+            rec["entry"] = lsmi.place_entry(cap, corners, cap.frames[-1].meta["ground_truth"]["method"], ccts)
+            journal.record(key, rec)
+        entries[place.name] = rec["entry"]
+        tally["errors"].append(rec["entry"]["LSMIModelErrorDeg"])
+        summary["samples"] += rec["samples"]
+        tally["counts"]["places"] += 1
+        tally["counts"]["raw frames"] += len(rec["samples"])
+        tally["counts"]["ground-truth maps"] += sum(f.endswith(lsmi.GT_ILLUM_SUFFIX) for f in rec["files"])
+        tally["counts"]["mixture maps"] += sum(f.endswith(".npy") and not f.endswith(lsmi.GT_ILLUM_SUFFIX)
+                                               for f in rec["files"])
+        if on_progress:
+            on_progress(1, key)
+    return entries
 
 
 def _write_place(journal, cam: str, cap: Capture, fmt, dng_kw: dict) -> dict:
