@@ -145,20 +145,44 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
     ``/sample`` reads: transport, and illumination where the physical ground truth is served). A
     sensor or illuminant the library does not know, or one a cube cannot be relit to, is skipped.
     """
-    from illumix.engine.cubes import frame_bytes, projection_key, whole_cube
-    from illumix.engine.sampling import unit_weights
+    from illumix.engine.cubes import projection_key
 
     log = log or (lambda _msg: None)
     pc, t0 = ctx.projections, time.perf_counter()
-    done = nbytes = skipped = 0
+    done = nbytes = 0
+    skipped = [0]  # counted by the candidates too
     if pc is None:
         return {"projections": 0, "bytes": 0, "seconds": 0.0, "skipped": 0}
+    for p, g, kind, skey, ikey, unit, frame in _candidates(ctx, sensors, illuminants, skipped):
+        key = projection_key(p, g, kind, skey, ikey)
+        if key in pc.cache:
+            continue
+        if frame > pc.cache.max_cost - pc.cache.total_cost - pc.cache.evicted_cost:
+            log(f"warm: projection cache full after {done} projections")
+            return {"projections": done, "bytes": nbytes, "seconds": time.perf_counter() - t0,
+                    "skipped": skipped[0] + 1}
+        if key[0] not in ctx.cache:  # project only what warm_cache decoded: never evict it
+            skipped[0] += 1
+            continue
+        if _project(ctx, p, g, kind, key, unit, frame, log, skipped):
+            done, nbytes = done + 1, nbytes + frame
+    seconds = time.perf_counter() - t0
+    log(f"warm: {done} projections, {_size(nbytes)} in {seconds:.1f} s")
+    return {"projections": done, "bytes": nbytes, "seconds": seconds, "skipped": skipped[0]}
+
+
+def _candidates(ctx: Context, sensors: list[str], illuminants: list[str], skipped: list[int]):
+    """``(plan, group, kind, sensor key, illuminant key, unit weights, frame bytes)`` of every projection a
+    default ``/sample`` of each view may ask for; what cannot be planned or relit counts in ``skipped``."""
+    from illumix.engine.cubes import frame_bytes
+    from illumix.engine.sampling import unit_weights
+
     for scene in ctx.store.scenes():
         for view in ctx.store.views(scene):
             try:
                 p = plan(SampleSpec(scene=scene, view=view, crop=[0, 0, 1, 1], seed=0), ctx)
             except (SpectralError, Busy, StoreError):
-                skipped += 1
+                skipped[0] += 1
                 continue
             grid, frame = p.metas[0].spectral_grid, frame_bytes(p)
             for s_name in sensors:
@@ -167,7 +191,7 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                         sensor, skey = ctx.library.sensor(s_name, grid)
                         spd, ikey = ctx.library.illuminant(i_name, grid)
                     except SpectralError:
-                        skipped += 1
+                        skipped[0] += 1
                         continue
                     for g, meta, lit in zip(p.groups, p.metas, p.reads()):
                         if not lit:
@@ -175,31 +199,25 @@ def warm_projections(ctx: Context, sensors: list[str], illuminants: list[str],
                         try:
                             unit = unit_weights(spd, meta.emission, g, sensor, grid)
                         except SpectralError:
-                            skipped += 1
+                            skipped[0] += 1
                             continue
                         for kind in ("transport", "illumination") if p.illumination else ("transport",):
-                            key = projection_key(p, g, kind, skey, ikey)
-                            if key in pc.cache:
-                                continue
-                            if frame > pc.cache.max_cost - pc.cache.total_cost - pc.cache.evicted_cost:
-                                log(f"warm: projection cache full after {done} projections")
-                                return {"projections": done, "bytes": nbytes, "seconds": time.perf_counter() - t0,
-                                        "skipped": skipped + 1}
-                            if key[0] not in ctx.cache:  # project only what warm_cache decoded: never evict it
-                                skipped += 1
-                                continue
-                            misses, hits = pc.cache.misses, ctx.cache.hits
-                            try:
-                                kept = pc.window(key, lambda g=g, k=kind, p=p: whole_cube(ctx, p, g, k), unit,
-                                                 (0, 0, 1, 1), frame, whole_frame=True)
-                            except (SpectralError, StoreError) as exc:
-                                log(f"warm: skipping {scene}/{view} {g} {kind}: {str(exc).splitlines()[0]}")
-                                skipped += 1
-                                continue
-                            finally:
-                                pc.cache.misses, ctx.cache.hits = misses, hits  # warming is no request
-                            if kept is not None:
-                                done, nbytes = done + 1, nbytes + frame
-    seconds = time.perf_counter() - t0
-    log(f"warm: {done} projections, {_size(nbytes)} in {seconds:.1f} s")
-    return {"projections": done, "bytes": nbytes, "seconds": seconds, "skipped": skipped}
+                            yield p, g, kind, skey, ikey, unit, frame
+
+
+def _project(ctx: Context, p, g: str, kind: str, key, unit, frame: int, log, skipped: list[int]) -> bool:
+    """Project one group's whole cube into the projection cache (warming is no request: the caches'
+    hit and miss counts are left as they were); False when skipped."""
+    from illumix.engine.cubes import whole_cube
+
+    pc = ctx.projections
+    misses, hits = pc.cache.misses, ctx.cache.hits
+    try:
+        kept = pc.window(key, lambda: whole_cube(ctx, p, g, kind), unit, (0, 0, 1, 1), frame, whole_frame=True)
+    except (SpectralError, StoreError) as exc:
+        log(f"warm: skipping {p.scene}/{p.view} {g} {kind}: {str(exc).splitlines()[0]}")
+        skipped[0] += 1
+        return False
+    finally:
+        pc.cache.misses, ctx.cache.hits = misses, hits
+    return kept is not None
