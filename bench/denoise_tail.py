@@ -46,7 +46,7 @@ COLOURS = ("#ff00ff", "#00ffff", "#ffff00", "#ff8000", "#ff0000", "#00ff00", "#4
 
 def _any_neighbour(a: np.ndarray, pred) -> np.ndarray:
     """``(H, W)`` bool: ``pred(a, a shifted to a 3×3 neighbour)`` for any of the 8 (edge replicated)."""
-    from illumix.retarget.denoise import _shifted
+    from illumix.retarget.denoise_filters import _shifted
 
     out = np.zeros(a.shape[:2], bool)
     for dy in (-1, 0, 1):

@@ -90,28 +90,13 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
     skip_bands : leave out bands whose weights are zero for a group (exact; see
     :func:`retarget.relight.project_groups`).
     """
-    want = set(outputs)
-    unknown = want - set(OUTPUTS)
-    if unknown:
-        raise SpectralError(f"compose: unknown outputs {sorted(unknown)}; choose from {', '.join(OUTPUTS)}")
-    if ({"ccm", "srgb"} & want) and ccms is None:
-        raise SpectralError("compose: CCMs are needed for the ccm and srgb outputs")
+    want = _wanted(outputs, ccms)
     illuminants = np.atleast_2d(illuminants)
     intensities = np.asarray(intensities, dtype=np.float64).reshape(-1)
     wps = gt.lit_white_points(sensor.weights(), illuminants, intensities)
     scales = band_scales(illuminants, emissions, intensities, group_names, sensor.grid.wavelengths)
-    group_raw = project_groups_any(cubes, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
-    if resize is not None:
-        group_raw = np.ascontiguousarray(resize(group_raw), dtype=np.float32)
-    raw = group_raw.sum(axis=0)
-    if exposure is None or isinstance(exposure, str):
-        gain_exp = 1.0 if exposure is None else aec.aec_gain(raw, method=exposure)
-    else:
-        gain_exp = float(exposure)
-        if not (np.isfinite(gain_exp) and gain_exp > 0):
-            raise SpectralError(f"compose: exposure must be a positive number, got {exposure}")
-    if gain_exp != 1.0:
-        raw *= np.float32(gain_exp)
+    group_raw = _project(cubes, scales, sensor, resize, skip_bands)
+    raw, gain_exp = _exposed(group_raw.sum(axis=0), exposure)
     out = Composition(white_points=wps, exposure_gain=gain_exp)
     if "raw" in want:
         out.raw = raw
@@ -126,17 +111,64 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
         mixture, white = weights, (gt.mixed_white_point(weights, wps) if ({"gain", "srgb", "illum"} & want) else None)
     else:
         out.gt = "physical"
-        group_u = project_groups_any(illumination, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
-        if resize is not None:
-            group_u = np.ascontiguousarray(resize(group_u), dtype=np.float32)
-        mixture, mask = gt.illuminant_weights(group_u[..., 1], prior=intensities)  # lit, even if black
-        white, mask = gt.physical_white_point(group_u.sum(axis=0), mask, gt.mixed_white_point(mixture, wps))
-        del group_u
+        mixture, white, mask = _physical(_project(illumination, scales, sensor, resize, skip_bands), intensities, wps)
     if valid is not None:
         mask = mask & valid
     out.mask = mask if "mask" in want else None
     out.mixture = mixture if "mixture" in want else None
     out.illum = white if "illum" in want else None
+    _maps(out, want, raw, mixture, white, ccms, exposure)
+    return out
+
+
+def _wanted(outputs: Iterable[str], ccms: np.ndarray | None) -> set[str]:
+    """The set of outputs asked for; :class:`SpectralError` for an unknown one, or for ``ccm``/``srgb``
+    without CCMs."""
+    want = set(outputs)
+    unknown = want - set(OUTPUTS)
+    if unknown:
+        raise SpectralError(f"compose: unknown outputs {sorted(unknown)}; choose from {', '.join(OUTPUTS)}")
+    if ({"ccm", "srgb"} & want) and ccms is None:
+        raise SpectralError("compose: CCMs are needed for the ccm and srgb outputs")
+    return want
+
+
+def _project(cubes: Sequence[np.ndarray | BasisCube], scales: np.ndarray, sensor: Sensor,
+             resize: Callable[[np.ndarray], np.ndarray] | None, skip_bands: bool) -> np.ndarray:
+    """Per-group camera RGB ``(G, H', W', 3)`` float32 of transport (or illumination) cubes relit by
+    ``scales``, resized by ``resize`` when given (see :func:`compose`)."""
+    group = project_groups_any(cubes, raw_weights(scales, sensor.weights()), skip_bands=skip_bands)
+    if resize is not None:
+        group = np.ascontiguousarray(resize(group), dtype=np.float32)
+    return group
+
+
+def _exposed(raw: np.ndarray, exposure: float | str | None) -> tuple[np.ndarray, float]:
+    """``(raw × the exposure gain (in place), that gain)``: 1 for ``None``, the thesis AEC (eq. 4.2)
+    on raw for ``"constant"``/``"adaptive"``, else the positive number given."""
+    if exposure is None or isinstance(exposure, str):
+        gain_exp = 1.0 if exposure is None else aec.aec_gain(raw, method=exposure)
+    else:
+        gain_exp = float(exposure)
+        if not (np.isfinite(gain_exp) and gain_exp > 0):
+            raise SpectralError(f"compose: exposure must be a positive number, got {exposure}")
+    if gain_exp != 1.0:
+        raw *= np.float32(gain_exp)
+    return raw, gain_exp
+
+
+def _physical(group_u: np.ndarray, intensities: np.ndarray,
+              wps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The physical ground truth ``(mixture, white, mask)`` from the groups' illumination cubes in
+    camera RGB ``group_u`` ``(G, H, W, 3)`` (DESIGN.md "Ground truth")."""
+    mixture, mask = gt.illuminant_weights(group_u[..., 1], prior=intensities)  # lit, even if black
+    white, mask = gt.physical_white_point(group_u.sum(axis=0), mask, gt.mixed_white_point(mixture, wps))
+    return mixture, white, mask
+
+
+def _maps(out: Composition, want: set[str], raw: np.ndarray, mixture: np.ndarray, white: np.ndarray | None,
+          ccms: np.ndarray | None, exposure: float | str | None) -> None:
+    """Fill in ``out``'s gain and CCM maps and its sRGB rendering, those of them ``want`` asks for."""
     gain = gt.gain_map(white) if ({"gain", "srgb"} & want) else None
     ccm = gt.ccm_map(mixture, ccms) if ({"ccm", "srgb"} & want) else None
     out.gain = gain if "gain" in want else None
@@ -148,4 +180,3 @@ def compose(cubes: Sequence[np.ndarray | BasisCube], *, emissions: np.ndarray, i
             out.srgb_exposure = float(aec.aec_gain(linear, method="constant"))
             linear *= np.float32(out.srgb_exposure)
         out.srgb = encode_srgb(linear)
-    return out

@@ -54,6 +54,46 @@ def _gain(white: torch.Tensor) -> torch.Tensor:
     return gain
 
 
+def _project(windows: Sequence[torch.Tensor | None], unit_weights: Sequence[np.ndarray | None], a: torch.Tensor,
+             shape: tuple[int, int], dev: torch.device) -> torch.Tensor:
+    """Per-group camera RGB ``R_g = a_g · T_g @ M_g`` ``(G, H, W, 3)`` float32 of the windows (zeros for
+    a group not read, not weighted or at intensity 0); :class:`SpectralError` for NaN or inf."""
+    h, w = shape
+    out = torch.zeros((len(windows), h, w, 3), dtype=torch.float32, device=dev)
+    # full float32 products whatever the caller's torch.set_float32_matmul_precision (TF32 would
+    # cost ~1e-3 relative); restored after. The setting is process-wide and the service composes
+    # in several threads: one lock around set, products and restore, or a thread could restore
+    # another's setting mid-product (the products share one device anyway)
+    with _PRECISION_LOCK:
+        precision = torch.get_float32_matmul_precision()
+        torch.set_float32_matmul_precision("highest")
+        try:
+            for g, (c, m) in enumerate(zip(windows, unit_weights)):
+                if c is not None and m is not None and float(a[g]) > 0:
+                    mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
+                    out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
+        finally:
+            torch.set_float32_matmul_precision(precision)
+    if not bool(torch.isfinite(out).all()):
+        raise SpectralError("project: a cube contains NaN or inf (or overflowed float32)")
+    return out
+
+
+def _physical(u: torch.Tensor, a: torch.Tensor, wps: torch.Tensor,
+              rel_eps: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The physical ground truth ``(mixture (H, W, G), white (H, W, 3), mask (H, W))`` from the
+    groups' illumination cubes in camera RGB ``u`` ``(G, H, W, 3)``: ``W = U/U_G`` where every
+    channel of ``U`` is lit, else the mixture's white point; each channel floored at
+    ``MIN_CHANNEL_RATIO`` of the largest."""
+    mixture, mask = _weights(u[..., 1], a, rel_eps)
+    total = u.sum(0)
+    ok = mask & (total > 0).all(-1)
+    white = torch.where(ok[..., None], total / torch.where(ok, total[..., 1], torch.ones_like(total[..., 1]))[..., None],
+                        mixture @ wps)
+    white = torch.maximum(white, MIN_CHANNEL_RATIO * white.amax(-1, keepdim=True))
+    return mixture, white, ok
+
+
 def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[np.ndarray | None],
                   intensities: Sequence[float], white_points: np.ndarray, *, outputs: Iterable[str],
                   illumination: Sequence[torch.Tensor | None] | None = None, valid: torch.Tensor | None = None,
@@ -77,27 +117,7 @@ def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[n
     dev, (h, w) = (ref.device, ref.shape[:2]) if ref is not None else (torch.device(device), shape)
     a = torch.tensor([float(x) for x in intensities], dtype=torch.float32, device=dev)
 
-    def project(windows) -> torch.Tensor:
-        out = torch.zeros((len(windows), h, w, 3), dtype=torch.float32, device=dev)
-        # full float32 products whatever the caller's torch.set_float32_matmul_precision (TF32 would
-        # cost ~1e-3 relative); restored after. The setting is process-wide and the service composes
-        # in several threads: one lock around set, products and restore, or a thread could restore
-        # another's setting mid-product (the products share one device anyway)
-        with _PRECISION_LOCK:
-            precision = torch.get_float32_matmul_precision()
-            torch.set_float32_matmul_precision("highest")
-            try:
-                for g, (c, m) in enumerate(zip(windows, unit_weights)):
-                    if c is not None and m is not None and float(a[g]) > 0:
-                        mt = torch.as_tensor(np.asarray(m, np.float32), device=dev)
-                        out[g] = (c.reshape(-1, c.shape[-1]).float() @ mt).reshape(h, w, 3) * a[g]
-            finally:
-                torch.set_float32_matmul_precision(precision)
-        if not bool(torch.isfinite(out).all()):
-            raise SpectralError("project: a cube contains NaN or inf (or overflowed float32)")
-        return out
-
-    group_raw = project(cubes)
+    group_raw = _project(cubes, unit_weights, a, (h, w), dev)
     res: dict[str, torch.Tensor] = {}
     if "raw" in want:
         res["raw"] = group_raw.sum(0)
@@ -110,14 +130,7 @@ def compose_torch(cubes: Sequence[torch.Tensor | None], unit_weights: Sequence[n
     if illumination is None:
         mixture, white = weights, weights @ wps
     else:
-        u = project(illumination)
-        mixture, mask = _weights(u[..., 1], a, rel_eps)
-        total = u.sum(0)
-        ok = mask & (total > 0).all(-1)
-        white = torch.where(ok[..., None], total / torch.where(ok, total[..., 1], torch.ones_like(total[..., 1]))[..., None],
-                            mixture @ wps)
-        white = torch.maximum(white, MIN_CHANNEL_RATIO * white.amax(-1, keepdim=True))
-        mask = ok
+        mixture, white, mask = _physical(_project(illumination, unit_weights, a, (h, w), dev), a, wps, rel_eps)
     if valid is not None:
         mask = mask & valid
     if "mask" in want:

@@ -114,6 +114,27 @@ def resample(
     ``(n_bands,)`` or ``(n_bands, k)`` float64 band averages ``(1/Δλ) ∫_band f(λ) dλ`` of the
     piecewise-linear interpolant.
     """
+    wl, v, squeeze = _checked_samples(wavelengths, values, what)
+    lo, hi = grid.span
+    tol = 1e-9
+    if wl[0] > lo + tol or wl[-1] < hi - tol:
+        if extend == "refuse":
+            raise SpectralError(
+                f"{what}: samples cover {wl[0]:g}-{wl[-1]:g} nm but the grid {grid} needs "
+                f"{lo:g}-{hi:g} nm; supply a wider spectrum or choose an extension policy "
+                "('constant' or 'zero')"
+            )
+        if extend not in ("constant", "zero"):
+            raise SpectralError(f"{what}: unknown extension policy {extend!r}; use refuse, constant or zero")
+        wl, v = _extended(wl, v, lo, hi, tol, extend)
+    cum = _cumulative_linear(wl, v, grid.edges)
+    out = np.diff(cum, axis=0) / grid.step
+    return out[:, 0] if squeeze else out
+
+
+def _checked_samples(wavelengths: np.ndarray, values: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(wavelengths (n,), values (n, k), whether values was 1-D)`` float64, sorted by wavelength;
+    :class:`SpectralError` for mismatched shapes, fewer than 2 samples, NaN/inf or duplicates."""
     wl = np.asarray(wavelengths, dtype=np.float64).ravel()
     v = np.asarray(values, dtype=np.float64)
     squeeze = v.ndim == 1
@@ -131,28 +152,22 @@ def resample(
     wl, v = wl[order], v[order]
     if np.any(np.diff(wl) <= 0):
         raise SpectralError(f"{what}: duplicate wavelength samples; give each wavelength once")
-    lo, hi = grid.span
-    tol = 1e-9
-    if wl[0] > lo + tol or wl[-1] < hi - tol:
-        if extend == "refuse":
-            raise SpectralError(
-                f"{what}: samples cover {wl[0]:g}-{wl[-1]:g} nm but the grid {grid} needs "
-                f"{lo:g}-{hi:g} nm; supply a wider spectrum or choose an extension policy "
-                "('constant' or 'zero')"
-            )
-        if extend not in ("constant", "zero"):
-            raise SpectralError(f"{what}: unknown extension policy {extend!r}; use refuse, constant or zero")
-        pad_lo = v[:1] if extend == "constant" else np.zeros_like(v[:1])
-        pad_hi = v[-1:] if extend == "constant" else np.zeros_like(v[-1:])
-        if wl[0] > lo + tol:
-            # A zero extension steps to zero just outside the last sample, not a ramp across the gap.
-            step_lo = [lo, wl[0] - 1e-9] if extend == "zero" else [lo]
-            wl = np.concatenate([step_lo, wl])
-            v = np.concatenate([np.repeat(pad_lo, len(step_lo), axis=0), v])
-        if wl[-1] < hi - tol:
-            step_hi = [wl[-1] + 1e-9, hi] if extend == "zero" else [hi]
-            wl = np.concatenate([wl, step_hi])
-            v = np.concatenate([v, np.repeat(pad_hi, len(step_hi), axis=0)])
-    cum = _cumulative_linear(wl, v, grid.edges)
-    out = np.diff(cum, axis=0) / grid.step
-    return out[:, 0] if squeeze else out
+    return wl, v, squeeze
+
+
+def _extended(wl: np.ndarray, v: np.ndarray, lo: float, hi: float, tol: float,
+              extend: Extension) -> tuple[np.ndarray, np.ndarray]:
+    """The samples extended to cover ``[lo, hi]`` nm by ``extend`` (``"constant"``: the end values;
+    ``"zero"``: zero)."""
+    pad_lo = v[:1] if extend == "constant" else np.zeros_like(v[:1])
+    pad_hi = v[-1:] if extend == "constant" else np.zeros_like(v[-1:])
+    if wl[0] > lo + tol:
+        # A zero extension steps to zero just outside the last sample, not a ramp across the gap.
+        step_lo = [lo, wl[0] - 1e-9] if extend == "zero" else [lo]
+        wl = np.concatenate([step_lo, wl])
+        v = np.concatenate([np.repeat(pad_lo, len(step_lo), axis=0), v])
+    if wl[-1] < hi - tol:
+        step_hi = [wl[-1] + 1e-9, hi] if extend == "zero" else [hi]
+        wl = np.concatenate([wl, step_hi])
+        v = np.concatenate([v, np.repeat(pad_hi, len(step_hi), axis=0)])
+    return wl, v

@@ -212,34 +212,14 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
     meta = _validated(CubeMeta, meta, "CubeMeta")
     where = f"{scene}/{view}/{group}"
     final = layout.cube_path(scene, view, group)
-    try:
-        prev = read_state(b, final)
-    except StoreError:
-        prev = {"complete": False}
-    if prev and prev.get("complete") and not overwrite:
-        raise StoreError(f"cube {where} already exists in {b.url}; pass overwrite=True to replace it")
+    prev = _previous_state(st, final, where, overwrite)
     nb = meta.n_bands
     shape = (vm.height, vm.width, nb)
     chunks = (min(st.tile, shape[0]), min(st.tile, shape[1]), nb)
-    if cube is None:
-        enc = None
-        stats = BandStats(max=[0.0] * nb, mean=[0.0] * nb, min=[0.0] * nb)
-        storage = StorageInfo(dtype="none", encoding="empty", policy="auto", nbytes_stored=0,
-                              reason="group contributes nothing to this view; reads give zeros")
-    else:
-        arr = _check_cube(cube, shape, where)
-        stats = BandStats.of(arr)
-        enc = encode(arr, policy)
-        del arr
-        storage = _storage(enc, policy, chunks, st.codec)
+    enc, stats, storage = _encode_transport(cube, shape, chunks, policy, st.codec, where)
     illum, enc_u = None, None  # metadata copied from another cube must not claim arrays this node lacks
     if illumination is not None and cube is not None:
-        arr = _check_cube(illumination, shape, f"{where} (illumination)")
-        enc_u = encode(arr, policy)
-        given = meta.illumination.model_dump(exclude={"stats", "storage"}) if meta.illumination else {}
-        illum = IlluminationInfo(**given)
-        illum.stats, illum.storage = BandStats.of(arr), _storage(enc_u, policy, chunks, st.codec)
-        del arr
+        illum, enc_u = _encode_illumination(meta, illumination, shape, chunks, policy, st.codec, where)
     dn, enc_d = _encode_denoised(meta, denoised if cube is not None else None, illum is not None, shape, chunks,
                                  policy, st.codec, where)
     meta = meta.model_copy(update={"stats": stats, "storage": storage, "empty": cube is None, "illumination": illum,
@@ -270,6 +250,50 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             b.discard(wpath)
         raise
     return meta
+
+
+def _previous_state(st: CubeStore, final: str, where: str, overwrite: bool) -> dict[str, Any] | None:
+    """The state of the node at ``final`` (``None``: no node; ``{"complete": False}``: unreadable);
+    :class:`StoreError` when it is a complete cube and ``overwrite`` is False."""
+    b = st.backend
+    try:
+        prev = read_state(b, final)
+    except StoreError:
+        prev = {"complete": False}
+    if prev and prev.get("complete") and not overwrite:
+        raise StoreError(f"cube {where} already exists in {b.url}; pass overwrite=True to replace it")
+    return prev
+
+
+def _encode_transport(cube: np.ndarray | None, shape: tuple[int, int, int], chunks: tuple[int, ...], policy: Policy,
+                      codec: str, where: str) -> tuple[Any, BandStats, StorageInfo]:
+    """``(encoded, stats, storage)`` of the transport cube; ``encoded`` None (and zero stats) for an
+    empty-group record (``cube=None``)."""
+    nb = shape[2]
+    if cube is None:
+        enc = None
+        stats = BandStats(max=[0.0] * nb, mean=[0.0] * nb, min=[0.0] * nb)
+        storage = StorageInfo(dtype="none", encoding="empty", policy="auto", nbytes_stored=0,
+                              reason="group contributes nothing to this view; reads give zeros")
+    else:
+        arr = _check_cube(cube, shape, where)
+        stats = BandStats.of(arr)
+        enc = encode(arr, policy)
+        del arr
+        storage = _storage(enc, policy, chunks, codec)
+    return enc, stats, storage
+
+
+def _encode_illumination(meta: CubeMeta, illumination: np.ndarray, shape: tuple[int, int, int],
+                         chunks: tuple[int, ...], policy: Policy, codec: str,
+                         where: str) -> tuple[IlluminationInfo, Any]:
+    """``(meta.illumination filled in, encoded)`` for the cube's illumination cube."""
+    arr = _check_cube(illumination, shape, f"{where} (illumination)")
+    enc_u = encode(arr, policy)
+    given = meta.illumination.model_dump(exclude={"stats", "storage"}) if meta.illumination else {}
+    illum = IlluminationInfo(**given)
+    illum.stats, illum.storage = BandStats.of(arr), _storage(enc_u, policy, chunks, codec)
+    return illum, enc_u
 
 
 def _planes(meta: CubeMeta, enc, enc_u, enc_d: dict) -> list[tuple[str, Any, StorageInfo]]:
