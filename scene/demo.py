@@ -107,100 +107,30 @@ def _pale_samples(rng: np.random.Generator, k: int, lo: float, max_chroma: float
 
 def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name: str | None = None) -> dict:
     """The demo room as a plain document (see module docstring); deterministic in ``seed``."""
+    # The helpers draw from ``rng`` in a fixed order (room, materials, window, furniture, chart,
+    # emitters, lights): reordering the calls changes every seed's room.
     rng = np.random.default_rng(seed)
     w = float(rng.uniform(4.5, 5.5))   # x extent
     d = float(rng.uniform(4.5, 5.5))   # z extent
     h = float(rng.uniform(2.6, 2.9))   # ceiling height
     x0, x1, z0, z1 = -w / 2, w / 2, -d / 2, d / 2
 
-    walls = _pale_samples(rng, 2, 0.4, max_chroma=0.25)
-    (floor_idx,) = [int(i) for i in rng.choice(_dark_floor_candidates(), size=1)]
-    ball_idx, table_idx = _pale_samples(rng, 2, 0.15)
-    materials: dict = {
-        "wall_a": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": walls[0]}},
-        "wall_b": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": walls[1]}},
-        "ceiling": {"kind": "diffuse", "reflectance": {"value": 0.8}},
-        "floor": {"kind": "roughplastic", "reflectance": {"library": "CIE 2017", "index": floor_idx},
-                  "alpha": 0.25},
-        "table": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": table_idx}},
-        "ball": {"kind": "roughplastic", "reflectance": {"library": "CIE 2017", "index": ball_idx},
-                 "alpha": 0.08},
-        "metal": {"kind": "roughconductor", "conductor": "Al", "alpha": 0.2},
-        "glass": {"kind": "dielectric", "int_ior": 1.5},
-        "lamp_housing": {"kind": "diffuse", "reflectance": {"value": 0.5}},
-    }
-    up = (0, 1, 0)
-    shapes: list[dict] = [
-        {"name": "floor", "type": "rectangle", "material": "floor",
-         "transform": {"matrix": frame_matrix((0, 0, 0), (0, 1, 0), (0, 0, -1), (w, d))}},
-        {"name": "ceiling", "type": "rectangle", "material": "ceiling",
-         "transform": {"matrix": frame_matrix((0, h, 0), (0, -1, 0), (0, 0, -1), (w, d))}},
-        {"name": "wall_back", "type": "rectangle", "material": "wall_a",
-         "transform": {"matrix": frame_matrix((0, h / 2, z0), (0, 0, 1), up, (w, h))}},
-        {"name": "wall_front", "type": "rectangle", "material": "wall_a",
-         "transform": {"matrix": frame_matrix((0, h / 2, z1), (0, 0, -1), up, (w, h))}},
-        {"name": "wall_right", "type": "rectangle", "material": "wall_b",
-         "transform": {"matrix": frame_matrix((x1, h / 2, 0), (-1, 0, 0), up, (d, h))}},
-    ]
-    # Left wall (x = x0, facing +x) with a window opening: four rectangles around the hole.
-    win_z = (float(rng.uniform(z0 + 1.0, -0.6)), 0.0)
-    win_z = (win_z[0], win_z[0] + float(rng.uniform(1.2, 1.6)))
-    win_y = (0.9, min(h - 0.3, 2.3))
-    pieces = {
-        "wall_left_below": ((z0, z1), (0.0, win_y[0])),
-        "wall_left_above": ((z0, z1), (win_y[1], h)),
-        "wall_left_back": ((z0, win_z[0]), win_y),
-        "wall_left_front": ((win_z[1], z1), win_y),
-    }
-    for nm, ((za, zb), (ya, yb)) in pieces.items():
-        shapes.append({"name": nm, "type": "rectangle", "material": "wall_b",
-                       "transform": {"matrix": frame_matrix((x0, (ya + yb) / 2, (za + zb) / 2), (1, 0, 0), up,
-                                                            (zb - za, yb - ya))}})
+    materials = _room_materials(rng)
+    shapes = _room_shell(w, d, h)
+    window_shapes, win_y, win_z = _left_wall_with_window(rng, x0, z0, z1, h)
+    shapes += window_shapes
     # Furniture and objects.
     tx, tz = float(rng.uniform(0.3, 1.0)), float(rng.uniform(-0.8, 0.2))
     table_top = 0.75
-    shapes += [
-        {"name": "table", "type": "cube", "material": "table",
-         "transform": {"matrix": box_matrix((tx, table_top / 2, tz), (0.6, table_top / 2, 0.45))}},
-        {"name": "ball", "type": "sphere", "material": "ball",
-         "center": (tx - 0.25, table_top + 0.18, tz + 0.1), "radius": 0.18},
-        {"name": "can", "type": "cylinder", "material": "metal",
-         "p0": (tx + 0.3, table_top, tz - 0.15), "p1": (tx + 0.3, table_top + 0.3, tz - 0.15), "radius": 0.08},
-        {"name": "can_lid", "type": "disk", "material": "metal",
-         "transform": {"matrix": frame_matrix((tx + 0.3, table_top + 0.3, tz - 0.15), (0, 1, 0), (0, 0, -1),
-                                              (0.16, 0.16))}},
-        {"name": "glass_ball", "type": "sphere", "material": "glass",
-         "center": (float(rng.uniform(-1.2, -0.4)), 0.15, float(rng.uniform(-0.5, 0.5))), "radius": 0.15},
-    ]
+    shapes += _furniture(rng, tx, tz, table_top)
     # Chart on the back wall, facing the room.
     chart_mats, chart_shapes = colorchecker(center=(float(rng.uniform(-0.6, 0.2)), 1.35, z0 + 0.005),
                                             normal=(0, 0, 1), patch=0.14, gap=0.025)
     materials.update(chart_mats)
     shapes += chart_shapes
-    # Ceiling panel light (one-sided area emitter facing down) with a housing above it.
-    shapes += [
-        {"name": "ceiling_panel", "type": "rectangle",
-         "emitter": {"group": "ceiling", "strength": round(float(rng.uniform(3.0, 5.0)), 3)},
-         "transform": {"matrix": frame_matrix((0.3, h - 0.02, 0.3), (0, -1, 0), (0, 0, -1), (0.8, 0.8))}},
-    ]
-    # The sky seen through the window: a portal filling the opening, emitting the (uniform) sky
-    # radiance into the room — exact for a constant sky, and sampled far better than the sphere.
-    shapes.append({"name": "window_sky", "type": "rectangle",
-                   "emitter": {"group": "daylight", "strength": round(float(rng.uniform(0.6, 1.0)), 3), "portal": True},
-                   "transform": {"matrix": frame_matrix((x0, (win_y[0] + win_y[1]) / 2, (win_z[0] + win_z[1]) / 2),
-                                                        (1, 0, 0), up, (win_z[1] - win_z[0], win_y[1] - win_y[0]))}})
-    # Sun through the window: travelling into the room (+x), downwards.
-    elev = math.radians(float(rng.uniform(25, 40)))
-    azim = math.radians(float(rng.uniform(-25, 25)))
-    sun_dir = (math.cos(elev) * math.cos(azim), -math.sin(elev), math.cos(elev) * math.sin(azim))
-    lights = [
-        {"name": "sun", "type": "directional", "group": "daylight", "direction": [round(v, 6) for v in sun_dir],
-         "strength": round(float(rng.uniform(4.0, 6.0)), 3)},
-        {"name": "desk_spot", "type": "spot", "group": "desk",
-         "position": (tx - 0.4, table_top + 0.6, tz + 0.3),
-         "target": (float(chart_shapes[0]["transform"]["matrix"][0][3]) + 0.3, 1.3, z0),
-         "cutoff_angle": 35.0, "beam_width": 25.0, "strength": round(float(rng.uniform(2.0, 3.0)), 3)},
-    ]
+    shapes += _room_emitters(rng, h, x0, win_y, win_z)
+    desk_target = (float(chart_shapes[0]["transform"]["matrix"][0][3]) + 0.3, 1.3, z0)
+    lights = _room_lights(rng, tx, tz, table_top, desk_target)
     aspect_views = [
         {"name": "front", "origin": (0.2, 1.5, z1 - 0.4), "target": (-0.2, 1.1, z0), "fov": 70.0},
         {"name": "corner", "origin": (x1 - 0.4, 1.7, z1 - 0.6), "target": (-0.9, 0.9, z0 + 0.6), "fov": 75.0},
@@ -220,6 +150,118 @@ def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name
         "views": views,
         "max_depth": 8,
     }
+
+
+def _room_materials(rng: np.random.Generator) -> dict:
+    """The room's own materials (walls, floor, furniture, objects; not the chart's)."""
+    walls = _pale_samples(rng, 2, 0.4, max_chroma=0.25)
+    (floor_idx,) = [int(i) for i in rng.choice(_dark_floor_candidates(), size=1)]
+    ball_idx, table_idx = _pale_samples(rng, 2, 0.15)
+    return {
+        "wall_a": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": walls[0]}},
+        "wall_b": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": walls[1]}},
+        "ceiling": {"kind": "diffuse", "reflectance": {"value": 0.8}},
+        "floor": {"kind": "roughplastic", "reflectance": {"library": "CIE 2017", "index": floor_idx},
+                  "alpha": 0.25},
+        "table": {"kind": "diffuse", "reflectance": {"library": "CIE 2017", "index": table_idx}},
+        "ball": {"kind": "roughplastic", "reflectance": {"library": "CIE 2017", "index": ball_idx},
+                 "alpha": 0.08},
+        "metal": {"kind": "roughconductor", "conductor": "Al", "alpha": 0.2},
+        "glass": {"kind": "dielectric", "int_ior": 1.5},
+        "lamp_housing": {"kind": "diffuse", "reflectance": {"value": 0.5}},
+    }
+
+
+def _room_shell(w: float, d: float, h: float) -> list[dict]:
+    """Floor, ceiling and the three walls without the window (back, front, right)."""
+    x1, z0, z1 = w / 2, -d / 2, d / 2
+    up = (0, 1, 0)
+    return [
+        {"name": "floor", "type": "rectangle", "material": "floor",
+         "transform": {"matrix": frame_matrix((0, 0, 0), (0, 1, 0), (0, 0, -1), (w, d))}},
+        {"name": "ceiling", "type": "rectangle", "material": "ceiling",
+         "transform": {"matrix": frame_matrix((0, h, 0), (0, -1, 0), (0, 0, -1), (w, d))}},
+        {"name": "wall_back", "type": "rectangle", "material": "wall_a",
+         "transform": {"matrix": frame_matrix((0, h / 2, z0), (0, 0, 1), up, (w, h))}},
+        {"name": "wall_front", "type": "rectangle", "material": "wall_a",
+         "transform": {"matrix": frame_matrix((0, h / 2, z1), (0, 0, -1), up, (w, h))}},
+        {"name": "wall_right", "type": "rectangle", "material": "wall_b",
+         "transform": {"matrix": frame_matrix((x1, h / 2, 0), (-1, 0, 0), up, (d, h))}},
+    ]
+
+
+def _left_wall_with_window(rng: np.random.Generator, x0: float, z0: float, z1: float,
+                           h: float) -> tuple[list[dict], tuple[float, float], tuple[float, float]]:
+    """``(shapes, (y0, y1), (z0, z1))``: the left wall's pieces and the window opening's extent."""
+    up = (0, 1, 0)
+    shapes = []
+    # Left wall (x = x0, facing +x) with a window opening: four rectangles around the hole.
+    win_z = (float(rng.uniform(z0 + 1.0, -0.6)), 0.0)
+    win_z = (win_z[0], win_z[0] + float(rng.uniform(1.2, 1.6)))
+    win_y = (0.9, min(h - 0.3, 2.3))
+    pieces = {
+        "wall_left_below": ((z0, z1), (0.0, win_y[0])),
+        "wall_left_above": ((z0, z1), (win_y[1], h)),
+        "wall_left_back": ((z0, win_z[0]), win_y),
+        "wall_left_front": ((win_z[1], z1), win_y),
+    }
+    for nm, ((za, zb), (ya, yb)) in pieces.items():
+        shapes.append({"name": nm, "type": "rectangle", "material": "wall_b",
+                       "transform": {"matrix": frame_matrix((x0, (ya + yb) / 2, (za + zb) / 2), (1, 0, 0), up,
+                                                            (zb - za, yb - ya))}})
+    return shapes, win_y, win_z
+
+
+def _furniture(rng: np.random.Generator, tx: float, tz: float, table_top: float) -> list[dict]:
+    """The table at ``(tx, tz)`` with the ball and the can on it, and the glass ball on the floor."""
+    return [
+        {"name": "table", "type": "cube", "material": "table",
+         "transform": {"matrix": box_matrix((tx, table_top / 2, tz), (0.6, table_top / 2, 0.45))}},
+        {"name": "ball", "type": "sphere", "material": "ball",
+         "center": (tx - 0.25, table_top + 0.18, tz + 0.1), "radius": 0.18},
+        {"name": "can", "type": "cylinder", "material": "metal",
+         "p0": (tx + 0.3, table_top, tz - 0.15), "p1": (tx + 0.3, table_top + 0.3, tz - 0.15), "radius": 0.08},
+        {"name": "can_lid", "type": "disk", "material": "metal",
+         "transform": {"matrix": frame_matrix((tx + 0.3, table_top + 0.3, tz - 0.15), (0, 1, 0), (0, 0, -1),
+                                              (0.16, 0.16))}},
+        {"name": "glass_ball", "type": "sphere", "material": "glass",
+         "center": (float(rng.uniform(-1.2, -0.4)), 0.15, float(rng.uniform(-0.5, 0.5))), "radius": 0.15},
+    ]
+
+
+def _room_emitters(rng: np.random.Generator, h: float, x0: float, win_y: tuple[float, float],
+                   win_z: tuple[float, float]) -> list[dict]:
+    """The emitting shapes: the ceiling panel and the sky portal in the window."""
+    up = (0, 1, 0)
+    # Ceiling panel light (one-sided area emitter facing down) with a housing above it.
+    shapes = [
+        {"name": "ceiling_panel", "type": "rectangle",
+         "emitter": {"group": "ceiling", "strength": round(float(rng.uniform(3.0, 5.0)), 3)},
+         "transform": {"matrix": frame_matrix((0.3, h - 0.02, 0.3), (0, -1, 0), (0, 0, -1), (0.8, 0.8))}},
+    ]
+    # The sky seen through the window: a portal filling the opening, emitting the (uniform) sky
+    # radiance into the room — exact for a constant sky, and sampled far better than the sphere.
+    shapes.append({"name": "window_sky", "type": "rectangle",
+                   "emitter": {"group": "daylight", "strength": round(float(rng.uniform(0.6, 1.0)), 3), "portal": True},
+                   "transform": {"matrix": frame_matrix((x0, (win_y[0] + win_y[1]) / 2, (win_z[0] + win_z[1]) / 2),
+                                                        (1, 0, 0), up, (win_z[1] - win_z[0], win_y[1] - win_y[0]))}})
+    return shapes
+
+
+def _room_lights(rng: np.random.Generator, tx: float, tz: float, table_top: float, desk_target) -> list[dict]:
+    """The sun through the window and the desk spot (aimed at ``desk_target``, beside the chart)."""
+    # Sun through the window: travelling into the room (+x), downwards.
+    elev = math.radians(float(rng.uniform(25, 40)))
+    azim = math.radians(float(rng.uniform(-25, 25)))
+    sun_dir = (math.cos(elev) * math.cos(azim), -math.sin(elev), math.cos(elev) * math.sin(azim))
+    return [
+        {"name": "sun", "type": "directional", "group": "daylight", "direction": [round(v, 6) for v in sun_dir],
+         "strength": round(float(rng.uniform(4.0, 6.0)), 3)},
+        {"name": "desk_spot", "type": "spot", "group": "desk",
+         "position": (tx - 0.4, table_top + 0.6, tz + 0.3),
+         "target": desk_target,
+         "cutoff_angle": 35.0, "beam_width": 25.0, "strength": round(float(rng.uniform(2.0, 3.0)), 3)},
+    ]
 
 
 def _dark_floor_candidates() -> list[int]:

@@ -38,17 +38,13 @@ Conventions
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import math
 import os
-import re
 import shutil
 import subprocess
 import tempfile
-import warnings
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -56,163 +52,30 @@ import numpy as np
 from illumix.scene.blender_env import find_blender_python
 from illumix.scene.schema import SceneError
 
+# The name, colour and material helpers live in blend_materials; callers import some from here
+# (scene_import.builder and colour_match, scene_import.import_scene, the tests).
+from illumix.scene_import.blend_materials import (GREY, WAVELENGTHS, _emission, _is_grey, _Names,  # noqa: F401
+                                                  _upsample, _warn, material_doc, resolve_reflectance,
+                                                  rgb_to_spectrum, sanitize)
+
 WORKER = Path(__file__).with_name("blend_worker.py")
-WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
-GREY = 1e-3  # relative channel spread below which a colour counts as grey
-
-
-# -- names ------------------------------------------------------------------------------------
-
-
-def sanitize(name: str, fallback: str = "unnamed") -> str:
-    """``name`` under the scene name rules ``^[A-Za-z0-9][A-Za-z0-9_.+-]*$`` (no ``..``, ≤ 100 chars):
-    other characters become ``_``, leading punctuation is dropped."""
-    s = re.sub(r"[^A-Za-z0-9_.+\-]+", "_", name)
-    s = re.sub(r"\.{2,}", ".", s)
-    s = re.sub(r"^[^A-Za-z0-9]+", "", s)[:100]
-    return s or fallback
-
-
-class _Names:
-    """Unique sanitised names within one kind (shapes, lights, views, materials)."""
-
-    def __init__(self) -> None:
-        self.used: set[str] = set()
-
-    def __call__(self, name: str, fallback: str = "unnamed") -> str:
-        base = sanitize(name, fallback)
-        out, k = base, 2
-        while out in self.used:
-            out, k = f"{base[:95]}-{k}", k + 1
-        self.used.add(out)
-        return out
-
-
-# -- spectra ----------------------------------------------------------------------------------
-
-
-@lru_cache(maxsize=4096)
-def _upsample(rgb: tuple[float, float, float]) -> tuple[tuple[float, ...], float]:
-    import colour
-    from colour.recovery import XYZ_to_sd_Jakob2019
-
-    shape = colour.SpectralShape(380, 780, 5)
-    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
-    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
-    xyz = colour.RGB_to_XYZ(np.asarray(rgb), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
-    sd, err = XYZ_to_sd_Jakob2019(xyz, cmfs, d65, additional_data=True)
-    values = np.clip(sd.copy().align(shape).values, 0.0, 1.0)
-    return tuple(np.round(values, 6).tolist()), float(err)
-
-
-def rgb_to_spectrum(rgb, what: str) -> dict:
-    """An inline table reflectance (380–780 nm / 5 nm, values in [0, 1]) whose sRGB colour under D65
-    is the linear sRGB ``rgb`` (Jakob & Hanika 2019). Components outside [0, 1] are clipped, with a
-    warning, as is a colour the smooth spectra cannot reach (CIE ΔE2000 > 1)."""
-    c = np.asarray(rgb, dtype=float)[:3]
-    if np.any(c < 0) or np.any(c > 1):
-        warnings.warn(f"{what}: base colour {np.round(c, 3).tolist()} is outside [0, 1]; clipped", UserWarning,
-                      stacklevel=3)
-        c = np.clip(c, 0.0, 1.0)
-    values, err = _upsample(tuple(round(float(x), 6) for x in c))
-    if err > 1.0:
-        warnings.warn(f"{what}: no reflectance spectrum reproduces base colour {np.round(c, 3).tolist()} "
-                      f"closely (ΔE2000 {err:.1f}); used the closest smooth spectrum", UserWarning, stacklevel=3)
-    return {"wavelengths": WAVELENGTHS.tolist(), "values": list(values)}
-
-
-def resolve_reflectance(ref: str, what: str) -> dict:
-    """``{"library", "sample"}`` for ``"Library/Sample"`` or a bare sample name (the first of
-    :func:`retarget.reflectances.set_names` that holds it); :class:`SceneError` with close matches."""
-    from illumix.retarget.reflectances import get_reflectances, set_names
-
-    ref = ref.strip()
-    libs = {lib: get_reflectances(lib)[0] for lib in set_names()}
-    for lib, names in libs.items():
-        if ref.startswith(lib + "/") and ref[len(lib) + 1:] in names:
-            return {"library": lib, "sample": ref[len(lib) + 1:]}
-    for exact in (True, False):
-        for lib, names in libs.items():
-            for n in names:
-                if n == ref or (not exact and n.lower() == ref.lower()):
-                    return {"library": lib, "sample": n}
-    known = [f"{lib}/{n}" for lib, names in libs.items() for n in names]
-    close = difflib.get_close_matches(ref, known + [n for names in libs.values() for n in names], n=3, cutoff=0.5)
-    hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-    raise SceneError(f"{what}: illumix_reflectance {ref!r} is not a known reflectance{hint} "
-                     f"(give 'Library/Sample'; libraries: {', '.join(libs)})")
 
 
 # -- pieces of the scene ------------------------------------------------------------------------
 
 
-def _warn(msg: str) -> None:
-    warnings.warn(msg, UserWarning, stacklevel=4)
-
-
-def _is_grey(rgb) -> bool:
-    c = np.asarray(rgb, dtype=float)[:3]
-    return float(c.max() - c.min()) <= GREY * max(float(c.max()), 1e-12)
-
-
-def material_doc(info: dict, what: str) -> dict | None:
-    """The illumix material for a worker material record (None: emission only)."""
-    for p in info["problems"]:
-        _warn(f"{what}: {p}")
-    if info["shader"] == "emission":
-        return None
-    alpha = min(max(float(info["roughness"]) ** 2, 1e-3), 1.0)
-    ior = min(max(float(info.get("ior", 1.5)), 1.0001), 4.0)
-    ref = info.get("illumix_reflectance")
-    if info["metallic"] > 0.5 or info["transmission"] > 0.5:
-        kind = "roughconductor (aluminium)" if info["metallic"] > 0.5 else f"dielectric (IOR {ior:.3g})"
-        _warn(f"{what}: imported as {kind}; its base colour {'and illumix_reflectance are' if ref else 'is'} "
-              "not used")
-        if info["metallic"] > 0.5:
-            return {"kind": "roughconductor", "conductor": "Al", "alpha": alpha}
-        return {"kind": "dielectric", "int_ior": ior}
-    plastic = info["shader"] == "principled" and info["roughness"] < 0.999
-    if ref:
-        refl = resolve_reflectance(ref, what)
-    elif plastic:
-        # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
-        # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
-        # Cycles backend's mapping, scene.plastic_scale.plastic_diffuse_scale).
-        from illumix.scene.plastic_scale import plastic_diffuse_scale
-
-        base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
-        if np.any(base > 1):
-            _warn(f"{what}: base colour / {plastic_diffuse_scale(alpha, ior):.3g} (to render as bright as "
-                  "Blender's Principled BSDF as a rough plastic) exceeds 1; clipped")
-        refl = rgb_to_spectrum(np.minimum(base, 1.0), what)
-    else:
-        refl = rgb_to_spectrum(info["base_color"], what)
-    if plastic:
-        return {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
-    return {"kind": "diffuse", "reflectance": refl}
-
-
-def _emission(color, strength: float, what: str) -> float:
-    """Strength per unit of a flat group spectrum: ``strength × max(colour)``; warns if coloured."""
-    c = np.asarray(color, dtype=float)[:3]
-    s = float(strength) * float(c.max())
-    if s > 0 and not _is_grey(c):
-        _warn(f"{what}: emission colour {np.round(c, 3).tolist()} is replaced by the light group's "
-              "emission spectrum (flat); only its strength × largest channel is kept")
-    return s
-
-
-def area_shape(li: dict, what: str) -> tuple[str, np.ndarray, float]:
+def area_shape(li: dict, what: str, up: int = 0) -> tuple[str, np.ndarray, float]:
     """``(type, 4×4 to-world matrix, radiance)`` of an area light as a Mitsuba-style rectangle
-    (``[-1, 1]²``, z = 0, normal +z) or unit disk, its +z turned onto the light's −Z."""
+    (``[-1, 1]²``, z = 0, normal +z) or unit disk, its +z turned onto the light's −Z
+    (``up``: as for :func:`blend_materials._warn`)."""
     sx = li["size"]
     sy = li["size_y"] if li["shape"] in ("RECTANGLE", "ELLIPSE") else sx
     t = np.asarray(li["matrix"], dtype=float) @ np.diag([sx / 2, -sy / 2, -1.0, 1.0])  # a rotation by π about x
     kind = "disk" if li["shape"] in ("DISK", "ELLIPSE") else "rectangle"
     area = (math.pi if kind == "disk" else 4.0) * float(np.linalg.norm(np.cross(t[:3, 0], t[:3, 1])))
     if li.get("spread", 180.0) < 179.9:
-        _warn(f"{what}: area light spread {li['spread']:.0f}° is ignored (illumix area lights are Lambertian)")
-    power = _emission(li["color"], li["energy"], what)
+        _warn(f"{what}: area light spread {li['spread']:.0f}° is ignored (illumix area lights are Lambertian)", up)
+    power = _emission(li["color"], li["energy"], what, up)
     return kind, t, power / (math.pi * (area if li.get("normalize", True) else 1.0))
 
 
@@ -244,6 +107,7 @@ def _group(item: dict, groups: dict[str, str]) -> str:
     return g
 
 
+
 def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
     """The scene document for the worker's ``scene.json`` ``data`` (files under ``cache``)."""
     groups: dict[str, str] = {}
@@ -260,67 +124,11 @@ def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
         _warn(f"{where}: object {name!r} {why}; skipped")
     if abs(data.get("unit_scale", 1.0) - 1.0) > 1e-9:
         _warn(f"{where}: unit scale {data['unit_scale']:g} is not applied; Blender units are taken as metres")
-    shapes, lights, grey = [], [], None
-    for ob in data["objects"]:
-        what = f"{where}: object {ob['name']!r}"
-        entry = {"name": shape_names(ob["name"], "shape"), "type": "ply", "filename": str(cache / ob["ply"])}
-        key, info = by_blender.get(ob["material"], (None, None)) if ob["material"] else (None, None)
-        if info is None:
-            if grey is None:
-                grey = mats("default-grey")
-                materials[grey] = {"kind": "diffuse", "reflectance": {"value": 0.5}}
-            _warn(f"{what} has no material; used a grey diffuse (reflectance 0.5)")
-            key = grey
-        elif info["emission_strength"] > 0 and max(info["emission_color"]) > 0:
-            s = _emission(info["emission_color"], info["emission_strength"], f"{what} (material {info['name']!r})")
-            if key is not None and materials[key]["kind"] == "dielectric":
-                _warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped")
-            else:
-                entry["emitter"] = {"group": _group(ob, groups), "strength": s}
-        if key is None and "emitter" not in entry:
-            _warn(f"{what}: material {info['name']!r} is an Emission shader that emits nothing; object skipped")
-            continue
-        if key is not None:
-            entry["material"] = key
-        shapes.append(entry)
-    for li in data["lights"]:
-        what = f"{where}: light {li['name']!r}"
-        for p in li.get("problems", []):
-            _warn(f"{what}: {p}")
-        if li["energy"] <= 0 or max(li["color"]) <= 0:
-            _warn(f"{what} emits nothing; skipped")
-            continue
-        g = _group(li, groups)
-        name = light_names(li["name"], "light")
-        if li["type"] == "AREA":
-            kind, t, radiance = area_shape(li, what)
-            shapes.append({"name": shape_names(li["name"], "light"), "type": kind, "transform": {"matrix": t.tolist()},
-                           "emitter": {"group": g, "strength": radiance}})
-            continue
-        s = _emission(li["color"], li["energy"], what)
-        if li["type"] == "SUN":
-            lights.append({"name": name, "type": "directional", "group": g, "strength": s,
-                           "direction": li["direction"]})
-            continue
-        point = {"name": name, "type": "point", "group": g, "strength": s / (4 * math.pi), "position": li["position"]}
-        if li["type"] == "SPOT":
-            cutoff = li["spot_size"] / 2
-            if cutoff >= 89.9:
-                _warn(f"{what}: spot size {li['spot_size']:.0f}° is clamped to 179.8°")
-                cutoff = 89.9
-            point.update(type="spot", target=(np.add(li["position"], li["direction"])).tolist(), cutoff_angle=cutoff,
-                       beam_width=max(cutoff * (1 - li["spot_blend"]), 1e-3))
-        lights.append(point)
-    w = data.get("world")
-    if w:
-        for p in w.get("problems", []):
-            _warn(f"{where}: world: {p}; the background is not imported")
-        if w.get("color") is not None and not w.get("problems"):
-            s = _emission(w["color"], w["strength"], f"{where}: world background")
-            if s > 0:
-                groups["world"] = "the world background"
-                lights.append({"name": light_names("world", "world"), "type": "constant", "group": "world",
-                               "strength": s})
+    # The helpers share the name allocators and the group table, so they run in this order (objects,
+    # lights, world): it decides which duplicate gets a "-2" and the order of the light groups.
+    shapes = _object_shapes(data["objects"], cache, where, by_blender, materials, mats, shape_names, groups)
+    lights = _light_docs(data["lights"], where, shapes, groups, shape_names, light_names)
+    _world_light(data.get("world"), where, lights, groups, light_names)
     views_names = _Names()
     views = [v for c in data["cameras"] if (v := view_doc(c, views_names(c["name"], "camera"),
                                                           f"{where}: camera {c['name']!r}"))]
@@ -334,6 +142,86 @@ def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
             f"(Blender {data.get('blender', '?')})", "materials": materials, "shapes": shapes, "lights": lights,
             "light_groups": [{"name": g, "emission": "flat", "description": d} for g, d in groups.items() if g in used],
             "views": views}
+
+
+def _object_shapes(objects: list[dict], cache: Path, where: str, by_blender: dict, materials: dict[str, dict],
+                   mats: _Names, shape_names: _Names, groups: dict[str, str]) -> list[dict]:
+    """The mesh objects' ``ply`` shapes (emitting where their material emits); adds a grey diffuse to
+    ``materials`` for objects without a material. Warnings as from :func:`scene_doc` (``up=1``)."""
+    shapes, grey = [], None
+    for ob in objects:
+        what = f"{where}: object {ob['name']!r}"
+        entry = {"name": shape_names(ob["name"], "shape"), "type": "ply", "filename": str(cache / ob["ply"])}
+        key, info = by_blender.get(ob["material"], (None, None)) if ob["material"] else (None, None)
+        if info is None:
+            if grey is None:
+                grey = mats("default-grey")
+                materials[grey] = {"kind": "diffuse", "reflectance": {"value": 0.5}}
+            _warn(f"{what} has no material; used a grey diffuse (reflectance 0.5)", 1)
+            key = grey
+        elif info["emission_strength"] > 0 and max(info["emission_color"]) > 0:
+            s = _emission(info["emission_color"], info["emission_strength"], f"{what} (material {info['name']!r})", 1)
+            if key is not None and materials[key]["kind"] == "dielectric":
+                _warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped", 1)
+            else:
+                entry["emitter"] = {"group": _group(ob, groups), "strength": s}
+        if key is None and "emitter" not in entry:
+            _warn(f"{what}: material {info['name']!r} is an Emission shader that emits nothing; object skipped", 1)
+            continue
+        if key is not None:
+            entry["material"] = key
+        shapes.append(entry)
+    return shapes
+
+
+def _light_docs(lights_data: list[dict], where: str, shapes: list[dict], groups: dict[str, str],
+                shape_names: _Names, light_names: _Names) -> list[dict]:
+    """The lights; area lights become emitting shapes appended to ``shapes``. Warnings as from
+    :func:`scene_doc` (``up=1``)."""
+    lights = []
+    for li in lights_data:
+        what = f"{where}: light {li['name']!r}"
+        for p in li.get("problems", []):
+            _warn(f"{what}: {p}", 1)
+        if li["energy"] <= 0 or max(li["color"]) <= 0:
+            _warn(f"{what} emits nothing; skipped", 1)
+            continue
+        g = _group(li, groups)
+        name = light_names(li["name"], "light")
+        if li["type"] == "AREA":
+            kind, t, radiance = area_shape(li, what, 1)
+            shapes.append({"name": shape_names(li["name"], "light"), "type": kind, "transform": {"matrix": t.tolist()},
+                           "emitter": {"group": g, "strength": radiance}})
+            continue
+        s = _emission(li["color"], li["energy"], what, 1)
+        if li["type"] == "SUN":
+            lights.append({"name": name, "type": "directional", "group": g, "strength": s,
+                           "direction": li["direction"]})
+            continue
+        point = {"name": name, "type": "point", "group": g, "strength": s / (4 * math.pi), "position": li["position"]}
+        if li["type"] == "SPOT":
+            cutoff = li["spot_size"] / 2
+            if cutoff >= 89.9:
+                _warn(f"{what}: spot size {li['spot_size']:.0f}° is clamped to 179.8°", 1)
+                cutoff = 89.9
+            point.update(type="spot", target=(np.add(li["position"], li["direction"])).tolist(), cutoff_angle=cutoff,
+                       beam_width=max(cutoff * (1 - li["spot_blend"]), 1e-3))
+        lights.append(point)
+    return lights
+
+
+def _world_light(w: dict | None, where: str, lights: list[dict], groups: dict[str, str], light_names: _Names) -> None:
+    """Appends the world background, a ``constant`` light of the group ``world``, to ``lights`` when it
+    can be imported and emits. Warnings as from :func:`scene_doc` (``up=1``)."""
+    if w:
+        for p in w.get("problems", []):
+            _warn(f"{where}: world: {p}; the background is not imported", 1)
+        if w.get("color") is not None and not w.get("problems"):
+            s = _emission(w["color"], w["strength"], f"{where}: world background", 1)
+            if s > 0:
+                groups["world"] = "the world background"
+                lights.append({"name": light_names("world", "world"), "type": "constant", "group": "world",
+                               "strength": s})
 
 
 # -- running the worker -------------------------------------------------------------------------

@@ -155,51 +155,17 @@ def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | 
     what = f"material {name!r}"
     warn = b.warn
     ext = m.extensions or {}
-    for e in sorted(set(ext) - SUPPORTED_EXT):
-        warn(f"{what}: extension {e} is not supported; ignored")
-    for tex, label in ((m.normalTexture, "normal map"), (m.occlusionTexture, "occlusion texture")):
-        if tex is not None:
-            warn(f"{what}: {label} is ignored")
-    if (m.alphaMode or "OPAQUE") != "OPAQUE":
-        warn(f"{what}: alphaMode {m.alphaMode} is ignored; the surface is opaque")
     pbr = m.pbrMetallicRoughness
-    factor = np.asarray((pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1]), float)
-    metallic = float(pbr.metallicFactor if pbr and pbr.metallicFactor is not None else 1.0)
-    rough = float(pbr.roughnessFactor if pbr and pbr.roughnessFactor is not None else 1.0)
-    if pbr and pbr.metallicRoughnessTexture is not None:
-        warn(f"{what}: metallicRoughnessTexture is ignored; metallicFactor {metallic:g} and roughnessFactor "
-             f"{rough:g} are used")
+    factor, metallic, rough = _pbr_factors(m, ext, what, warn)
     alpha = min(max(rough ** 2, 1e-3), 1.0)
-    refl: dict | None = None
-    texture = None
-    if pbr and pbr.baseColorTexture is not None:
-        ti = pbr.baseColorTexture
-        if (ti.texCoord or 0) != 0:
-            warn(f"{what}: baseColorTexture uses TEXCOORD_{ti.texCoord}; TEXCOORD_0 is used")
-        if ti.extensions:
-            warn(f"{what}: baseColorTexture extension(s) {', '.join(ti.extensions)} ignored")
-        tex = r.gltf.textures[ti.index]
-        if tex.source is None:
-            warn(f"{what}: baseColorTexture has no image (extension {', '.join(tex.extensions or {}) or '?'}); "
-                 f"the base colour factor is used")
-        else:
-            try:
-                texture = r.image(tex.source)
-            except Exception as exc:  # noqa: BLE001 — any unreadable image: say so, use the factor
-                warn(f"{what}: baseColorTexture image {tex.source} cannot be read ({exc}); the factor is used")
-        if texture is not None and tex.sampler is not None:
-            s = r.gltf.samplers[tex.sampler]
-            if (s.wrapS or 10497) != 10497 or (s.wrapT or 10497) != 10497:
-                warn(f"{what}: texture wrap modes other than REPEAT are rendered as REPEAT")
+    ti = pbr.baseColorTexture if pbr else None
+    texture = _base_color_texture(r, ti, what, warn) if ti is not None else None
     trans = float((ext.get("KHR_materials_transmission") or {}).get("transmissionFactor", 0.0))
-    emission = None
     em = np.asarray(m.emissiveFactor or [0, 0, 0], float) * float(
         (ext.get("KHR_materials_emissive_strength") or {}).get("emissiveStrength", 1.0))
     if m.emissiveTexture is not None:
         warn(f"{what}: emissiveTexture is ignored; emissiveFactor is used")
-    if em.max() > 0:
-        xy, y = rgb_light(em)
-        emission = ([name], xy, y)
+    emission = ([name], *rgb_light(em)) if em.max() > 0 else None
     if trans >= 0.5:
         ior = float((ext.get("KHR_materials_ior") or {}).get("ior", 1.5))
         warn(f"{what}: transmission {trans:g} → dielectric (IOR {ior:g}); base colour and roughness not used")
@@ -221,20 +187,7 @@ def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | 
         factor = factor * np.append(mean_rgb(np.asarray(texture.convert("RGB"))), 1.0)
         warn(f"{what}: a metal's baseColorTexture is averaged to one colour (conductor colours are spectra)")
         texture = None
-    if texture is not None:
-        if texture.mode in ("RGBA", "LA", "PA") and np.asarray(texture.getchannel("A")).min() < 255:
-            warn(f"{what}: the texture's alpha channel is ignored")
-        path, rel = b.file_path(f"{name}-basecolor", ".png")
-        base = factor[:3] / scale
-        if base.max() > 1:
-            warn(f"{what}: base colour factor / {scale:.3g} exceeds 1; clipped")
-        write_texture(texture, np.minimum(base, 1.0), path)
-        refl = {"file": rel}
-    else:
-        base = factor[:3] / scale
-        if base.max() > 1:
-            warn(f"{what}: base colour / {scale:.3g} (to render as bright as glTF's diffuse lobe) exceeds 1; clipped")
-        refl = reflectance(np.minimum(base, 1.0), what, warn)
+    refl = _base_reflectance(b, texture, factor[:3] / scale, scale, name, what, warn)
     two = bool(m.doubleSided)
     if metal:
         spec = reflectance(factor[:3], what, warn)
@@ -245,6 +198,64 @@ def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | 
     else:
         doc = {"kind": "diffuse", "reflectance": refl, "two_sided": two}
     return b.add_material(name, doc), emission
+
+
+def _pbr_factors(m, ext: dict, what: str, warn) -> tuple[np.ndarray, float, float]:
+    """``(base colour factor (4,), metallic, roughness)`` of material ``m``; warns of what is ignored."""
+    for e in sorted(set(ext) - SUPPORTED_EXT):
+        warn(f"{what}: extension {e} is not supported; ignored")
+    for tex, label in ((m.normalTexture, "normal map"), (m.occlusionTexture, "occlusion texture")):
+        if tex is not None:
+            warn(f"{what}: {label} is ignored")
+    if (m.alphaMode or "OPAQUE") != "OPAQUE":
+        warn(f"{what}: alphaMode {m.alphaMode} is ignored; the surface is opaque")
+    pbr = m.pbrMetallicRoughness
+    factor = np.asarray((pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1]), float)
+    metallic = float(pbr.metallicFactor if pbr and pbr.metallicFactor is not None else 1.0)
+    rough = float(pbr.roughnessFactor if pbr and pbr.roughnessFactor is not None else 1.0)
+    if pbr and pbr.metallicRoughnessTexture is not None:
+        warn(f"{what}: metallicRoughnessTexture is ignored; metallicFactor {metallic:g} and roughnessFactor "
+             f"{rough:g} are used")
+    return factor, metallic, rough
+
+
+def _base_color_texture(r: _Reader, ti, what: str, warn):
+    """The image of the ``baseColorTexture`` info ``ti``, or None (with a warning) if it has none."""
+    if (ti.texCoord or 0) != 0:
+        warn(f"{what}: baseColorTexture uses TEXCOORD_{ti.texCoord}; TEXCOORD_0 is used")
+    if ti.extensions:
+        warn(f"{what}: baseColorTexture extension(s) {', '.join(ti.extensions)} ignored")
+    tex = r.gltf.textures[ti.index]
+    if tex.source is None:
+        warn(f"{what}: baseColorTexture has no image (extension {', '.join(tex.extensions or {}) or '?'}); "
+             f"the base colour factor is used")
+        return None
+    try:
+        texture = r.image(tex.source)
+    except Exception as exc:  # noqa: BLE001 — any unreadable image: say so, use the factor
+        warn(f"{what}: baseColorTexture image {tex.source} cannot be read ({exc}); the factor is used")
+        return None
+    if tex.sampler is not None:
+        s = r.gltf.samplers[tex.sampler]
+        if (s.wrapS or 10497) != 10497 or (s.wrapT or 10497) != 10497:
+            warn(f"{what}: texture wrap modes other than REPEAT are rendered as REPEAT")
+    return texture
+
+
+def _base_reflectance(b: SceneBuilder, texture, base: np.ndarray, scale: float, name: str, what: str, warn) -> dict:
+    """The diffuse reflectance: ``texture`` × ``base`` (the base colour factor / ``scale``) as a PNG
+    beside the scene, or without a texture ``base``'s spectrum; ``base`` is clipped to 1, with a warning."""
+    if texture is not None:
+        if texture.mode in ("RGBA", "LA", "PA") and np.asarray(texture.getchannel("A")).min() < 255:
+            warn(f"{what}: the texture's alpha channel is ignored")
+        path, rel = b.file_path(f"{name}-basecolor", ".png")
+        if base.max() > 1:
+            warn(f"{what}: base colour factor / {scale:.3g} exceeds 1; clipped")
+        write_texture(texture, np.minimum(base, 1.0), path)
+        return {"file": rel}
+    if base.max() > 1:
+        warn(f"{what}: base colour / {scale:.3g} (to render as bright as glTF's diffuse lobe) exceeds 1; clipped")
+    return reflectance(np.minimum(base, 1.0), what, warn)
 
 
 def import_gltf(path: Path, b: SceneBuilder) -> str:

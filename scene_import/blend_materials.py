@@ -1,0 +1,164 @@
+"""Names, colours and materials of the ``.blend`` importer (:mod:`scene_import.blend`).
+
+Scene-name sanitising, the Jakob & Hanika upsampling of linear sRGB colours to reflectance spectra,
+``illumix_reflectance`` look-ups, the worker's material records as illumix materials, and the flat
+group strength of an emission colour. The conventions are the importer's: see its module docstring.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+import warnings
+from functools import lru_cache
+
+import numpy as np
+
+from illumix.scene.schema import SceneError
+
+WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
+GREY = 1e-3  # relative channel spread below which a colour counts as grey
+
+
+# -- names ------------------------------------------------------------------------------------
+
+
+def sanitize(name: str, fallback: str = "unnamed") -> str:
+    """``name`` under the scene name rules ``^[A-Za-z0-9][A-Za-z0-9_.+-]*$`` (no ``..``, ≤ 100 chars):
+    other characters become ``_``, leading punctuation is dropped."""
+    s = re.sub(r"[^A-Za-z0-9_.+\-]+", "_", name)
+    s = re.sub(r"\.{2,}", ".", s)
+    s = re.sub(r"^[^A-Za-z0-9]+", "", s)[:100]
+    return s or fallback
+
+
+class _Names:
+    """Unique sanitised names within one kind (shapes, lights, views, materials)."""
+
+    def __init__(self) -> None:
+        self.used: set[str] = set()
+
+    def __call__(self, name: str, fallback: str = "unnamed") -> str:
+        base = sanitize(name, fallback)
+        out, k = base, 2
+        while out in self.used:
+            out, k = f"{base[:95]}-{k}", k + 1
+        self.used.add(out)
+        return out
+
+
+# -- spectra ----------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=4096)
+def _upsample(rgb: tuple[float, float, float]) -> tuple[tuple[float, ...], float]:
+    import colour
+    from colour.recovery import XYZ_to_sd_Jakob2019
+
+    shape = colour.SpectralShape(380, 780, 5)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
+    sd, err = XYZ_to_sd_Jakob2019(xyz, cmfs, d65, additional_data=True)
+    values = np.clip(sd.copy().align(shape).values, 0.0, 1.0)
+    return tuple(np.round(values, 6).tolist()), float(err)
+
+
+def rgb_to_spectrum(rgb, what: str) -> dict:
+    """An inline table reflectance (380–780 nm / 5 nm, values in [0, 1]) whose sRGB colour under D65
+    is the linear sRGB ``rgb`` (Jakob & Hanika 2019). Components outside [0, 1] are clipped, with a
+    warning, as is a colour the smooth spectra cannot reach (CIE ΔE2000 > 1)."""
+    c = np.asarray(rgb, dtype=float)[:3]
+    if np.any(c < 0) or np.any(c > 1):
+        warnings.warn(f"{what}: base colour {np.round(c, 3).tolist()} is outside [0, 1]; clipped", UserWarning,
+                      stacklevel=3)
+        c = np.clip(c, 0.0, 1.0)
+    values, err = _upsample(tuple(round(float(x), 6) for x in c))
+    if err > 1.0:
+        warnings.warn(f"{what}: no reflectance spectrum reproduces base colour {np.round(c, 3).tolist()} "
+                      f"closely (ΔE2000 {err:.1f}); used the closest smooth spectrum", UserWarning, stacklevel=3)
+    return {"wavelengths": WAVELENGTHS.tolist(), "values": list(values)}
+
+
+def resolve_reflectance(ref: str, what: str) -> dict:
+    """``{"library", "sample"}`` for ``"Library/Sample"`` or a bare sample name (the first of
+    :func:`retarget.reflectances.set_names` that holds it); :class:`SceneError` with close matches."""
+    from illumix.retarget.reflectances import get_reflectances, set_names
+
+    ref = ref.strip()
+    libs = {lib: get_reflectances(lib)[0] for lib in set_names()}
+    for lib, names in libs.items():
+        if ref.startswith(lib + "/") and ref[len(lib) + 1:] in names:
+            return {"library": lib, "sample": ref[len(lib) + 1:]}
+    for exact in (True, False):
+        for lib, names in libs.items():
+            for n in names:
+                if n == ref or (not exact and n.lower() == ref.lower()):
+                    return {"library": lib, "sample": n}
+    known = [f"{lib}/{n}" for lib, names in libs.items() for n in names]
+    close = difflib.get_close_matches(ref, known + [n for names in libs.values() for n in names], n=3, cutoff=0.5)
+    hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+    raise SceneError(f"{what}: illumix_reflectance {ref!r} is not a known reflectance{hint} "
+                     f"(give 'Library/Sample'; libraries: {', '.join(libs)})")
+
+
+# -- materials and emission ---------------------------------------------------------------------
+
+
+def _warn(msg: str, up: int = 0) -> None:
+    # ``up``: helper frames between the warning and scene_doc (or material_doc), so a warning is
+    # attributed to the frame it was before scene_doc was split into helpers.
+    warnings.warn(msg, UserWarning, stacklevel=4 + up)
+
+
+def _is_grey(rgb) -> bool:
+    c = np.asarray(rgb, dtype=float)[:3]
+    return float(c.max() - c.min()) <= GREY * max(float(c.max()), 1e-12)
+
+
+def material_doc(info: dict, what: str) -> dict | None:
+    """The illumix material for a worker material record (None: emission only)."""
+    for p in info["problems"]:
+        _warn(f"{what}: {p}")
+    if info["shader"] == "emission":
+        return None
+    alpha = min(max(float(info["roughness"]) ** 2, 1e-3), 1.0)
+    ior = min(max(float(info.get("ior", 1.5)), 1.0001), 4.0)
+    ref = info.get("illumix_reflectance")
+    if info["metallic"] > 0.5 or info["transmission"] > 0.5:
+        kind = "roughconductor (aluminium)" if info["metallic"] > 0.5 else f"dielectric (IOR {ior:.3g})"
+        _warn(f"{what}: imported as {kind}; its base colour {'and illumix_reflectance are' if ref else 'is'} "
+              "not used")
+        if info["metallic"] > 0.5:
+            return {"kind": "roughconductor", "conductor": "Al", "alpha": alpha}
+        return {"kind": "dielectric", "int_ior": ior}
+    plastic = info["shader"] == "principled" and info["roughness"] < 0.999
+    if ref:
+        refl = resolve_reflectance(ref, what)
+    elif plastic:
+        # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
+        # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
+        # Cycles backend's mapping, scene.plastic_scale.plastic_diffuse_scale).
+        from illumix.scene.plastic_scale import plastic_diffuse_scale
+
+        base = np.asarray(info["base_color"], dtype=float)[:3] / plastic_diffuse_scale(alpha, ior)
+        if np.any(base > 1):
+            _warn(f"{what}: base colour / {plastic_diffuse_scale(alpha, ior):.3g} (to render as bright as "
+                  "Blender's Principled BSDF as a rough plastic) exceeds 1; clipped")
+        refl = rgb_to_spectrum(np.minimum(base, 1.0), what)
+    else:
+        refl = rgb_to_spectrum(info["base_color"], what)
+    if plastic:
+        return {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
+    return {"kind": "diffuse", "reflectance": refl}
+
+
+def _emission(color, strength: float, what: str, up: int = 0) -> float:
+    """Strength per unit of a flat group spectrum: ``strength × max(colour)``; warns if coloured
+    (``up``: as for :func:`_warn`)."""
+    c = np.asarray(color, dtype=float)[:3]
+    s = float(strength) * float(c.max())
+    if s > 0 and not _is_grey(c):
+        _warn(f"{what}: emission colour {np.round(c, 3).tolist()} is replaced by the light group's "
+              "emission spectrum (flat); only its strength × largest channel is kept", up)
+    return s
