@@ -129,3 +129,17 @@ def test_only_the_illumix_namespace_is_installed(tmp_path):
             f"print([r for r in {sorted(set(ALLOWED) - {'illumix'})!r} if u.find_spec(r) is not None])")
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_modules_and_functions_stay_small():
+    """~400 lines a module and ~60 a function (issue 34): a module over 410 lines or a function over
+    70 fails here, naming where to split."""
+    big = []
+    for p in _modules().values():
+        text = p.read_text(encoding="utf-8")
+        if text.count("\n") > 410:
+            big.append(f"{p.relative_to(ROOT)}: {text.count(chr(10))} lines")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 70:
+                big.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}: {node.end_lineno - node.lineno + 1} lines")
+    assert not big, "split these:\n" + "\n".join(big)
