@@ -1,7 +1,7 @@
 """Which Cycles setting or translation choice moves the probe scene's raw, and by how much?
 
 Issue 16 reported two hand-made versions of ``shared/bench-scenes/probe.yaml`` (Mitsuba and Cycles)
-differing by G −3.9 %, B −6.2 %. With one scene translation (:mod:`renderer_jobs.cycles_job`) the
+differing by G −3.9 %, B −6.2 %. With one scene translation (:mod:`renderer_jobs.cycles.job`) the
 backends agree within 1.3 % (``bench/render.py --parts backends``); this script measures the
 plausible hand-made differences one at a time, each as the change of the lit floor's and the whole
 image's mean raw (A → D65, B → illuminant A, Nikon D810) against the backend's own settings. A
@@ -46,11 +46,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--sensor", default=str(ROOT.parent / "shared" / "data" / "rawtoaces-data" / "data" / "camera"
                                             / "Nikon_D810_380_780_5.json"))
     args = ap.parse_args(argv)
-    from illumix.renderer_jobs import cycles_job as cj
-    from illumix.renderer_jobs import cycles_render as cr
+    from illumix.renderer_jobs.cycles import job as cj
+    from illumix.renderer_jobs.cycles import render as cr
     from illumix.renderer_jobs.jobs import apply_resolution
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.scene.load import load_scenes
     from illumix.retarget.illuminants import illuminant_spd
     from illumix.retarget.sensors import get_sensor

@@ -111,7 +111,7 @@ What is reported (JSON keys)
 11. Plots: ``bench/out/denoise_maps.png`` (reference / undenoised / denoised raw, and their error
     maps beside the reference's floor map) and ``bench/out/denoise_curve.png`` (error against spp).
 12. ``targeted_paths``: the test renders are boosted as the renderer's default is (``--boost-factor``,
-    ``--boost-reach``; :mod:`renderer_jobs.boost_paths`: pixels whose reach, from the AOVs and the
+    ``--boost-reach``; :mod:`renderer_jobs.mitsuba.boost_paths`: pixels whose reach, from the AOVs and the
     group's direct-light guide alone, exceeds the threshold get factor × ``--spp``). Part 1 measures
     the boosted renders (desk, for the ablation only, stays plain); the error curve's ``--spp`` point and
     the references are plain. Here: the default method on the plain renders, on the boosted ones and
@@ -172,7 +172,7 @@ def render_all(args, scene, cache: Path | None) -> dict:
     """Every render the benchmark uses (through the cache): AOVs, the test cubes of all the view's
     groups at ``--spp`` (desk only feeds the ablation's shading), the error curve, the thesis
     protocol's mixed render and the K reference seeds."""
-    from illumix.renderer_jobs.boost_paths import boost_mask
+    from illumix.renderer_jobs.mitsuba.boost_paths import boost_mask
     from illumix.retarget.denoise import DEFAULT_METHOD, Guides
 
     groups = [g for g, _ in PAIR]
@@ -650,7 +650,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parse(argv)
     t0, c0 = time.perf_counter(), time.process_time()
     from illumix.scene.demo import demo_room
-    from illumix.renderer_jobs.mitsuba_variant import select_variant
+    from illumix.renderer_jobs.mitsuba.variant import select_variant
     from illumix.retarget.denoise import DEFAULT_METHOD, DENOISE_METHODS, Guides
 
     doc: dict = {"benchmark": "denoise", "variant": select_variant(), **machine(), "test_seed": args.seed,

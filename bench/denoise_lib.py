@@ -46,9 +46,9 @@ def cached_render(scene, view: str, groups: str | Sequence[str], spp: int, seed:
 
     Returns ``{"cube", "illumination", "emission", "cpu_s", "wall_s", "cached"}``; ``cpu_s`` is the
     process CPU time of the render when it was made (also for a cached one). ``boost``:
-    ``(mask (H, W), factor, reach)`` targeted extra paths (:mod:`renderer_jobs.boost_paths`); None:
+    ``(mask (H, W), factor, reach)`` targeted extra paths (:mod:`renderer_jobs.mitsuba.boost_paths`); None:
     plain (no pixel gets more than ``spp``). With a boost the record has ``"targeted_paths"`` too."""
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings, render_cube
 
     gl = [groups] if isinstance(groups, str) else list(groups)
     path = cache / _cache_name(view, res, spp, seed, gl, boost) if cache is not None else None
@@ -109,9 +109,9 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
     """The view's geometry AOVs (``render_aovs``, ``aov_spp`` jittered primary rays per pixel), cached.
     ``straddle``: with the ``straddle`` AOV, traced again alone when the cache's was made by another
     rule (the guides' AOVs; the clean ones for pixel classes need none)."""
-    from illumix.renderer_jobs import denoise_guides as dg
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba import denoise_guides as dg
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
 
     path = cache / f"{view}_{res[0]}x{res[1]}_aovs_seed{seed}_aovspp{aov_spp}.npz" if cache is not None else None
     rule = np.float64([dg.STRADDLE_RAYS, dg.STRADDLE_COS, dg.STRADDLE_LOG_DEPTH, dg.FLAT_LOG_DEPTH, dg.FLAT_DEGREES])
@@ -119,7 +119,7 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
         with np.load(path) as z:
             cached = {k: z[k] for k in z.files} if "albedo_bands" in z.files else None  # older: render again
         if cached is not None and straddle and not np.array_equal(cached.get("straddle_rule"), rule):
-            from illumix.renderer_jobs.mitsuba_trace import Tracer
+            from illumix.renderer_jobs.mitsuba.trace import Tracer
 
             cached["straddle"], cached["straddle_rule"] = dg.straddle(Tracer(scene, view, None, res)), rule
             _save(path, cached)
@@ -140,9 +140,9 @@ def cached_aovs(scene, view: str, res: tuple[int, int], seed: int, aov_spp: int,
 def cached_direct(scene, view: str, group: str, res: tuple[int, int], seed: int, cache: Path | None,
                   log: Callable[[str], None]) -> dict:
     """A group's direct-light guide, the light glass keeps from each pixel, the guide's own noise
-    and the light as the camera sees it (``renderer_jobs.denoise_guides.direct_guide(behind_glass=True)``),
+    and the light as the camera sees it (``renderer_jobs.mitsuba.denoise_guides.direct_guide(behind_glass=True)``),
     cached: ``{"direct", "behind", "noise", "seen"}`` ``(H, W)`` and ``"cpu_s"``."""
-    from illumix.renderer_jobs.denoise_guides import DIRECT_SAMPLES, direct_guide
+    from illumix.renderer_jobs.mitsuba.denoise_guides import DIRECT_SAMPLES, direct_guide
 
     name = f"{view}_{res[0]}x{res[1]}_direct_{group}_seed{seed}_n{DIRECT_SAMPLES}x2_glass_seen.npz"
     path = cache / name if cache is not None else None

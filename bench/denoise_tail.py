@@ -58,7 +58,7 @@ def _any_neighbour(a: np.ndarray, pred) -> np.ndarray:
 
 def shape_ids(scene, view: str, res) -> tuple[np.ndarray, list[str]]:
     """``(H, W)`` int: index into the returned shape names of each pixel centre's first hit (−1: none)."""
-    from illumix.renderer_jobs.mitsuba_trace import Tracer, camera_rays
+    from illumix.renderer_jobs.mitsuba.trace import Tracer, camera_rays
 
     t = Tracer(scene, view, None, res)
     mi, dr = t.mi, t.dr

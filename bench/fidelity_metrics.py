@@ -131,7 +131,7 @@ def pixel_classes(store_path: str, scene, view: str, ref_illum: np.ndarray) -> d
 def _material_kinds(scene, view: str, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     """``(glass, glossy)`` ``(H, W)`` bool from the first hit's BSDF at each pixel centre:
     transmission (glass), or a glossy or specular reflection lobe (plastic, metal)."""
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
 
     h, w = shape
     tr = Tracer(scene, view, None, (w, h))

@@ -91,7 +91,7 @@ def render(docs: list[dict], store: str, spp: int, seed: int = 0) -> float:
     """Render the scenes into ``store`` (default settings); returns the wall time."""
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.scene.load import scene_from_dict
 
     t = time.perf_counter()
@@ -121,7 +121,7 @@ def noise_deg(store: str, a: str, b: str, sensor: str, params: dict) -> dict:
 def cost_ratio(doc: dict, spp: int, repeats: int = 2) -> dict:
     """CPU time of a cube with its illumination cube over the transport cube alone, per group
     (interleaved repeats after a warm-up, so JIT compilation and load changes hit both alike)."""
-    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba import render as mr
     from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])

@@ -28,13 +28,13 @@ Eight parts (``--parts``, all by default), on the seeded demo room (``scene.demo
   noise of each pixel's band mean against the target (calibration), and the uniform spp and CPU time
   that reach the same raw G RMS / worst-block p99 (power law fitted to the uniform curve).
 
-``skip`` — light probes (``renderer_jobs.light_probe``): for every demo-room group and view, probe
+``skip`` — light probes (``renderer_jobs.mitsuba.light_probe``): for every demo-room group and view, probe
   verdict and time against the cube's render time (the probe's overhead on lit groups); and for a
   dark group — a lamp inside a closed cupboard added to the room — probe time against the full
   render's, and that the full render is exactly zero (so recording it as empty changes nothing).
 
 ``background`` — skipping pixels that cannot see geometry (for a group without a sky they are
-  exactly zero; ``renderer_jobs.view_coverage``): render CPU time with and without the skip (uniform
+  exactly zero; ``renderer_jobs.mitsuba.view_coverage``): render CPU time with and without the skip (uniform
   spp, so every other pixel gets the same paths either way) in an
   open scene (~2/3 background) and in the demo room (closed: nothing to skip), and that the full
   render is exactly zero in every skipped pixel.
@@ -77,7 +77,7 @@ THESIS_BAND_NOISE = 0.0067
 
 
 def part_curve(args, scene, mr, w_raw, rows: list, targets: list, log) -> None:
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
 
     aovs = render_aovs(scene, args.view, mr.RenderSettings())
     mask = flat_mask(aovs)
@@ -225,8 +225,8 @@ def compare_adaptive(rows: list) -> list:
 
 
 def part_skip(args, scene_doc: dict, mr, log) -> list:
-    from illumix.renderer_jobs.light_probe import probe_group
-    from illumix.renderer_jobs.mitsuba_scene import scene_bounds
+    from illumix.renderer_jobs.mitsuba.light_probe import probe_group
+    from illumix.renderer_jobs.mitsuba.scene_dict import scene_bounds
     from illumix.scene.load import scene_from_dict
 
     base = scene_from_dict(scene_doc)
@@ -257,7 +257,7 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
     and exactly what a 63-band schedule renders), per-band relative noise of the lit bands (RMS over
     pixels, two seeds) and CPU time at the same spp."""
     from illumix.renderer_jobs.band_schedule import live_bands
-    from illumix.renderer_jobs.mitsuba_scene import group_emission
+    from illumix.renderer_jobs.mitsuba.scene_dict import group_emission
     from illumix.scene.load import scene_from_dict
 
     doc = json.loads(json.dumps(scene_doc, default=list))
@@ -287,11 +287,11 @@ def part_narrowband(args, scene_doc: dict, mr, log) -> dict:
 
 
 def part_background(args, size, mr, log) -> list:
-    """Background-pixel skip (``renderer_jobs.view_coverage``): render time with and without it, the
+    """Background-pixel skip (``renderer_jobs.mitsuba.view_coverage``): render time with and without it, the
     pixels skipped, and that the full render is exactly zero in every skipped pixel."""
     from illumix.scene import demo
     from illumix.scene.load import scene_from_dict
-    from illumix.renderer_jobs.view_coverage import covered_pixels
+    from illumix.renderer_jobs.mitsuba.view_coverage import covered_pixels
 
     out = []
     for name, scene, view, group in (("open floor + wall", scene_from_dict(open_scene_doc(size)), "cam", "lamp"),
@@ -363,8 +363,8 @@ def main(argv: list[str] | None = None) -> dict:
     args.targets = [float(t) for t in args.targets.split(",") if t] if "target" in parts else []
 
     from illumix.scene import demo
-    from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.mitsuba_variant import select_variant
+    from illumix.renderer_jobs.mitsuba import render as mr
+    from illumix.renderer_jobs.mitsuba.variant import select_variant
     from illumix.retarget import illuminants, sensors
 
     def log(msg: str) -> None:

@@ -46,7 +46,8 @@ def _cpu_children() -> float:
 
 def render_all(scene, view: str, settings) -> tuple[dict, dict, float]:
     """``({group: cube}, {group: illumination cube}, CPU seconds)`` of every group with ``settings``."""
-    from illumix.renderer_jobs import cycles_render, mitsuba_render
+    from illumix.renderer_jobs.cycles import render as cycles_render
+    from illumix.renderer_jobs.mitsuba import render as mitsuba_render
 
     c0 = _cpu_self() + _cpu_children()
     if settings.backend == "cycles":
@@ -96,8 +97,8 @@ def noise(a: np.ndarray, b: np.ndarray, sel: np.ndarray) -> list[float]:
 
 
 def compare_scene(name: str, scene, view: str, relight: dict, weights: np.ndarray, ref_spp: int, log) -> dict:
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.retarget.illuminants import illuminant_spd
 
     fl11 = {g: illuminant_spd("FL11", scene.spectral_grid) for g in relight}  # a spiky illuminant

@@ -106,8 +106,8 @@ def machine() -> dict:
 def warm_up(scene, view: str, group: str, mode: str = "stratified") -> None:
     """Compile the Mitsuba kernels of (view, group) at the film size that is timed (kernels are
     specific to the film size): a probe and a small render, so timings are of rendering only."""
-    from illumix.renderer_jobs import mitsuba_render as mr
-    from illumix.renderer_jobs.light_probe import probe_group
+    from illumix.renderer_jobs.mitsuba import render as mr
+    from illumix.renderer_jobs.mitsuba.light_probe import probe_group
 
     probe_group(scene, view, group, mr.RenderSettings(spp=32, seed=99))
     mr.render_cube(scene, view, group, mr.RenderSettings(spp=32, seed=99, wavelengths=mode,

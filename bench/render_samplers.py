@@ -42,7 +42,7 @@ METRICS = ("raw_g_lit", "raw_g_image", "fl11_raw_g_lit", "band_550")
 
 
 def _render(scene, view, groups, settings):
-    from illumix.renderer_jobs import mitsuba_render
+    from illumix.renderer_jobs.mitsuba import render as mitsuba_render
 
     c0 = _cpu_self()
     cubes = {g: mitsuba_render.render_cube(scene, view, g, settings).cube.astype(np.float64) for g in groups}
@@ -50,9 +50,9 @@ def _render(scene, view, groups, settings):
 
 
 def measure(scene, view: str, groups: list[str], relight: dict, weights, spp: int, log, name: str) -> dict:
-    from illumix.renderer_jobs import mitsuba_scene
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba import scene_dict as mitsuba_scene
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.retarget.illuminants import illuminant_spd
 
     fl11 = {g: illuminant_spd("FL11", scene.spectral_grid) for g in groups}

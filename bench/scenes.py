@@ -107,7 +107,7 @@ def _plots(fracs: np.ndarray, scenes) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from illumix.renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
+    from illumix.renderer_jobs.mitsuba.preview import contact_sheet, preview_linear, to_srgb8
 
     OUT.mkdir(exist_ok=True)
     fig, ax = plt.subplots(figsize=(5, 3))
@@ -130,7 +130,7 @@ def _plots(fracs: np.ndarray, scenes) -> None:
 def _render(scenes, store: str, workers: int, views=None, groups=None) -> tuple[list[dict], float]:
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
 
     p = jobs.plan(scenes, store, views=views, groups=groups)
     t0 = time.perf_counter()

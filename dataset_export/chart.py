@@ -2,7 +2,7 @@
 
 The store keeps no scene geometry, but every rendered view keeps its albedo AOV: the diffuse
 reflectance of the first hit averaged over 600–700, 500–600 and 400–500 nm (R, G, B;
-``renderer_jobs.mitsuba_aovs.ALBEDO_BANDS``), or per band (``albedo_bands``). A ColorChecker Classic
+``renderer_jobs.mitsuba.aovs.ALBEDO_BANDS``), or per band (``albedo_bands``). A ColorChecker Classic
 (``ColorChecker N Ohta`` spectra, as the demo room's) is recognised there by its 24 known albedos,
 whatever the light, the camera or the exposure:
 
@@ -26,7 +26,7 @@ import numpy as np
 
 CHART_SET = "ColorChecker N Ohta"
 COLS, ROWS = 6, 4
-ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))  # = renderer_jobs.mitsuba_aovs.ALBEDO_BANDS
+ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))  # = renderer_jobs.mitsuba.aovs.ALBEDO_BANDS
 OUTLINE = np.float32([[0, 0], [COLS, 0], [COLS, ROWS], [0, ROWS]])  # TL, TR, BR, BL in patch pitches
 
 

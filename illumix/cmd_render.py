@@ -35,7 +35,7 @@ def require_renderer(backend: str = "mitsuba") -> None:
     ``scripts/install.sh`` and ``docker/Dockerfile.render`` install it.
     """
     from illumix.renderer_jobs.backends import get_backend
-    from illumix.renderer_jobs.mitsuba_variant import RenderError
+    from illumix.renderer_jobs.backends import RenderError
     from illumix.scene.schema import SceneError
 
     try:

@@ -163,7 +163,7 @@ def preview(
     import cv2
     import numpy as np
 
-    from illumix.renderer_jobs.preview import contact_sheet, preview_linear, to_srgb8
+    from illumix.renderer_jobs.mitsuba.preview import contact_sheet, preview_linear, to_srgb8
 
     per_row = max(len(s.views) for s in scenes)
     columns = per_row if per_row <= 8 else 4

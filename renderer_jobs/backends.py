@@ -4,8 +4,8 @@ A backend turns a scene's view into transport cubes (and AOVs) and writes them i
 through :mod:`renderer_jobs.jobs`' store adapters. The planner (:func:`renderer_jobs.jobs.plan`) and
 the dispatcher (:func:`renderer_jobs.execute.execute`) know only this protocol; the registry
 (:data:`renderer_jobs.modes.BACKENDS`, case-insensitive, with aliases) names each backend's module,
-imported on first use: only :mod:`renderer_jobs.mitsuba_backend` and the ``mitsuba_*`` modules it
-reaches import ``mitsuba``; only the Blender worker (:mod:`renderer_jobs.cycles_worker`, run by
+imported on first use: only :mod:`renderer_jobs.mitsuba.backend` and the ``mitsuba_*`` modules it
+reaches import ``mitsuba``; only the Blender worker (:mod:`renderer_jobs.cycles.worker`, run by
 Blender's own Python) imports ``bpy``.
 
 Adding a renderer: a module with a class implementing :class:`Backend` and ``BACKEND = TheClass()``,
@@ -25,9 +25,13 @@ from illumix.renderer_jobs.modes import BACKENDS
 
 if TYPE_CHECKING:
     from illumix.renderer_jobs.jobs import Job, Plan, ProgressFn
-    from illumix.renderer_jobs.mitsuba_render import CubeResult
+    from illumix.renderer_jobs.mitsuba.render import CubeResult
     from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.scene.model import Scene
+
+
+class RenderError(RuntimeError):
+    """The renderer could not run (a package or program missing, a renderer failure)."""
 
 
 class Backend(Protocol):
@@ -79,4 +83,4 @@ def get_backend(name: str) -> Backend:
     return importlib.import_module(entry.module).BACKEND
 
 
-__all__ = ["Backend", "JobBackend", "get_backend"]
+__all__ = ["Backend", "JobBackend", "RenderError", "get_backend"]

@@ -1,5 +1,5 @@
 """The stratified wavelength schedule of a cube's paths: which bands each path samples, and exactly
-how many samples every (pixel, band) receives (see :mod:`renderer_jobs.mitsuba_render`, "Wavelength
+how many samples every (pixel, band) receives (see :mod:`renderer_jobs.mitsuba.render`, "Wavelength
 sampling"). Pure numpy, deterministic from the seed."""
 
 from __future__ import annotations

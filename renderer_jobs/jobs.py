@@ -10,7 +10,7 @@ until the whole plan is known to be valid), then executed by an executor:
 
 Jobs write straight into the store: first, per view, the view metadata and geometry AOVs; then one
 cube per (view, group). With ``settings.skip_dark`` (the default) a cube job first probes whether
-the group sends any light into the view (:mod:`renderer_jobs.light_probe`, ~1/16 of the cube's paths
+the group sends any light into the view (:mod:`renderer_jobs.mitsuba.light_probe`, ~1/16 of the cube's paths
 at most); a dark group is recorded as empty (reads give zeros) without being rendered. A rendered
 cube that comes out all zero is recorded as empty too. The store's writes are complete-or-invisible,
 so an interrupted run leaves only whole cubes, and the next run renders what is missing (resume).
@@ -245,7 +245,7 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
     """Write a rendered cube (with its illumination cube and denoised copies) into the store, or
     record it as empty when it is all zero. Returns True for empty. ``prepared``: the
     :func:`denoise_guides` of this job, when already traced."""
-    from illumix.renderer_jobs.mitsuba_render import ILLUMINATION_METHOD
+    from illumix.renderer_jobs.mitsuba.render import ILLUMINATION_METHOD
     from illumix.store.schema import IlluminationInfo
 
     meta = cube_meta(scene, job, settings, result.emission.tolist(), result.emission_name, result.renderer,
@@ -264,11 +264,11 @@ def store_result(st, scene: Scene, job: Job, result, settings, overwrite: bool, 
 
 def denoise_guides(st, scene, job, settings) -> tuple:
     """``(Guides, guide_passes)`` of ``settings.denoise`` for a cube job: the view's stored AOVs, plus
-    what only the renderer can make (:mod:`renderer_jobs.denoise_guides`): the group's direct-light
+    what only the renderer can make (:mod:`renderer_jobs.mitsuba.denoise_guides`): the group's direct-light
     guide, and the per-band albedo and the straddle AOV of a view stored without them (e.g. by
     Cycles, or before they existed), traced once and added to the view. ``guide_passes`` records what was traced."""
-    from illumix.renderer_jobs import denoise_guides as dg
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba import denoise_guides as dg
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
     from illumix.retarget.denoise import Guides
 
     wanted = dg.guides_needed(settings)

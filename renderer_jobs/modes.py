@@ -2,7 +2,7 @@
 
 :class:`retarget.registry.MethodRegistry` families (case-insensitive, one error naming the valid
 choices), each name mapped to a one-line description. Pure Python, unlike the modules that implement
-them (:mod:`renderer_jobs.mitsuba_render` loads Mitsuba's bindings and numpy, :mod:`renderer_jobs.jobs`
+them (:mod:`renderer_jobs.mitsuba.render` loads Mitsuba's bindings and numpy, :mod:`renderer_jobs.jobs`
 the scene model): the command line lists these choices in ``--help`` without importing either.
 """
 
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from illumix.retarget.registry import MethodRegistry
 
-# See renderer_jobs.mitsuba_render, "Wavelength sampling".
+# See renderer_jobs.mitsuba.render, "Wavelength sampling".
 WAVELENGTH_MODES: MethodRegistry[str] = MethodRegistry("wavelength sampling", {
-    "all-bands": "every path carries every band (default; renderer_jobs.mitsuba_bands), Mitsuba's render loop",
+    "all-bands": "every path carries every band (default; renderer_jobs.mitsuba.bands), Mitsuba's render loop",
     "stratified": "4 wavelengths per path, illumix's numpy-driven paths; every band gets its exact share of each pixel's wavelength samples",
     "random": "as stratified but with Mitsuba's own wavelength sampling, four wavelengths drawn uniformly over the grid span",
 })
@@ -40,12 +40,12 @@ class BackendEntry(str):
 # ``BACKEND`` and one entry here.
 BACKENDS: MethodRegistry[str] = MethodRegistry("render backend", {
     "mitsuba": BackendEntry("Mitsuba 3 (default): every band on every path, quasi-random pixel samples",
-                            "illumix.renderer_jobs.mitsuba_backend"),
+                            "illumix.renderer_jobs.mitsuba.backend"),
     "cycles": BackendEntry("Blender Cycles, the thesis method: 3 fixed wavelengths per pass, 21 passes, the same seed",
-                           "illumix.renderer_jobs.cycles_backend"),
+                           "illumix.renderer_jobs.cycles.backend"),
 }, aliases={"blender": "cycles"})
 
-# Mitsuba's pixel samplers, for the "all-bands" mode (renderer_jobs.mitsuba_band_render).
+# Mitsuba's pixel samplers, for the "all-bands" mode (renderer_jobs.mitsuba.band_render).
 SAMPLERS: MethodRegistry[str] = MethodRegistry("pixel sampler", {
     "multijitter": "correlated multi-jittered sampling (Kensler 2013); any spp",
     "ldsampler": "low-discrepancy (0,2)-sequences; spp a power of 2",

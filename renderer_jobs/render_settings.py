@@ -4,8 +4,8 @@ The single description of every render option: a field's ``description`` is ``il
 ``--help`` text for it and its range the option's (:mod:`illumix.render_options` builds the
 command-line options from the fields marked ``cli``); a dataset config's ``render:`` section is
 these fields (plus where the jobs run); the job runner carries ``model_dump()`` between processes.
-Pure settings, no Mitsuba: the renderers (:mod:`renderer_jobs.mitsuba_render`,
-:mod:`renderer_jobs.cycles_render`) read them.
+Pure settings, no Mitsuba: the renderers (:mod:`renderer_jobs.mitsuba.render`,
+:mod:`renderer_jobs.cycles.render`) read them.
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ class RenderSettings(BaseModel):
     @model_validator(mode="after")
     def _consistent(self) -> RenderSettings:
         if self.wavelengths == "all-bands" and self.backend == "mitsuba":
-            from illumix.renderer_jobs.mitsuba_band_render import check_spp  # noqa: PLC0415
+            from illumix.renderer_jobs.mitsuba.band_render import check_spp  # noqa: PLC0415
 
             if self.bands_per_path % 4:
                 raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "

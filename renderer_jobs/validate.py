@@ -135,7 +135,7 @@ def run_validation(sensor: str = DEFAULT_SENSOR, illuminants=DEFAULT_ILLUMINANTS
                    backend: str = "mitsuba") -> ValidationResult:
     """Render the validation chart once (with ``backend``: ``"mitsuba"`` or ``"cycles"``) and compare
     it with closed form under every illuminant."""
-    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba import render as mr
     from illumix.retarget.illuminants import illuminant_spd
     from illumix.retarget.sensors import get_sensor
 

@@ -114,10 +114,10 @@ class Guides:
                     noise: np.ndarray | None = None, seen: np.ndarray | None = None) -> Guides:
         """These guides with a light group's direct-light image ``(H, W)`` (finite, ≥ 0) and, when
         given, the light that glass keeps from each pixel ``(H, W)`` (finite, ≥ 0, same unit as
-        ``direct``: ``renderer_jobs.denoise_guides.direct_light(behind_glass=True)``), stored as
+        ``direct``: ``renderer_jobs.mitsuba.denoise_guides.direct_light(behind_glass=True)``), stored as
         the share ``behind / (behind + direct)``, and the direct image's standard error ``noise``
         ``(H, W)`` (finite, ≥ 0, same unit) and the light as the camera sees it ``seen`` ``(H, W)``
-        (same unit: ``renderer_jobs.denoise_guides.direct_guide``)."""
+        (same unit: ``renderer_jobs.mitsuba.denoise_guides.direct_guide``)."""
         d = _checked_image(direct, self.shape, "direct-light guide")
         n = None if noise is None else _checked_image(noise, self.shape, "direct-light guide's noise")
         v = None if seen is None else _checked_image(seen, self.shape, "direct-light guide as seen")
@@ -129,7 +129,7 @@ class Guides:
 
     def with_cube_noise(self, noise: np.ndarray | None) -> Guides:
         """These guides with the noise of the cube they will denoise: ``noise`` ``(H, W, 2)``, its
-        band sum and that sum's variance (``renderer_jobs.mitsuba_band_render.set_noise``), or None."""
+        band sum and that sum's variance (``renderer_jobs.mitsuba.band_render.set_noise``), or None."""
         if noise is None:
             return replace(self, cube_noise=None)
         a = np.asarray(noise, np.float32)
@@ -153,7 +153,7 @@ def _checked_image(image: np.ndarray, shape: tuple[int, int], what: str) -> np.n
         raise SpectralError(f"denoise: the {what} has shape {a.shape}; the view's is {shape}")
     if not np.isfinite(a).all() or (a < 0).any():
         raise SpectralError(f"denoise: the {what} has NaN, inf or negative values; it must be finite and >= 0 "
-                            "(re-trace it: renderer_jobs.denoise_guides.direct_light)")
+                            "(re-trace it: renderer_jobs.mitsuba.denoise_guides.direct_light)")
     return a
 
 
@@ -242,7 +242,7 @@ def _check_guides(name: str, impl: DenoiseMethod, guides: Guides, arr: np.ndarra
                             f"{guides.shape} (H, W); re-render the view's AOVs (`illumix render … --overwrite`)")
     if impl.per_group and guides.direct is None:
         raise SpectralError(f"denoise method {name!r} needs the light group's direct-light guide "
-                            "(Guides.with_direct; the renderer traces it: renderer_jobs.denoise_guides), "
+                            "(Guides.with_direct; the renderer traces it: renderer_jobs.mitsuba.denoise_guides), "
                             "or use method 'dt-guides'")
     if impl.demodulates and kind == "transport":
         bands = guides.albedo_bands

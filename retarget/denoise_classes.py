@@ -3,7 +3,7 @@
 A guide-only linear filter is biased wherever the light changes in a way no guide shows; the
 pixels where that is known to happen get codes none of their neighbours has, so the filter leaves
 them as rendered (their reach is then ~1, and the targeted extra paths of
-:mod:`renderer_jobs.boost_paths` give them more paths). Every rule reads the guides alone, never
+:mod:`renderer_jobs.mitsuba.boost_paths` give them more paths). Every rule reads the guides alone, never
 the cube, so the filter stays linear and the extra paths' placement unbiased. The rules and what
 each bought are measured in ``bench/DENOISE.md``.
 """
@@ -90,7 +90,7 @@ def irradiance_classes(guides: Guides, albedo_floor: float, kind: str = "transpo
     centre); averaged among themselves they inflated a visible fixture 20× (bench/FIDELITY.md).
     :func:`direct_test` adds the pixels where the filter would move the group's direct light.
 
-    The targeted extra paths (:mod:`renderer_jobs.boost_paths`) then find their reach ~1 and give
+    The targeted extra paths (:mod:`renderer_jobs.mitsuba.boost_paths`) then find their reach ~1 and give
     them more paths."""
     if kind not in ("transport", "illumination"):
         raise SpectralError(f"denoise: kind must be 'transport' or 'illumination', got {kind!r}")

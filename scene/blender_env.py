@@ -2,7 +2,7 @@
 
 ``bpy`` 4.5 (Blender as a Python module, PyPI) pins ``numpy < 2``, while illumix needs numpy 2
 (zarr 3.1, colour-science 0.4.7), so pip cannot install both into one environment. The Cycles
-worker (:mod:`renderer_jobs.cycles_worker`) therefore runs in its own interpreter, found as:
+worker (:mod:`renderer_jobs.cycles.worker`) therefore runs in its own interpreter, found as:
 
 1. ``$ILLUMIX_BLENDER_PYTHON``, a Python that can ``import bpy`` (when set, nothing else is tried);
 2. this interpreter, if it can import ``bpy`` itself;

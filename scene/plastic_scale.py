@@ -1,12 +1,12 @@
 """The base-colour scale ``c`` that maps Mitsuba's ``roughplastic`` to Blender's Principled BSDF
-(the Cycles backend, :mod:`renderer_jobs.cycles_job`) and back (the importers of Blender, glTF and
+(the Cycles backend, :mod:`renderer_jobs.cycles.job`) and back (the importers of Blender, glTF and
 OBJ materials): Mitsuba darkens its diffuse term by the rough coating's transmittances,
 ``ρ t(θ_i) t(θ_o) / (η² (1 − F_int))``, which the Principled BSDF does not.
 
 :func:`plastic_diffuse_scale` reads a table (:mod:`scene.plastic_scale_table`) fitted once
-with Mitsuba (:func:`renderer_jobs.mitsuba_plastic_fit.fit_scale`), so an imported scene is the same
+with Mitsuba (:func:`renderer_jobs.mitsuba.plastic_fit.fit_scale`), so an imported scene is the same
 whether or not Mitsuba is installed (it once fell back to the smooth-interface value without it: 1.06 instead of 0.73 at
-α = 0.25, η = 1.5, an import 45 % darker). ``python -m illumix.renderer_jobs.mitsuba_plastic_fit`` writes
+α = 0.25, η = 1.5, an import 45 % darker). ``python -m illumix.renderer_jobs.mitsuba.plastic_fit`` writes
 the table again (Mitsuba needed).
 """
 
@@ -35,7 +35,7 @@ def diffuse_fresnel(eta: float, n: int = 200_000) -> float:
 @functools.lru_cache(maxsize=256)
 def plastic_diffuse_scale(alpha: float, eta: float) -> float:
     """``c`` at GGX roughness ``alpha`` and relative IOR ``eta``: bilinear in ``(log α, η)`` on the
-    table of :func:`renderer_jobs.mitsuba_plastic_fit.fit_scale` (within 0.3 % of it on average,
+    table of :func:`renderer_jobs.mitsuba.plastic_fit.fit_scale` (within 0.3 % of it on average,
     1.5 % at the worst, α < 0.003, where Mitsuba's own transmittance tables are bumpy in η);
     outside the table's range (α 0.001–1, η 1.05–3) the nearest edge. 0.73 at α = 0.25, η = 1.5; 0.93 at α = 0.08."""
     from illumix.scene.plastic_scale_table import ALPHAS, ETAS, SCALE

@@ -1,5 +1,5 @@
-"""Table of :func:`renderer_jobs.mitsuba_plastic_fit.fit_scale` (Mitsuba's roughplastic): written by
-``python -m illumix.renderer_jobs.mitsuba_plastic_fit``, checked against Mitsuba by ``tests/test_plastic_scale.py``.
+"""Table of :func:`renderer_jobs.mitsuba.plastic_fit.fit_scale` (Mitsuba's roughplastic): written by
+``python -m illumix.renderer_jobs.mitsuba.plastic_fit``, checked against Mitsuba by ``tests/test_plastic_scale.py``.
 Rows: ``ALPHAS`` (GGX α, log-spaced); columns: ``ETAS`` (interior / exterior IOR)."""
 
 ALPHAS = (

@@ -3,7 +3,7 @@ lights, light groups and views — as strict pydantic v2 models.
 
 The whole scene (:class:`scene.model.Scene`) is assembled from these and loaded from
 YAML/JSON by :mod:`scene.load`. This is the renderer-independent description: the
-Mitsuba backend (:mod:`renderer_jobs.mitsuba_scene`) turns it into a Mitsuba scene; nothing here
+Mitsuba backend (:mod:`renderer_jobs.mitsuba.scene_dict`) turns it into a Mitsuba scene; nothing here
 imports Mitsuba.
 
 Conventions

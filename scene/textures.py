@@ -13,7 +13,7 @@ Two kinds, both usable wherever a material takes a ``reflectance`` (``diffuse``,
   Jakob & Hanika (2019) sigmoid model, as Mitsuba's spectral variants do for any RGB texture. Smooth
   spectra, exact within each band up to the band average the renderer takes.
 
-Textures render with the Mitsuba backend (:mod:`renderer_jobs.mitsuba_textures`); the Cycles backend
+Textures render with the Mitsuba backend (:mod:`renderer_jobs.mitsuba.textures`); the Cycles backend
 refuses them with a one-line error. UVs are the shapes' own (Mitsuba's rectangle, cube faces, sphere,
 cylinder, meshes' ``vt``); ``scale`` repeats the texture ``(su, sv)`` times per unit of UV.
 """

@@ -54,44 +54,13 @@ def candidates(rng: np.random.Generator, placer, n: int, interest: list[tuple[fl
     return views
 
 
-def group_luminance(scene, views: list[str], group: str, resolution=PROBE_RES, spp: int = PROBE_SPP,
-                    seed: int = 0) -> np.ndarray:
-    """``(n_views, H, W)`` luminance of ``group`` alone in each view (Mitsuba ``path``, max depth ≤ 5)."""
-    from illumix.renderer_jobs.mitsuba_render import emitter_passes
-    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
-
-    mi, _ = import_mitsuba()
-    out = np.zeros((len(views), resolution[1], resolution[0]))
-    for portals in emitter_passes(scene, [group]):
-        doc = build_scene_dict(scene, views[0], [group], resolution=resolution, portals=portals)
-        doc["integrator"] = {"type": "path", "max_depth": min(scene.max_depth, 5)}
-        # every view in one batch sensor: one kernel per group instead of one per view (3x faster)
-        doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, spp)
-        rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed))[..., :3]
-        out += np.stack(np.split(rgb @ np.array([0.2126, 0.7152, 0.0722]), len(views), axis=1))
-    return out
-
-
-def view_depth(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
-    """``(n_views, H, W)`` distance (m) along each pixel's centre ray to the first surface (0: none):
-    one ray per pixel, Mitsuba's ``aov`` integrator, every view in one batch sensor."""
-    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
-
-    mi, _ = import_mitsuba()
-    doc = build_scene_dict(scene, views[0], [], resolution=resolution)
-    doc["integrator"] = {"type": "aov", "aovs": "dd:depth"}
-    doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, 1)
-    img = np.asarray(mi.render(mi.load_dict(doc), spp=1))[..., 0]
-    return np.stack(np.split(img, len(views), axis=1))
-
-
 def clear_views(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
     """``(n_views,)`` bool: the view sees its target (the centre pixel's depth is at least
     :data:`TARGET_SEEN` of the distance to it) and is not filled by a close surface (at most
     :data:`NEAR_SHARE` of the pixels nearer than :data:`NEAR` m) — a view at a wall a door away from
     its target is lit by every group (mixed) and shows nothing."""
+    from illumix.renderer_jobs.mitsuba.view_probe import view_depth
+
     depth = view_depth(scene, views, resolution)
     h, w = depth.shape[1:]
     dist = np.array([np.linalg.norm(np.subtract(scene.view(v).target, scene.view(v).origin)) for v in views])
@@ -104,6 +73,8 @@ def probe(scene, views: list[str] | None = None, resolution=PROBE_RES,
           spp: int = PROBE_SPP) -> tuple[np.ndarray, np.ndarray]:
     """``(mixed fraction (V,), each group's share of the view's luminance (V, G))`` (module docstring)."""
     import cv2
+
+    from illumix.renderer_jobs.mitsuba.view_probe import group_luminance
 
     views = [v.name for v in scene.views] if views is None else views
     groups = scene.group_names

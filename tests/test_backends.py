@@ -38,7 +38,7 @@ class FakeBackend(JobBackend):
         pass
 
     def render_cube(self, scene, view, group, settings):
-        from illumix.renderer_jobs.mitsuba_render import CubeResult
+        from illumix.renderer_jobs.mitsuba.render import CubeResult
 
         v = scene.view(view)
         n = scene.spectral_grid.n_bands

@@ -107,7 +107,7 @@ def test_any_registry_spelling_is_accepted_and_canonical(tmp_path, capsys):
 def test_render_settings_and_executor_accept_registry_spellings():
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.renderer_jobs.modes import WAVELENGTH_MODES
     from illumix.scene.schema import SceneError
 

@@ -13,7 +13,7 @@ import pytest
 
 from cli_testutil import run_cli
 from illumix.scene.blender_env import find_blender_python
-from illumix.renderer_jobs.cycles_job import band_passes
+from illumix.renderer_jobs.cycles.job import band_passes
 from illumix.scene.plastic_scale import diffuse_fresnel
 from illumix.scene.load import scene_from_dict
 
@@ -87,8 +87,8 @@ def test_relighting_is_exact():
     colours of a pass change, the samples do not. (One group: with several, Cycles' light tree
     weighs each light by its power in the pass, so a group's *noise* — not its expectation —
     depends on the other groups' emission.)"""
-    from illumix.renderer_jobs import cycles_render
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.cycles import render as cycles_render
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
 
     def alone(emission):
         d = two_light_scene(emission)
@@ -108,8 +108,9 @@ def test_relighting_is_exact():
 @needs_mitsuba
 def test_cubes_agree_with_mitsuba():
     """Mean raw per group and per region within the noise of the two renders (a diffuse scene)."""
-    from illumix.renderer_jobs import cycles_render, mitsuba_render
-    from illumix.renderer_jobs.mitsuba_aovs import render_aovs
+    from illumix.renderer_jobs.cycles import render as cycles_render
+    from illumix.renderer_jobs.mitsuba import render as mitsuba_render
+    from illumix.renderer_jobs.mitsuba.aovs import render_aovs
 
     scene = scene_from_dict(two_light_scene())
     cyc = cycles_render.render_cubes(scene, "cam", mitsuba_render.RenderSettings(spp=32, seed=1))
@@ -139,7 +140,7 @@ def test_default_serving_agrees_with_mitsuba_with_lamps_in_frame(tmp_path):
     from illumix_client.local import LocalClient
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.scene.load import load_scenes
 
     scene = jobs.apply_resolution(load_scenes(Path(__file__).parents[1] / "bench/fidelity_scenes/lamps_in_frame.yaml")[0],
@@ -191,7 +192,7 @@ def test_render_cli_writes_the_same_store_layout(tmp_path, capsys):
 
 
 def test_emitter_rectangle_becomes_an_area_light_facing_its_normal():
-    from illumix.renderer_jobs.cycles_job import area_light
+    from illumix.renderer_jobs.cycles.job import area_light
 
     d = two_light_scene()
     d["shapes"][2]["transform"] = {"scale": [0.5, 0.25, 1], "rotate": [{"axis": [1, 0, 0], "angle": 90}],
@@ -235,7 +236,8 @@ def _envmap_scene(tmp_path, coloured=False) -> dict:
 def test_envmap_sky_matches_mitsuba(tmp_path):
     """Mitsuba's lat-long lookup (map frame, u = atan2(x, −z)/2π, v = acos(y)/π) and its D65 for a
     grey map: the sky seen directly agrees pixel by pixel, the lit ball on average."""
-    from illumix.renderer_jobs import cycles_render, mitsuba_render
+    from illumix.renderer_jobs.cycles import render as cycles_render
+    from illumix.renderer_jobs.mitsuba import render as mitsuba_render
 
     scene = scene_from_dict(_envmap_scene(tmp_path))
     cyc = cycles_render.render_cube(scene, "cam", "sky", mitsuba_render.RenderSettings(spp=8, illumination=False))
@@ -253,7 +255,7 @@ def test_envmap_sky_matches_mitsuba(tmp_path):
 
 @needs_blender
 def test_coloured_envmap_warns(tmp_path):
-    from illumix.renderer_jobs.cycles_job import write_job
+    from illumix.renderer_jobs.cycles.job import write_job
 
     messages: list[str] = []
     write_job(scene_from_dict(_envmap_scene(tmp_path, coloured=True)), "cam", tmp_path / "job", spp=1, seed=0,

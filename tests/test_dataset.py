@@ -168,7 +168,7 @@ def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
     from illumix.scene.demo import demo_room
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
 
     scene = demo_room(0, resolution=(8, 6))
     p = jobs.plan([scene], str(tmp_path / "st"))

@@ -26,7 +26,7 @@ METHODS = DENOISE_METHODS.names
 
 
 def _broadband(refl: np.ndarray) -> np.ndarray:
-    """RGB albedo AOV: mean reflectance over 600–700, 500–600, 400–500 nm (renderer_jobs.mitsuba_aovs)."""
+    """RGB albedo AOV: mean reflectance over 600–700, 500–600, 400–500 nm (renderer_jobs.mitsuba.aovs)."""
     wl = DEFAULT_GRID.wavelengths
     return np.stack([refl[..., (wl >= a) & (wl < b)].mean(-1) for a, b in ((600, 700), (500, 600), (400, 500))], -1)
 

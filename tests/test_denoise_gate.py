@@ -124,7 +124,7 @@ def test_relative_noise_pools_the_variance():
 def test_the_band_sets_spread_estimates_the_variance_of_their_mean():
     """``set_noise``: k independent estimates of a sum → their mean and ``s²/k``; over many pixels
     its mean is the variance of the mean (σ²/k), unbiased."""
-    from illumix.renderer_jobs.mitsuba_band_render import set_noise
+    from illumix.renderer_jobs.mitsuba.band_render import set_noise
 
     rng = np.random.default_rng(1)
     est = 5.0 + 2.0 * rng.standard_normal((4, 200, 200))

@@ -1,4 +1,4 @@
-"""The renderer's guides of ``dt-irradiance`` (renderer_jobs.denoise_guides) against closed forms:
+"""The renderer's guides of ``dt-irradiance`` (renderer_jobs.mitsuba.denoise_guides) against closed forms:
 the per-band albedo AOV is the patches' measured reflectance band by band, the direct-light guide is
 E·cosθ/π under a directional light (a delta light: no noise), and the sub-pixel positions stratify
 both axes."""
@@ -13,9 +13,9 @@ import pytest
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
 from illumix.scene import demo  # noqa: E402
-from illumix.renderer_jobs import denoise_guides as dg  # noqa: E402
-from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from illumix.renderer_jobs.mitsuba_render import RenderSettings  # noqa: E402
+from illumix.renderer_jobs.mitsuba import denoise_guides as dg  # noqa: E402
+from illumix.renderer_jobs.mitsuba.aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba.render import RenderSettings  # noqa: E402
 from illumix.renderer_jobs.validate import patch_masks  # noqa: E402
 
 
@@ -58,8 +58,8 @@ def test_a_view_stored_without_the_per_band_albedo_gets_it_once(tmp_path):
     view; the next one reads them (the same guides for every group), and both record the
     direct-light pass."""
     from illumix.renderer_jobs import jobs
-    from illumix.renderer_jobs.mitsuba_render import render_cube
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.render import render_cube
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
     from illumix.store import CubeStore
 
     s = demo.validation_chart()
@@ -128,7 +128,7 @@ def test_straddle_marks_pixels_whose_rays_hit_two_surfaces():
     footprint (measured against the geometry AOVs of the box with and without it)."""
     from scipy.ndimage import binary_dilation, binary_erosion
 
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
 
     res, k3 = (48, 32), np.ones((3, 3), bool)
     empty, ball = (_box_with_ball(m) for m in (None, "white"))
@@ -158,7 +158,7 @@ def test_straddle_is_used_only_with_the_targeted_extra_paths(tmp_path):
     the spp's noise: it is neither traced nor read, even from a view that holds it, and the denoised
     copy's record does not list it."""
     from illumix.renderer_jobs import jobs
-    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.store import CubeStore
 
     s = demo.validation_chart()
@@ -215,7 +215,7 @@ def test_straddle_marks_the_edges_of_patches_floating_before_the_sky():
     miss, the only rule that marks them (same normal, same depth); their insides are never marked."""
     from scipy.ndimage import binary_dilation, binary_erosion
 
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
 
     s = demo.validation_chart()
     flags = dg.straddle(Tracer(s, "head-on", None, None))
@@ -265,7 +265,7 @@ def test_metal_has_no_diffuse_albedo():
     """Mitsuba's ``roughconductor`` answers ``eval_diffuse_reflectance`` with a view-dependent value
     (up to 2.7 on a silver mirror, which the filter then averaged: a blurred reflection); the
     ``albedo_bands`` AOV reads the lobe from the BSDF's flags, so metal is 0 (left as rendered)."""
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
     from illumix.scene.load import scene_from_dict
 
     doc = demo.validation_chart_dict()

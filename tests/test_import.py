@@ -28,7 +28,7 @@ def _load(doc, base):
 
 def _mitsuba_loads(scene, view):
     pytest.importorskip("mitsuba")
-    from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
+    from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
 
     ms, sensor = load_mitsuba_scene(scene, view, None)
     assert len(ms.shapes()) >= 1 and sensor is not None
@@ -224,7 +224,7 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     import colour
 
     from illumix.scene_import.blend import _upsample
-    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.retarget.grid import resample
     from illumix.scene_import.colour_match import srgb_decode

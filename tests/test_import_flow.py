@@ -143,3 +143,23 @@ def test_modules_and_functions_stay_small():
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 70:
                 big.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}: {node.end_lineno - node.lineno + 1} lines")
     assert not big, "split these:\n" + "\n".join(big)
+
+
+def test_only_the_mitsuba_package_reaches_mitsuba_and_only_blender_workers_bpy():
+    """Issue 34: the renderers stay behind their packages — ``mitsuba``/``drjit`` (directly or through
+    ``import_mitsuba``) only in ``renderer_jobs/mitsuba/``; ``bpy`` only in the scripts Blender's own
+    Python runs (the Cycles worker and the .blend reader)."""
+    blender_scripts = {"renderer_jobs/cycles/worker.py", "renderer_jobs/cycles/blender_nodes.py",
+                       "scene_import/blend_worker.py"}
+    bad = []
+    for p in _modules().values():
+        rel = p.relative_to(ROOT).as_posix()
+        tree = ast.parse(p.read_text(encoding="utf-8"))
+        names = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        names |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+        names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+        if names & {"mitsuba", "drjit", "import_mitsuba"} and not rel.startswith("renderer_jobs/mitsuba/"):
+            bad.append(f"{rel} reaches mitsuba")
+        if "bpy" in names and rel not in blender_scripts:
+            bad.append(f"{rel} imports bpy")
+    assert not bad, "\n".join(bad)

@@ -19,7 +19,7 @@ needs_mitsuba = pytest.mark.skipif(__import__("importlib").util.find_spec("mitsu
 def test_the_table_agrees_with_mitsubas_own_fit_between_its_nodes():
     """Off-node points (seeded): within 0.5 % where materials live (α 0.01–0.7, η 1.3–1.8), within 2 %
     anywhere (at α < 0.003 Mitsuba's own transmittance tables are bumpy in η: up to 1.4 % measured)."""
-    from illumix.renderer_jobs.mitsuba_plastic_fit import fit_scale
+    from illumix.renderer_jobs.mitsuba.plastic_fit import fit_scale
 
     rng = np.random.default_rng(7)
     for lo_a, hi_a, lo_e, hi_e, tol in ((0.01, 0.7, 1.3, 1.8, 0.005), (0.001, 1.0, 1.05, 3.0, 0.02)):

@@ -14,11 +14,11 @@ import pytest
 pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
 
 from illumix.scene import demo  # noqa: E402
-from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
+from illumix.renderer_jobs.mitsuba import render as mr  # noqa: E402
 from illumix.renderer_jobs.band_schedule import band_counts, live_bands  # noqa: E402
-from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from illumix.renderer_jobs import mitsuba_scene as ms  # noqa: E402
-from illumix.renderer_jobs import mitsuba_variant as mv  # noqa: E402
+from illumix.renderer_jobs.mitsuba.aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba import scene_dict as ms  # noqa: E402
+from illumix.renderer_jobs.mitsuba import variant as mv  # noqa: E402
 from illumix.scene.load import scene_from_dict  # noqa: E402
 from illumix.scene.schema import SceneError  # noqa: E402
 

@@ -99,7 +99,7 @@ def test_adaptive_render_is_unbiased_and_spends_the_same_paths():
     """Image means of adaptive and uniform renders agree within 5 standard errors (the error of a
     difference of means over independent pixels); the adaptive cube reports its per-pixel spp."""
     from illumix.scene import demo
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
     a = render_cube(room, "front", "desk", RenderSettings(spp=64, seed=1, adaptive=True, wavelengths="stratified"))
@@ -135,7 +135,7 @@ def test_noise_target_render_meets_its_target():
     miscalibrated rule such as v/target for v/target² lands at 1.6×), and halving the target costs
     ~4× the paths."""
     from illumix.scene import demo
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings, render_cube
 
     room = demo.demo_room(0, resolution=(48, 36))
     mean_spp = {}

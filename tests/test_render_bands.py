@@ -15,10 +15,10 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from test_render import assert_same_within_noise, box_scene  # noqa: E402
 
-from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
+from illumix.renderer_jobs.mitsuba import render as mr  # noqa: E402
 from illumix.renderer_jobs.band_schedule import mix_seed  # noqa: E402
-from illumix.renderer_jobs.mitsuba_band_render import band_sets, spp_allowed  # noqa: E402
-from illumix.renderer_jobs.mitsuba_bands import band_quadruples  # noqa: E402
+from illumix.renderer_jobs.mitsuba.band_render import band_sets, spp_allowed  # noqa: E402
+from illumix.renderer_jobs.mitsuba.bands import band_quadruples  # noqa: E402
 from illumix.scene.load import scene_from_dict  # noqa: E402
 from illumix.scene.schema import SceneError  # noqa: E402
 

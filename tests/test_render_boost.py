@@ -1,4 +1,4 @@
-"""Targeted extra paths (:mod:`renderer_jobs.boost_paths`): more paths where ``dt-irradiance`` cannot
+"""Targeted extra paths (:mod:`renderer_jobs.mitsuba.boost_paths`): more paths where ``dt-irradiance`` cannot
 average, chosen from the guides alone.
 
 Independent checks: the reach of a pixel no neighbour resembles is ~1 and of a flat wall small
@@ -30,7 +30,7 @@ def flat_guides(h: int = 32, w: int = 48) -> Guides:
 
 
 def test_reach_is_one_where_no_neighbour_resembles_and_small_on_a_flat_wall():
-    from illumix.renderer_jobs.boost_paths import boost_mask, reach
+    from illumix.renderer_jobs.mitsuba.boost_paths import boost_mask, reach
 
     g = flat_guides()
     normal = g.normal.copy()
@@ -71,7 +71,7 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 def renders():
     from test_render import box_scene
 
-    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba import render as mr
     from illumix.scene.load import scene_from_dict
 
     box = scene_from_dict(box_scene())
@@ -118,7 +118,7 @@ def test_the_extra_pass_estimates_the_film_renders_cube(renders):
 def test_a_mask_of_another_size_is_a_clear_error():
     from test_render import box_scene
 
-    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba import render as mr
     from illumix.scene.load import scene_from_dict
 
     with pytest.raises(SceneError, match="boost mask"):
@@ -132,8 +132,8 @@ def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
     the film is weighted by what it rendered, not by what was asked."""
     from test_render import box_scene
 
-    from illumix.renderer_jobs import mitsuba_band_render as mb
-    from illumix.renderer_jobs import mitsuba_render as mr
+    from illumix.renderer_jobs.mitsuba import band_render as mb
+    from illumix.renderer_jobs.mitsuba import render as mr
     from illumix.scene.load import scene_from_dict
 
     box = scene_from_dict(box_scene())
@@ -153,7 +153,7 @@ def test_the_film_is_weighted_by_the_paths_the_sampler_rendered(monkeypatch):
 def test_a_cube_job_traces_the_direct_guide_once_and_records_the_boost(tmp_path, monkeypatch):
     from test_render import box_scene
 
-    from illumix.renderer_jobs import denoise_guides as dg
+    from illumix.renderer_jobs.mitsuba import denoise_guides as dg
     from illumix.renderer_jobs import jobs
     from illumix.renderer_jobs.execute import execute
     from illumix.scene.load import scene_from_dict

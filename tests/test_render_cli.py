@@ -196,7 +196,7 @@ def test_validate_cli_writes_validation_json(tmp_path, capsys):
 @needs_mitsuba
 def test_local_process_pool(tmp_path):
     """Two spawned worker processes render the tiny scene into one store."""
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))))
@@ -218,7 +218,7 @@ def test_ray_executor_on_local_instance(tmp_path):
     """A local Ray instance (127.0.0.1 only, started here) renders the jobs; the cubes equal the
     in-process render of the same seed."""
     ray = pytest.importorskip("ray")
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings, render_cube
     from illumix.store import CubeStore
 
     scene = scene_from_dict(yaml.safe_load(open(tiny_scene_file(tmp_path))), base=tmp_path)
@@ -247,7 +247,7 @@ def test_demo_room_dict_serialises():
 def test_new_store_in_empty_dir_or_fsspec_url(tmp_path, capsys):
     """A store is created where none is yet: an empty directory, an fsspec URL with nothing there.
     A directory holding something else is refused with one line, before anything is rendered."""
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.mitsuba.render import RenderSettings
     from illumix.store import CubeStore
 
     scene_file = tiny_scene_file(tmp_path)

@@ -18,9 +18,9 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 from test_render import assert_same_within_noise, box_scene  # noqa: E402
 
 from illumix.scene import demo  # noqa: E402
-from illumix.renderer_jobs import mitsuba_hero_paths as hero  # noqa: E402
-from illumix.renderer_jobs import mitsuba_render as mr  # noqa: E402
-from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba import hero_paths as hero  # noqa: E402
+from illumix.renderer_jobs.mitsuba import render as mr  # noqa: E402
+from illumix.renderer_jobs.mitsuba.aovs import render_aovs  # noqa: E402
 from illumix.scene.load import scene_from_dict  # noqa: E402
 from illumix.renderer_jobs.validate import patch_masks  # noqa: E402
 
@@ -57,7 +57,7 @@ def test_glossy_estimates_match_the_closed_form_on_glossy_patches(monkeypatch, w
     """Rough-plastic patches (no L/ρ): the in-path estimate (all-bands: a white surface along the
     path's own BSDF-sampled continuation), the separate white path, and the stratified mode's traced
     estimate all give the closed form."""
-    from illumix.renderer_jobs import mitsuba_bands
+    from illumix.renderer_jobs.mitsuba import bands as mitsuba_bands
 
     monkeypatch.setattr(hero, "TRACE_BUDGET", 1.0)  # trace every sample: no subsampling noise
     monkeypatch.setattr(mitsuba_bands, "FORCE_FIRST", force)
@@ -116,7 +116,7 @@ def test_illumination_is_finite_non_negative_and_unbiased_against_demodulation(m
     """The box with every surface diffuse: per-sample demodulation (exact) and the other estimators
     (forced on every hit: the stratified mode's traced one; all-bands' in-path and separate white
     path) agree within noise; all finite and ≥ 0."""
-    from illumix.renderer_jobs import mitsuba_bands
+    from illumix.renderer_jobs.mitsuba import bands as mitsuba_bands
 
     box = scene_from_dict(box_scene())
     for wavelengths, forced in (("stratified", ("traced",)), ("all-bands", ("mixed", "traced"))):

@@ -1,5 +1,5 @@
 """Skipping what a scene doesn't need: light groups that send no light into a view are detected by a
-cheap pilot (renderer_jobs.light_probe) and recorded as empty in the store instead of rendered."""
+cheap pilot (renderer_jobs.mitsuba.light_probe) and recorded as empty in the store instead of rendered."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumi
 
 from illumix.cli import main  # noqa: E402
 from illumix.scene import demo  # noqa: E402
-from illumix.renderer_jobs.light_probe import probe_group  # noqa: E402
-from illumix.renderer_jobs.mitsuba_aovs import render_aovs  # noqa: E402
-from illumix.renderer_jobs.mitsuba_render import RenderSettings, render_cube  # noqa: E402
+from illumix.renderer_jobs.mitsuba.light_probe import probe_group  # noqa: E402
+from illumix.renderer_jobs.mitsuba.aovs import render_aovs  # noqa: E402
+from illumix.renderer_jobs.mitsuba.render import RenderSettings, render_cube  # noqa: E402
 from illumix.scene.load import scene_from_dict  # noqa: E402
 
 RES = (40, 30)
@@ -113,7 +113,7 @@ def test_render_skips_dark_groups_into_empty_cubes(tmp_path, capsys):
 def test_background_pixels_are_skipped_only_where_exactly_zero():
     """Pixels no camera ray of which can hit geometry get no paths when the group has no sky: the
     full render is exactly zero there, and elsewhere the two renders agree within noise."""
-    from illumix.renderer_jobs.view_coverage import covered_pixels
+    from illumix.renderer_jobs.mitsuba.view_coverage import covered_pixels
 
     d = skip_scene_dict((48, 36))
     d["views"].append({"name": "high", "origin": (0.4, 1.6, 2.5), "target": (0, 1.4, -1), "up": (0.1, 1, 0),
@@ -146,7 +146,7 @@ def test_max_lanes_bounds_every_trace_call_even_below_the_film_size(scene, monke
     """``max_lanes`` (the memory bound) holds for the pilot, the adaptive rest and the probe when it is
     smaller than the film (1200 px): no Mitsuba call traces more paths; verdicts and image means
     (5 standard errors of the pixel differences) are those of the unsplit run."""
-    from illumix.renderer_jobs.mitsuba_trace import Tracer
+    from illumix.renderer_jobs.mitsuba.trace import Tracer
 
     sizes: list[int] = []
     trace = Tracer.trace

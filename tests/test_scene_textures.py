@@ -38,7 +38,7 @@ def test_checker_texture_renders_each_texel_exactly():
     """A 2×2 checker of two ColorChecker patches under a unit distant light along the normal: each
     cell's band values are ρ_b/π exactly (band-constant spectra, exact band integration)."""
     pytest.importorskip("mitsuba")
-    from illumix.renderer_jobs.mitsuba_render import render_cube
+    from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
 
     scene = scene_from_dict(_doc({"pattern": "checker", "spectra": SPECTRA, "params": {"cells": 2}}))
@@ -65,7 +65,7 @@ def test_bad_textures_fail_with_one_line():
 
 
 def test_cycles_backend_refuses_textures():
-    from illumix.renderer_jobs.cycles_job import material_doc
+    from illumix.renderer_jobs.cycles.job import material_doc
 
     scene = scene_from_dict(_doc({"pattern": "checker", "spectra": SPECTRA}))
     with pytest.raises(SceneError, match="Mitsuba backend only"):

@@ -24,7 +24,7 @@ def _object(name: str) -> str:
 
 
 def _boxes(scene):
-    from illumix.renderer_jobs.mitsuba_scene import shape_hull_points
+    from illumix.renderer_jobs.mitsuba.scene_dict import shape_hull_points
 
     out = []
     for s in scene.shapes:
@@ -65,7 +65,7 @@ def test_layouts_windows_and_fixture_kinds_vary(rooms):
 
 
 def test_generated_room_loads_in_mitsuba(rooms):
-    from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
+    from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
 
     scene = scene_from_dict(rooms[1])
     ms, _ = load_mitsuba_scene(scene, scene.views[0].name, None, resolution=(8, 6))

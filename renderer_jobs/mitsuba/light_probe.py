@@ -39,9 +39,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from illumix.renderer_jobs.band_schedule import mix_seed
-from illumix.renderer_jobs.mitsuba_render import RenderSettings, emitter_passes, group_list
-from illumix.renderer_jobs.mitsuba_scene import group_emission
-from illumix.renderer_jobs.mitsuba_trace import Tracer
+from illumix.renderer_jobs.mitsuba.render import RenderSettings, emitter_passes, group_list
+from illumix.renderer_jobs.mitsuba.scene_dict import group_emission
+from illumix.renderer_jobs.mitsuba.trace import Tracer
 from illumix.scene.model import Scene
 from illumix.scene.schema import SceneError
 

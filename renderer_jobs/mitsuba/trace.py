@@ -1,9 +1,9 @@
 """Rays in, radiance out: Mitsuba's integrator driven on rays and wavelengths chosen by the caller.
 
-:class:`Tracer` loads one (view, set of light groups) once (:func:`renderer_jobs.mitsuba_scene.
+:class:`Tracer` loads one (view, set of light groups) once (:func:`renderer_jobs.mitsuba.scene_dict.
 load_mitsuba_scene`) and traces batches of paths: pixel index, sub-pixel jitter and the four
 wavelengths of each path come from numpy, the radiance goes back to numpy. This is what lets
-:mod:`renderer_jobs.mitsuba_render` choose every wavelength (stratified bands) instead of Mitsuba's film.
+:mod:`renderer_jobs.mitsuba.render` choose every wavelength (stratified bands) instead of Mitsuba's film.
 
 Illumination (DESIGN.md "Physical GT"): the radiance ``U`` a *white Lambertian* surface at the path's
 first hit would send back to the camera, bounces included (``U = E/π`` with ``E`` the irradiance
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
-from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
+from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 from illumix.scene.model import Scene
 
 

@@ -1,5 +1,5 @@
 """The Blender Cycles backend (:mod:`renderer_jobs.backends`), the thesis method: one Blender run per
-view renders every pending light group (:mod:`renderer_jobs.cycles_jobs`), on this machine only
+view renders every pending light group (:mod:`renderer_jobs.cycles.jobs`), on this machine only
 (Blender uses every core). Blender runs in its own Python (:mod:`scene.blender_env`); this
 process never imports ``bpy``."""
 
@@ -18,13 +18,13 @@ class CyclesBackend:
         find_blender_python()
 
     def render_cube(self, scene, view, group, settings):
-        from illumix.renderer_jobs import cycles_render
+        from illumix.renderer_jobs.cycles import render as cycles_render
 
         return cycles_render.render_cube(scene, view, group, settings)
 
     def run(self, plan, store_path, settings_dict, *, executor, workers, address, on_done, ray_init, overwrite,
             on_pass, keep_going):
-        from illumix.renderer_jobs.cycles_jobs import run_cycles
+        from illumix.renderer_jobs.cycles.jobs import run_cycles
 
         return run_cycles(plan, store_path, settings_dict, on_done, overwrite, on_pass)
 

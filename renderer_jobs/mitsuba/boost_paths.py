@@ -14,7 +14,7 @@ those pixels make the denoised cube's error tail.
 - **Extra paths** (:func:`extra_path_sums`): the all-bands integrator run on camera rays of the
   listed pixels only (uniform sub-pixel jitter, an independent sampler with its own seed), its band
   AOVs summed per pixel in float64 (``numpy.bincount``, a fixed order: deterministic). The renderer
-  (:mod:`renderer_jobs.mitsuba_band_render`) combines them with the film's estimate weighted by path
+  (:mod:`renderer_jobs.mitsuba.band_render`) combines them with the film's estimate weighted by path
   counts, ``(n0·base + Σ extra)/(n0 + n1)``; every other pixel is left bit for bit as rendered.
 """
 
@@ -57,8 +57,8 @@ def extra_path_sums(ms, sensor, integrator, pix: np.ndarray, paths: int, seed: i
     each pixel of ``pix`` (flat row-major indices of ``sensor``'s film), uniformly jittered in the
     pixel (the box filter of the film render). ``wavelengths (4,)``: carried by the camera rays (the
     band integrator sets its own per path). At most ``max_lanes`` paths per Dr.Jit call."""
-    from illumix.renderer_jobs.mitsuba_trace import camera_rays
-    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba.trace import camera_rays
+    from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
     mi, dr = import_mitsuba()
     w, h = (int(x) for x in sensor.film().crop_size())

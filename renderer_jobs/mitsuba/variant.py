@@ -16,14 +16,12 @@ import re
 import warnings
 from typing import Any
 
+from illumix.renderer_jobs.backends import RenderError  # noqa: F401 - raised here, defined with the protocol
+
 VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral")
 MIN_LLVM = 16
 LLVM_DIRS = ("/usr/lib/llvm-*/lib", "/usr/lib/x86_64-linux-gnu", "/usr/lib64", "/usr/local/lib",
              "/usr/lib/aarch64-linux-gnu")
-
-
-class RenderError(RuntimeError):
-    """The renderer could not run (no usable Mitsuba variant, a Mitsuba failure)."""
 
 
 def llvm_version(path: str) -> tuple[int, ...] | None:

@@ -1,10 +1,10 @@
 """The ``"all-bands"`` wavelength mode: a cube rendered by Mitsuba's own render loop with
-:mod:`renderer_jobs.mitsuba_bands` (every band on every path) and a low-discrepancy sampler.
+:mod:`renderer_jobs.mitsuba.bands` (every band on every path) and a low-discrepancy sampler.
 
 ``mi.render`` runs the integrator over the sensor's film (``hdrfilm``, box filter: a sample adds only
 to its own pixel) with the sampler named by ``RenderSettings.sampler``; the bands come back as AOV
 channels, already averaged per pixel. Portal emitters render in a second pass, added (linearity),
-as in :mod:`renderer_jobs.mitsuba_render`. Deterministic: the same seed gives the same cube bit for
+as in :mod:`renderer_jobs.mitsuba.render`. Deterministic: the same seed gives the same cube bit for
 bit, whatever the thread count (the film's sums run in a fixed order per pixel).
 """
 
@@ -15,10 +15,10 @@ import time
 import numpy as np
 
 from illumix.renderer_jobs.band_schedule import live_bands, mix_seed
-from illumix.renderer_jobs.boost_paths import extra_path_sums
-from illumix.renderer_jobs.mitsuba_bands import band_quadruples, make_integrator
-from illumix.renderer_jobs.mitsuba_scene import load_mitsuba_scene
-from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.mitsuba.boost_paths import extra_path_sums
+from illumix.renderer_jobs.mitsuba.bands import band_quadruples, make_integrator
+from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
+from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 from illumix.scene.model import EnvMapSky, Scene
 from illumix.scene.schema import SceneError
 
@@ -72,13 +72,13 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
                      emission: np.ndarray, boost: np.ndarray | None = None
                      ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None]:
     """``(cube (H, W, n_bands), illumination cube or None, stats, noise)`` float32 of ``view`` lit by ``groups``
-    (emitter ``passes`` from :func:`renderer_jobs.mitsuba_render.emitter_passes`), with ``settings``
-    (a :class:`renderer_jobs.mitsuba_render.RenderSettings`).
+    (emitter ``passes`` from :func:`renderer_jobs.mitsuba.render.emitter_passes`), with ``settings``
+    (a :class:`renderer_jobs.mitsuba.render.RenderSettings`).
 
     The live bands render in interleaved sets (:func:`band_sets`) of at most ``settings.bands_per_path``
     bands; the pixel's ``settings.spp`` paths are shared equally among the sets (:func:`set_spp`), so
     every band's value averages ``spp / sets`` paths. ``boost``: flat pixel indices that get
-    ``settings.boost_factor`` × the paths (:mod:`renderer_jobs.boost_paths`: the film's estimate and
+    ``settings.boost_factor`` × the paths (:mod:`renderer_jobs.mitsuba.boost_paths`: the film's estimate and
     the extra paths' combined by path counts; every other pixel exactly as without it).
 
     ``noise`` ``(H, W, 2)``: the cube's band sum weighted by the emission and its variance, from the

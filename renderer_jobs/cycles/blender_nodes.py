@@ -1,4 +1,4 @@
-"""Cycles worker, part 2: the material node trees (see :mod:`renderer_jobs.cycles_worker`).
+"""Cycles worker, part 2: the material node trees (see :mod:`renderer_jobs.cycles.worker`).
 
 Runs in Blender's Python beside the worker (imported from the worker's own folder): standard
 library and bpy only. Every spectral input is set per pass by a *setter* the builder keeps:

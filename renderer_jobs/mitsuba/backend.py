@@ -23,23 +23,23 @@ class MitsubaBackend(JobBackend):
         """Mitsuba 3 must be installed (the ``render`` extra): a service-only install has no renderer."""
         import importlib.util
 
-        from illumix.renderer_jobs.mitsuba_variant import RenderError
+        from illumix.renderer_jobs.backends import RenderError
 
         if importlib.util.find_spec("mitsuba") is None:
             raise RenderError("rendering needs Mitsuba 3, which this install lacks: pip install 'illumix[render]' "
                               "(or bash scripts/install.sh; on Debian also apt-get install libllvm19)")
 
     def render_cube(self, scene, view, group, settings):
-        from illumix.renderer_jobs.mitsuba_render import render_cube
+        from illumix.renderer_jobs.mitsuba.render import render_cube
 
         return render_cube(scene, view, group, settings)
 
     def run_job(self, payload: tuple[dict, str | None], job: Job, store_path: str, settings_dict: dict,
                 threads: int | None = None, overwrite: bool = False) -> dict:
         """Render one job with Mitsuba and write it into the store. Returns a small summary dict."""
-        from illumix.renderer_jobs import mitsuba_render as mr
-        from illumix.renderer_jobs.mitsuba_aovs import render_aovs
-        from illumix.renderer_jobs.mitsuba_variant import select_variant
+        from illumix.renderer_jobs.mitsuba import render as mr
+        from illumix.renderer_jobs.mitsuba.aovs import render_aovs
+        from illumix.renderer_jobs.mitsuba.variant import select_variant
 
         if threads:
             os.environ.setdefault("DRJIT_NUM_THREADS", str(threads))
@@ -62,8 +62,8 @@ class MitsubaBackend(JobBackend):
                     "cpu_s": time.process_time() - c0}
         probe = None
         if settings.skip_dark:
-            from illumix.renderer_jobs.light_probe import probe_group
-            from illumix.renderer_jobs.mitsuba_scene import group_emission
+            from illumix.renderer_jobs.mitsuba.light_probe import probe_group
+            from illumix.renderer_jobs.mitsuba.scene_dict import group_emission
 
             probe = probe_group(scene, job.view, job.group, settings)
             if not probe.lit:
@@ -79,7 +79,7 @@ class MitsubaBackend(JobBackend):
         if settings.boost_factor > 1:
             # The denoiser's guides (the group's direct light) first: the boost mask comes from them
             # alone, and the denoiser reuses them (traced once).
-            from illumix.renderer_jobs.boost_paths import boost_mask
+            from illumix.renderer_jobs.mitsuba.boost_paths import boost_mask
 
             prepared = jobs.denoise_guides(st, scene, job, settings)
             mask = boost_mask(prepared[0], settings.denoise, settings.boost_reach)

@@ -6,7 +6,7 @@ the group's emission held constant over each band (:func:`step_spectrum`) and sa
 proportion to its approximate power (:func:`emitter_power`, Mitsuba's ``sampling_weight``) — and
 sets a box-filtered perspective camera. Portals (``emitter.portal``) are not geometry: ``portals=
 "without"`` leaves them out, ``"only"`` keeps only them as emitters (their own pass, see
-:mod:`renderer_jobs.mitsuba_render`). Also: scene bounds and radius (the power of distant lights),
+:mod:`renderer_jobs.mitsuba.render`). Also: scene bounds and radius (the power of distant lights),
 and Mitsuba's D65 on the grid (what an RGB envmap emits).
 """
 
@@ -18,8 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_textures import reflectance_dict
-from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
+from illumix.renderer_jobs.mitsuba.textures import reflectance_dict
+from illumix.renderer_jobs.mitsuba.variant import RenderError, import_mitsuba
 from illumix.scene.model import Scene
 from illumix.scene.schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
                                         MeshFile, PointLight, Rectangle, RoughConductor, RoughPlastic, SceneError,

@@ -5,7 +5,7 @@ A preview is Mitsuba's own spectral path tracer (``path``, depth ≤ 5) with eve
 the emission the scene gives it (not the relit cube — no sensor, no illuminant choice), written to
 linear sRGB by Mitsuba's spectral variant, auto-exposed so the 97th percentile of luminance sits at
 0.9, then sRGB-encoded. Portals (window skies) render in a pass of their own, as in the real render
-(:func:`renderer_jobs.mitsuba_render.emitter_passes`). Good enough to see layout, materials and
+(:func:`renderer_jobs.mitsuba.render.emitter_passes`). Good enough to see layout, materials and
 which lights dominate; not data.
 """
 
@@ -20,9 +20,9 @@ PREVIEW_SPP = 16
 def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES, spp: int = PREVIEW_SPP,
                    seed: int = 0) -> np.ndarray:
     """``(V, H, W, 3)`` float32 linear sRGB of each view with every group on."""
-    from illumix.renderer_jobs.mitsuba_render import emitter_passes
-    from illumix.renderer_jobs.mitsuba_scene import batch_sensor_dict, build_scene_dict
-    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+    from illumix.renderer_jobs.mitsuba.render import emitter_passes
+    from illumix.renderer_jobs.mitsuba.scene_dict import batch_sensor_dict, build_scene_dict
+    from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
     mi, _ = import_mitsuba()
     views = [v.name for v in scene.views] if views is None else views

@@ -1,8 +1,8 @@
 """Rendering: one spectral transport cube per (view, light group), plus view AOVs.
 
 Mitsuba stays behind the ``mitsuba_*`` modules: callers pass a :class:`scene.model.Scene`
-and get numpy. Variant: :mod:`renderer_jobs.mitsuba_variant`; scene dictionary:
-:mod:`renderer_jobs.mitsuba_scene`; tracing: :mod:`renderer_jobs.mitsuba_trace`.
+and get numpy. Variant: :mod:`renderer_jobs.mitsuba.variant`; scene dictionary:
+:mod:`renderer_jobs.mitsuba.scene_dict`; tracing: :mod:`renderer_jobs.mitsuba.trace`.
 
 What a cube is
 --------------
@@ -20,8 +20,8 @@ Wavelength sampling (issues 4 and 17, see ``bench/render.py`` for the measuremen
 -------------------------------------------------------------------------------------
 - ``"all-bands"`` (default, issue 17): every path carries many bands at once (no material disperses,
   so a path sampled once serves every wavelength), rendered by Mitsuba's own loop with a
-  low-discrepancy pixel sampler: :mod:`renderer_jobs.mitsuba_bands` (the integrator) and
-  :mod:`renderer_jobs.mitsuba_band_render` (band sets, passes). ``bench/RENDER_PERF.md`` measures it
+  low-discrepancy pixel sampler: :mod:`renderer_jobs.mitsuba.bands` (the integrator) and
+  :mod:`renderer_jobs.mitsuba.band_render` (band sets, passes). ``bench/RENDER_PERF.md`` measures it
   against the modes below and against Cycles run the thesis way.
 
 The two 4-wavelength modes below are this module's own numpy-driven paths (Mitsuba's ``path``
@@ -62,9 +62,9 @@ in ``T``'s units and schedule, so it relights exactly like ``T``. Per path sampl
 is purely diffuse (and not emitting) ``U = L/ρ`` — exact, every contribution of the path carries
 ``ρ(λ)`` — at the cost of one more intersection in the same kernel; elsewhere (glossy, metal, glass,
 black or emitting first hits) a white-Lambertian estimate is traced for that sample
-(:meth:`renderer_jobs.mitsuba_trace.Tracer.white_lambertian`). Samples that hit nothing add 0; the
+(:meth:`renderer_jobs.mitsuba.trace.Tracer.white_lambertian`). Samples that hit nothing add 0; the
 view's ``mask``/``emitter`` AOVs flag pixels where illumination is undefined. The ``"all-bands"``
-mode estimates it band by band in its own kernel (:mod:`renderer_jobs.mitsuba_bands`).
+mode estimates it band by band in its own kernel (:mod:`renderer_jobs.mitsuba.bands`).
 
 Per-band sums are accumulated in float64 by ``numpy.bincount`` (no atomics), so the same seed gives
 the same cube bit for bit.
@@ -73,50 +73,17 @@ the same cube bit for bit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from illumix.renderer_jobs.band_schedule import group_seed
-from illumix.renderer_jobs.mitsuba_bands import RR_DEPTH
-from illumix.renderer_jobs.mitsuba_scene import group_emission
-from illumix.renderer_jobs.mitsuba_variant import import_mitsuba, libllvm_path, select_variant
+from illumix.renderer_jobs.cube import CubeResult, emitter_passes, group_list  # noqa: F401 - re-exported
+from illumix.renderer_jobs.mitsuba.bands import RR_DEPTH
+from illumix.renderer_jobs.mitsuba.scene_dict import group_emission
+from illumix.renderer_jobs.mitsuba.variant import import_mitsuba, libllvm_path, select_variant
 from illumix.renderer_jobs.render_settings import RenderSettings  # noqa: F401 — re-exported
 from illumix.scene.model import Scene
 from illumix.scene.schema import SceneError
-
-
-@dataclass
-class CubeResult:
-    """A rendered cube ``(H, W, n_bands)`` float32 of band averages, with what it was rendered with
-    (and its illumination cube, same shape and units)."""
-
-    cube: np.ndarray
-    emission: np.ndarray
-    emission_name: str
-    renderer: dict
-    stats: dict = field(default_factory=dict)
-    illumination: np.ndarray | None = None  # (H, W, n_bands) float32, when RenderSettings.illumination
-    #: (H, W, 2) float32: the cube's band sum and its variance from the band sets' spread, or None
-    #: (renderer_jobs.mitsuba_band_render.set_noise; the denoiser weighs its bias against it)
-    noise: np.ndarray | None = None
-
-
-def group_list(scene: Scene, group: str | list[str] | None) -> list[str]:
-    """``group`` as a list of checked group names (``None``: every group of the scene)."""
-    groups = [group] if isinstance(group, str) else (scene.group_names if group is None else list(group))
-    for g in groups:
-        scene.group(g)
-    return groups
-
-
-def emitter_passes(scene: Scene, groups: list[str]) -> list[str]:
-    """The passes a cube of ``groups`` needs: ``"without"`` (every emitter but portals) when the groups
-    have non-portal emitters, ``"only"`` (portals alone) when they have portals. Portals render in a
-    pass of their own (they occlude nothing); the cube is the passes' sum."""
-    emitters = [e for g in groups for e in scene.emitters_of(g)]
-    return [p for p, present in (("without", any(not scene.is_portal(e) for e in emitters)),
-                                 ("only", any(scene.is_portal(e) for e in emitters))) if present]
 
 
 def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> dict:
@@ -164,7 +131,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     (and spp ≥ twice the pilot) the same total of paths (up to rounding) is spread by
     :mod:`renderer_jobs.adaptive_spp`; with ``settings.noise_target`` each pixel gets what its noise needs.
     ``boost_mask`` ``(H, W)`` bool (``"all-bands"`` only, from the guides alone:
-    :func:`renderer_jobs.boost_paths.boost_mask`): those pixels get ``settings.boost_factor`` × spp.
+    :func:`renderer_jobs.mitsuba.boost_paths.boost_mask`): those pixels get ``settings.boost_factor`` × spp.
     The paths' random numbers come from ``settings.seed`` mixed with the group names
     (:func:`renderer_jobs.band_schedule.group_seed`): two groups' cubes are independent estimates.
     """
@@ -174,7 +141,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
     passes = emitter_passes(scene, groups)
     if settings.wavelengths == "all-bands":
         return _render_all_bands(scene, view, groups, passes, settings, boost_mask)
-    from illumix.renderer_jobs.mitsuba_hero_paths import render_hero  # noqa: PLC0415
+    from illumix.renderer_jobs.mitsuba.hero_paths import render_hero  # noqa: PLC0415
 
     cube, illum, stats, emission, name = render_hero(scene, view, groups, passes, settings, t0)
     return CubeResult(cube=cube, emission=np.asarray(emission, dtype=np.float64), emission_name=name,
@@ -183,7 +150,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
 
 def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
                       settings: RenderSettings, boost_mask: np.ndarray | None = None) -> CubeResult:
-    from illumix.renderer_jobs.mitsuba_band_render import render_all_bands  # noqa: PLC0415
+    from illumix.renderer_jobs.mitsuba.band_render import render_all_bands  # noqa: PLC0415
 
     nb = scene.spectral_grid.n_bands
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from illumix.renderer_jobs.denoise_guides import albedo_bands as spectral_albedo
-from illumix.renderer_jobs.denoise_guides import guides_needed, straddle
-from illumix.renderer_jobs.mitsuba_render import RenderSettings
-from illumix.renderer_jobs.mitsuba_trace import Tracer
+from illumix.renderer_jobs.cube import ALBEDO_BANDS  # noqa: F401 - every backend's albedo AOV (re-exported)
+from illumix.renderer_jobs.mitsuba.denoise_guides import albedo_bands as spectral_albedo
+from illumix.renderer_jobs.mitsuba.denoise_guides import guides_needed, straddle
+from illumix.renderer_jobs.mitsuba.render import RenderSettings
+from illumix.renderer_jobs.mitsuba.trace import Tracer
 from illumix.scene.model import Scene
 
-# Broad bands (nm) whose mean reflectance forms the RGB albedo AOV.
-ALBEDO_BANDS = ((600.0, 700.0), (500.0, 600.0), (400.0, 500.0))
 
 
 def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettings()) -> dict[str, np.ndarray]:
@@ -21,9 +20,9 @@ def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettin
     albedo ``(H, W, 3)``: mean diffuse reflectance (Mitsuba's ``eval_diffuse_reflectance``) over
     600–700, 500–600, 400–500 nm (R, G, B); albedo_bands ``(H, W, bands)`` (when ``settings.denoise``
     reads it): the diffuse reflectance per band, exact at the band centres, over ``ALBEDO_RAYS``
-    Hammersley positions per pixel (:mod:`renderer_jobs.denoise_guides`: the ``dt-irradiance``
+    Hammersley positions per pixel (:mod:`renderer_jobs.mitsuba.denoise_guides`: the ``dt-irradiance``
     guide); straddle ``(H, W)`` bool (when ``settings`` denoise with it: with the targeted extra
-    paths): the pixel's rays hit more than one surface (``renderer_jobs.denoise_guides.straddle``);
+    paths): the pixel's rays hit more than one surface (``renderer_jobs.mitsuba.denoise_guides.straddle``);
     normal ``(H, W, 3)``: world-space shading normal
     (unit, of the hits); depth ``(H, W)``: distance from the camera along the ray in metres (0 where
     nothing is hit); mask ``(H, W)`` bool: the pixel centre ray hits geometry; emitter ``(H, W)``

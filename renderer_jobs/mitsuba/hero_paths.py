@@ -1,8 +1,8 @@
 """The four-wavelengths-per-path renders (``wavelengths`` ``"stratified"`` or ``"random"``): numpy
-drives the paths through :class:`renderer_jobs.mitsuba_trace.Tracer` in blocks, accumulating per-band
+drives the paths through :class:`renderer_jobs.mitsuba.trace.Tracer` in blocks, accumulating per-band
 sums, with adaptive spp and noise targets spread by a pilot (:mod:`renderer_jobs.adaptive_spp`) and
-the illumination cube from the same paths (module docstring of :mod:`renderer_jobs.mitsuba_render`,
-"Illumination cube"). :func:`renderer_jobs.mitsuba_render.render_cube` calls :func:`render_hero`.
+the illumination cube from the same paths (module docstring of :mod:`renderer_jobs.mitsuba.render`,
+"Illumination cube"). :func:`renderer_jobs.mitsuba.render.render_cube` calls :func:`render_hero`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import numpy as np
 
 from illumix.renderer_jobs import adaptive_spp
 from illumix.renderer_jobs.band_schedule import band_counts, hash_u32, lane_stride, live_bands, mix_seed, pass_sizes
-from illumix.renderer_jobs.mitsuba_scene import band_guard, group_emission
-from illumix.renderer_jobs.mitsuba_trace import Tracer
-from illumix.renderer_jobs.view_coverage import covered_pixels, group_sees_sky
+from illumix.renderer_jobs.mitsuba.scene_dict import band_guard, group_emission
+from illumix.renderer_jobs.mitsuba.trace import Tracer
+from illumix.renderer_jobs.mitsuba.view_coverage import covered_pixels, group_sees_sky
 from illumix.scene.schema import SceneError
 
 if TYPE_CHECKING:

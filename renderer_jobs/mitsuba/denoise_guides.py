@@ -8,7 +8,7 @@
   remodulated cube inherits that error: bench/DENOISE.md).
 - **Direct light of one group** (``(H, W)``): the mean of next-event samples of the light a white
   Lambertian surface at the first hit receives straight from the group's emitters, with visibility
-  (:meth:`renderer_jobs.mitsuba_trace.Tracer.direct_irradiance`). Shadows and sunlit patches are
+  (:meth:`renderer_jobs.mitsuba.trace.Tracer.direct_irradiance`). Shadows and sunlit patches are
   sharp steps in it, and a few dozen shadow rays per pixel make it nearly noise-free, at a small
   fraction of the cube's cost. It is traced with its own seed, so its noise is independent of the
   cube's (the filter's weights never follow the cube's noise).
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from illumix.renderer_jobs.band_schedule import group_seed, mix_seed
-from illumix.renderer_jobs.mitsuba_trace import Tracer
+from illumix.renderer_jobs.mitsuba.trace import Tracer
 from illumix.scene.model import Scene
 
 ALBEDO_RAYS = 64  # sub-pixel positions of the albedo_bands AOV (coverage to 1/64 at a material edge)
@@ -204,7 +204,7 @@ def direct_guide(scene: Scene, view: str, group: str, resolution, seed: int, sam
     same samples' shadow rays would bring if the dielectrics (glass) that block them were not there
     — where glass may focus or bend the group's light (a caustic) that the first image shows as
     shadow."""
-    from illumix.renderer_jobs.mitsuba_scene import group_emission
+    from illumix.renderer_jobs.mitsuba.scene_dict import group_emission
     from illumix.retarget.denoise_classes import DIRECT_FLOOR  # the direct-light test's scale, for the same light
 
     tracer = Tracer(scene, view, [group], resolution)

@@ -16,7 +16,7 @@ import hashlib
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_variant import RenderError, import_mitsuba
+from illumix.renderer_jobs.mitsuba.variant import RenderError, import_mitsuba
 from illumix.scene.textures import BitmapTexture, PatternTexture
 
 PLUGIN = "illumix_pattern"

@@ -1,6 +1,6 @@
 """Fit the roughplastic base-colour scale with Mitsuba and write the table
 :func:`scene.plastic_scale.plastic_diffuse_scale` reads (:mod:`scene.plastic_scale_table`):
-``python -m illumix.renderer_jobs.mitsuba_plastic_fit``. The Mitsuba side of the scale; the scene
+``python -m illumix.renderer_jobs.mitsuba.plastic_fit``. The Mitsuba side of the scale; the scene
 side reads the table alone."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def fit_scale(alpha: float, eta: float, n: int = 48) -> float:
     evaluating Mitsuba's ``roughplastic`` at ρ = 1 and 0) in the least-squares sense over incident and
     outgoing directions, both cosine-weighted (``n`` cosines each). Needs Mitsuba: it writes the
     table that :func:`plastic_diffuse_scale` reads."""
-    from illumix.renderer_jobs.mitsuba_variant import import_mitsuba, select_variant
+    from illumix.renderer_jobs.mitsuba.variant import import_mitsuba, select_variant
 
     select_variant()
     mi, dr = import_mitsuba()
@@ -61,8 +61,8 @@ def write_table(path: Path | None = None) -> Path:
     from illumix.scene import plastic_scale_table
 
     path = path or Path(plastic_scale_table.__file__)
-    head = ('"""Table of :func:`renderer_jobs.mitsuba_plastic_fit.fit_scale` (Mitsuba\'s roughplastic): written by\n'
-            "``python -m illumix.renderer_jobs.mitsuba_plastic_fit``, checked against Mitsuba by ``tests/test_plastic_scale.py``.\n"
+    head = ('"""Table of :func:`renderer_jobs.mitsuba.plastic_fit.fit_scale` (Mitsuba\'s roughplastic): written by\n'
+            "``python -m illumix.renderer_jobs.mitsuba.plastic_fit``, checked against Mitsuba by ``tests/test_plastic_scale.py``.\n"
             'Rows: ``ALPHAS`` (GGX α, log-spaced); columns: ``ETAS`` (interior / exterior IOR)."""\n\n')
     path.write_text(head + wrapped("ALPHAS", alphas) + "\n" + wrapped("ETAS", etas) + "\nSCALE = (\n" + "\n".join(rows)
                     + "\n)\n")

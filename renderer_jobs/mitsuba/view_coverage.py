@@ -4,7 +4,7 @@ For a light group without a sky (``constant``/``envmap``), a camera ray that lea
 carries exactly zero radiance (point, spot and directional lights are not visible; area lights are
 shapes). Such pixels need no paths. :func:`covered_pixels` finds them conservatively: every shape
 (portals included) is replaced by points whose convex hull contains it
-(:func:`renderer_jobs.mitsuba_scene.shape_hull_points`), the points are projected through the
+(:func:`renderer_jobs.mitsuba.scene_dict.shape_hull_points`), the points are projected through the
 view's pinhole camera, and each shape covers the pixel rectangle around its projection, widened
 by one pixel. A pixel outside every rectangle cannot be reached by any ray through its footprint.
 If any hull point lies at or behind the camera plane the projection is unbounded and every pixel
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_scene import shape_hull_points
+from illumix.renderer_jobs.mitsuba.scene_dict import shape_hull_points
 from illumix.scene.model import Scene
 from illumix.scene.schema import ConstantSky, EnvMapSky
 

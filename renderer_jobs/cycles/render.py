@@ -1,6 +1,6 @@
 """The Cycles backend: a view's transport cubes (every light group in one render) and its AOVs.
 
-:mod:`renderer_jobs.cycles_job` writes the job, :mod:`renderer_jobs.cycles_worker` renders it in
+:mod:`renderer_jobs.cycles.job` writes the job, :mod:`renderer_jobs.cycles.worker` renders it in
 Blender's Python (:mod:`scene.blender_env`), and this module reads the multilayer EXRs back
 with OpenEXR: pass ``p``'s ``Combined_<group>`` R, G, B are the cube's bands ``p, p+21, p+42``.
 The cube has the Mitsuba backend's layout, units (radiance per unit of the group's emission
@@ -20,14 +20,15 @@ from pathlib import Path
 import numpy as np
 
 from illumix.scene.blender_env import find_blender_python
-from illumix.renderer_jobs.cycles_exr import read_exr
-from illumix.renderer_jobs.cycles_job import METHOD, SAMPLING_PATTERN, write_job
-from illumix.renderer_jobs.mitsuba_render import CubeResult, RenderSettings
-from illumix.renderer_jobs.mitsuba_scene import group_emission
-from illumix.renderer_jobs.mitsuba_variant import RenderError
+from illumix.renderer_jobs.cycles.exr import read_exr
+from illumix.renderer_jobs.cycles.job import METHOD, SAMPLING_PATTERN, write_job
+from illumix.renderer_jobs.backends import RenderError
+from illumix.renderer_jobs.cube import CubeResult
+from illumix.renderer_jobs.mitsuba.scene_dict import group_emission  # an envmap's emission is Mitsuba's D65
+from illumix.renderer_jobs.render_settings import RenderSettings
 from illumix.scene.model import Scene
 
-WORKER = Path(__file__).with_name("cycles_worker.py")
+WORKER = Path(__file__).with_name("worker.py")
 Progress = Callable[[int, int, str], None]
 
 
@@ -128,7 +129,7 @@ def render_cube(scene: Scene, view: str, group: str, settings: RenderSettings = 
 
 def render_aovs(scene: Scene, view: str, settings: RenderSettings = RenderSettings(),
                 progress: Progress | None = None) -> dict[str, np.ndarray]:
-    """The view's geometry AOVs as :func:`renderer_jobs.mitsuba_aovs.render_aovs` defines them, from
+    """The view's geometry AOVs as :func:`renderer_jobs.mitsuba.aovs.render_aovs` defines them, from
     Cycles' AOV outputs over ``aov_spp`` box-filtered samples per pixel (means over the samples
     that hit geometry; ``mask`` where most of the pixel's samples hit)."""
     with tempfile.TemporaryDirectory(prefix="illumix-cycles-aov-") as tmp:

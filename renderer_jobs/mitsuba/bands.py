@@ -4,7 +4,7 @@ Mitsuba's spectral variants trace 4 wavelengths per ray. Every material of the s
 non-dispersive (diffuse, rough plastic, rough conductor, dielectric with a scalar IOR): a BSDF's
 sampled direction and its pdf do not depend on the wavelength, only its value does. So one path,
 sampled once, can carry many bands: the integrator keeps a throughput per *quadruple* of bands (up
-to 16 quadruples = 64 lanes for 63 bands; :mod:`renderer_jobs.mitsuba_band_render` splits the bands
+to 16 quadruples = 64 lanes for 63 bands; :mod:`renderer_jobs.mitsuba.band_render` splits the bands
 into sets) and re-evaluates the BSDF, the emitters and the light samples at each quadruple along the
 same path. That removes wavelength sampling from the noise (issue 17: a band sees every path of its
 set, not 4 of every 63 band samples), and because the integrator is
@@ -42,8 +42,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_scene import band_guard
-from illumix.renderer_jobs.mitsuba_variant import import_mitsuba
+from illumix.renderer_jobs.mitsuba.scene_dict import band_guard
+from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
 RR_DEPTH = 5  # Mitsuba's path default: Russian roulette from the 5th vertex
 RHO_MIN = 1e-6  # below this diffuse reflectance L/ρ carries nothing usable: trace U instead

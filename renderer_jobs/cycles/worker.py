@@ -2,14 +2,14 @@
 
 Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2, which the rest of illumix cannot use, so it
 lives in its own environment: :mod:`scene.blender_env`). It imports only the standard
-library, numpy, bpy and its sibling :mod:`renderer_jobs.cycles_nodes` (the material node trees) —
+library, numpy, bpy and its sibling :mod:`renderer_jobs.cycles.blender_nodes` (the material node trees) —
 nothing of illumix — and knows nothing of spectra: the job
-(:mod:`renderer_jobs.cycles_job` writes it) already holds band values, and each *pass* names the
+(:mod:`renderer_jobs.cycles.job` writes it) already holds band values, and each *pass* names the
 three bands its R, G, B slots carry (the thesis method: 21 passes × 3 fixed wavelengths, the same
 seed in every pass). Per pass it sets every colour to its bands' values and renders; one render
 returns every light group's pass (``view_layer.lightgroups``, ``Combined_<group>`` in the EXR).
 
-    python cycles_worker.py JOB_DIR        # reads JOB_DIR/job.json (+ meshes.npz), writes JOB_DIR/*.exr
+    python worker.py JOB_DIR        # reads JOB_DIR/job.json (+ meshes.npz), writes JOB_DIR/*.exr
 
 Prints ``ILLUMIX-PROGRESS <done> <total> <label>`` lines (Blender's own log goes to stdout too).
 """
@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from cycles_nodes import MaterialBuilder, _slots  # the worker's folder is on sys.path (run as a script)
+from blender_nodes import MaterialBuilder, _slots  # the worker's folder is on sys.path (run as a script)
 
 PROGRESS = "ILLUMIX-PROGRESS"
 

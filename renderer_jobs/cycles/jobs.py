@@ -22,8 +22,8 @@ from illumix.scene.schema import SceneError
 def run_cycles(plan_: Plan, store_path: str, settings_dict: dict, on_done, overwrite: bool = False,
                on_pass: Callable[[int, int, str], None] | None = None) -> list[dict]:
     """Execute ``plan_`` with Cycles in this process (sequentially: Blender uses every core)."""
-    from illumix.renderer_jobs import cycles_render as cr
-    from illumix.renderer_jobs.mitsuba_render import RenderSettings
+    from illumix.renderer_jobs.cycles import render as cr
+    from illumix.renderer_jobs.render_settings import RenderSettings
 
     settings = RenderSettings(**settings_dict)
     st = _open_store(store_path, mode="a")

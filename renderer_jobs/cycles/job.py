@@ -1,5 +1,5 @@
 """Scene translation for Cycles: a :class:`~scene.model.Scene` view as the plain-data job
-the Blender worker (:mod:`renderer_jobs.cycles_worker`) renders.
+the Blender worker (:mod:`renderer_jobs.cycles.worker`) renders.
 
 Everything spectral is resolved here, on the scene grid, so the worker only copies numbers:
 
@@ -42,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba_aovs import ALBEDO_BANDS
-from illumix.renderer_jobs.mitsuba_scene import group_emission
+from illumix.renderer_jobs.cube import ALBEDO_BANDS
+from illumix.renderer_jobs.mitsuba.scene_dict import group_emission  # an envmap's emission is Mitsuba's D65
 from illumix.scene.plastic_scale import plastic_diffuse_scale
 from illumix.scene.model import Scene
 from illumix.scene.textures import is_texture
@@ -89,7 +89,7 @@ def conductor_constants(name: str, scene: Scene) -> tuple[np.ndarray, np.ndarray
 
 
 def _albedo_rgb(scene: Scene, reflectance: np.ndarray) -> list[float]:
-    """Mean reflectance over the albedo AOV's broad bands (as :mod:`renderer_jobs.mitsuba_aovs`)."""
+    """Mean reflectance over the albedo AOV's broad bands (as :mod:`renderer_jobs.mitsuba.aovs`)."""
     centers = scene.spectral_grid.wavelengths
     return [float(reflectance[(centers >= a) & (centers < b)].mean()) for a, b in ALBEDO_BANDS]
 
@@ -258,7 +258,7 @@ def _grey_map(path: Path) -> bool:
     """True when every pixel of the environment map has R = G = B (within 0.1 %)."""
     try:
         if path.suffix.lower() == ".exr":
-            from illumix.renderer_jobs.cycles_exr import read_exr
+            from illumix.renderer_jobs.cycles.exr import read_exr
 
             layers = read_exr(path)
             img = next(iter(layers.values())) if len(layers) == 1 else np.concatenate(
