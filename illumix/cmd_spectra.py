@@ -124,6 +124,9 @@ def ccm(
 
 def register(app: typer.Typer) -> None:
     app.add_typer(illuminants_app, name="illuminants")
+    from illumix.cmd_sensor_estimate import estimate
+
+    sensors_app.command("estimate")(estimate)
     app.add_typer(sensors_app, name="sensors")
     app.command("whitepoint")(whitepoint)
     app.command("ccm")(ccm)

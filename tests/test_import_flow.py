@@ -21,8 +21,9 @@ ALLOWED = {
     "service": {"retarget", "store", "engine", "imagefiles"},
     "dataset_export": {"retarget", "store", "engine", "imagefiles"},
     "awb_eval": {"retarget", "store", "engine"},
+    "sensor_estimate": {"retarget"},
     "illumix": {"retarget", "store", "scene", "renderer_jobs", "scenegen", "scene_import", "imagefiles", "engine", "service",
-                "dataset_export", "awb_eval"},
+                "dataset_export", "awb_eval", "sensor_estimate"},
 }
 CLIENT = ROOT / "clients" / "python" / "illumix_client"
 

@@ -1,0 +1,71 @@
+"""``illumix sensors estimate``: a camera's spectral sensitivities from its colour matrices (DNG
+``ColorMatrix1/2``, or what a raw file carries), written as a rawtoaces camera JSON."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import typer
+from rich.console import Console
+
+from illumix.errors import UserError
+
+console = Console(stderr=True)
+
+
+def estimate(
+    out: Path = typer.Option(..., "--out", help="Camera JSON to write (rawtoaces format: upload it, or put it in "
+                                                "ILLUMIX_SENSOR_PATH)."),
+    color_matrix: str | None = typer.Option(None, "--color-matrix", help="XYZ -> camera, DNG convention: nine "
+                                                                           "numbers m11,m12,…,m33 (rows R, G, B)."),
+    calibration_illuminant: str = typer.Option("D65", "--calibration-illuminant",
+                                               help="The illuminant --color-matrix was calibrated under (DNG "
+                                                    "CalibrationIlluminant1), e.g. D65, A, D50."),
+    color_matrix_2: str | None = typer.Option(None, "--color-matrix-2", help="A second matrix (DNG ColorMatrix2)."),
+    calibration_illuminant_2: str | None = typer.Option(None, "--calibration-illuminant-2",
+                                                        help="The illuminant of --color-matrix-2, e.g. A."),
+    from_raw: Path | None = typer.Option(None, "--from-raw", help="A DNG (its ColorMatrix1/2 and calibration "
+                                                                  "illuminants) or any raw file LibRaw reads (its Adobe-derived D65 matrix)."),
+    exclude: str | None = typer.Option(None, "--exclude", help="Comma-separated measured cameras to leave out of "
+                                                               "the prior (an honest leave-one-out)."),
+    prior: str | None = typer.Option(None, "--prior", help="Folders of measured cameras (rawtoaces JSON) for the "
+                                                           "prior, separated by the path separator (default: "
+                                                           "ILLUMIX_SENSOR_PATH)."),
+    name: str | None = typer.Option(None, "--name", help="The camera's name (default: the --out file's stem)."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout."),
+) -> None:
+    """Estimate a camera's spectral sensitivities from its colour matrices, under a prior learned from
+    measured cameras (bench/SENSORS.md measures how close it comes)."""
+    from illumix.retarget.errors import SpectralError
+    from illumix.sensor_estimate.camera_file import raw_matrices, write_camera
+    from illumix.sensor_estimate.run import EstimateRequest, parse_matrix, run_estimate
+
+    try:
+        matrices = []
+        if from_raw is not None:
+            matrices += raw_matrices(from_raw)
+        if color_matrix is not None:
+            matrices.append((parse_matrix(color_matrix, "--color-matrix"), calibration_illuminant))
+        if (color_matrix_2 is None) != (calibration_illuminant_2 is None):
+            raise UserError("--color-matrix-2 and --calibration-illuminant-2 go together")
+        if color_matrix_2 is not None:
+            matrices.append((parse_matrix(color_matrix_2, "--color-matrix-2"), calibration_illuminant_2))
+        if not matrices:
+            raise UserError("give --color-matrix (with --calibration-illuminant) or --from-raw FILE")
+        folders = [Path(p) for p in (prior or os.environ.get("ILLUMIX_SENSOR_PATH", "")).split(os.pathsep) if p]
+        if not folders:
+            raise UserError("no measured cameras for the prior: give --prior DIR (rawtoaces camera JSON files, "
+                            "e.g. rawtoaces-data/data/camera) or set ILLUMIX_SENSOR_PATH")
+        req = EstimateRequest(name=name or out.stem, matrices=matrices, prior=folders,
+                              exclude=[s.strip() for s in (exclude or "").split(",") if s.strip()])
+        doc, summary = run_estimate(req)
+        write_camera(out, doc)
+    except SpectralError as exc:
+        raise UserError(str(exc)) from None
+    console.print(f"wrote {out}: {summary['name']} from {summary['matrices']} matrix(es), prior of "
+                  f"{summary['prior_cameras']} cameras; posterior std at most {summary['max_std']:.3f} of the peak",
+                  highlight=False)
+    if as_json:
+        print(json.dumps({**summary, "out": str(out)}))

@@ -1,0 +1,63 @@
+"""``illumix sensors estimate``'s work: matrices in, a camera JSON out."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID
+
+
+@dataclass
+class EstimateRequest:
+    """``matrices``: ``[(ColorMatrix (3, 3) XYZ → camera, calibration illuminant name)]``; ``prior``:
+    folders of measured cameras; ``exclude``: their names left out of the prior."""
+
+    name: str
+    matrices: list[tuple[np.ndarray, str]]
+    prior: list[Path]
+    exclude: list[str] = field(default_factory=list)
+    components: int = 12
+    samples: int = 64
+
+
+def parse_matrix(text: str, flag: str) -> np.ndarray:
+    """Nine numbers ``m11,m12,…,m33`` (rows R, G, B) → ``(3, 3)``."""
+    try:
+        vals = [float(x) for x in text.replace(";", ",").split(",") if x.strip()]
+    except ValueError:
+        raise SpectralError(f"{flag} {text!r}: give nine numbers m11,m12,…,m33 (rows R, G, B)") from None
+    if len(vals) != 9 or not np.all(np.isfinite(vals)):
+        raise SpectralError(f"{flag}: give nine finite numbers m11,m12,…,m33 (rows R, G, B), got {len(vals)}")
+    return np.asarray(vals).reshape(3, 3)
+
+
+def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
+    """``(camera JSON document, summary)`` of an estimate."""
+    from illumix.retarget.illuminants import illuminant_spd
+    from illumix.retarget.reflectances import get_reflectances
+    from illumix.sensor_estimate import fit
+    from illumix.sensor_estimate.camera_file import camera_json
+    from illumix.sensor_estimate.prior import learn_prior, load_measured
+
+    grid = DEFAULT_GRID
+    measured = load_measured(req.prior, grid).without(req.exclude)
+    prior = learn_prior(measured, req.components)
+    refl = np.asarray(get_reflectances(fit.FIT_REFLECTANCES, grid)[1])
+    refl = refl if refl.shape[0] == grid.n_bands else refl.T
+    pairs = [(m, illuminant_spd(ill, grid)) for m, ill in req.matrices]
+    est = fit.estimate(prior, pairs, refl, fit.xyz_observer(grid), samples=req.samples)
+    provenance = {"method": "Gaussian linear model on a PCA prior of measured cameras (sensor_estimate.fit)",
+                  "matrices": [{"color_matrix": np.round(m, 6).tolist(), "calibration_illuminant": ill}
+                               for m, ill in req.matrices],
+                  "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
+                  "components": len(prior.variance), "fit_reflectances": fit.FIT_REFLECTANCES,
+                  "relative_residual": round(est.residual, 6), "noise_scale": fit.NOISE_SCALE}
+    doc = camera_json(req.name, grid, est.curves, est.samples, provenance)
+    summary = {"name": req.name, "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
+               "matrices": len(req.matrices), "relative_residual": round(est.residual, 6),
+               "max_std": round(float(est.samples.std(axis=0).max() / est.curves.max()), 5)}
+    return doc, summary

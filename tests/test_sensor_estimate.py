@@ -1,0 +1,118 @@
+"""Any camera without measured curves (issue 35, first route): sensitivities from colour matrices under
+a prior of measured cameras, each camera estimated with itself left out of the prior."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli_testutil import run_cli
+from illumix.retarget import illuminants as ill
+from illumix.retarget import sensors as sen
+from illumix.retarget.grid import DEFAULT_GRID as G
+from illumix.retarget.reflectances import get_reflectances
+from illumix.sensor_estimate import fit
+from illumix.sensor_estimate.prior import learn_prior, load_measured
+from test_cli_spectra import assert_one_line_error
+
+CAMERAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "rawtoaces-data" / "data" / "camera"
+needs_cameras = pytest.mark.skipif(not CAMERAS.is_dir(), reason="the measured cameras live in ../shared/data")
+EVAL = ["A", "D50", "D65", "D75", "FL2", "FL7", "FL11", "LED-B3", "LED-RGB1", "LED-V1", "HP1"]
+
+
+def wp_error_deg(est: np.ndarray, true: np.ndarray) -> float:
+    """Mean white-point angular error (degrees) over the 11 illuminants of issue 35."""
+    lights = np.stack([ill.illuminant_spd(n, G) for n in EVAL])
+    e, t = est.T @ lights.T, true.T @ lights.T
+    cos = (e * t).sum(0) / np.linalg.norm(e, axis=0) / np.linalg.norm(t, axis=0)
+    return float(np.degrees(np.arccos(np.clip(cos, -1, 1))).mean())
+
+
+def _refl(name: str) -> np.ndarray:
+    r = np.asarray(get_reflectances(name, G)[1])
+    return r if r.shape[0] == G.n_bands else r.T
+
+
+@pytest.fixture(scope="module")
+def measured():
+    return load_measured([CAMERAS])
+
+
+@needs_cameras
+def test_a_colour_matrix_round_trips_through_the_dng_convention(measured):
+    """The matrix of a camera's own curves maps its white to max channel 1, and the estimate's matrix
+    reproduces the given one (what the fit was asked)."""
+    d65, obs = ill.illuminant_spd("D65", G), fit.xyz_observer(G)
+    m = fit.colour_matrix(measured.curves[3], d65, _refl("CIE 2017"), obs)
+    white = obs.T @ d65
+    assert np.max(m @ (white / white[1])) == pytest.approx(1.0)
+    est = fit.estimate(learn_prior(measured.without([measured.names[3]])), [(m, d65)], _refl(fit.FIT_REFLECTANCES), obs)
+    m2 = fit.colour_matrix(est.curves, d65, _refl("CIE 2017"), obs)
+    assert np.abs(m2 - m).max() < 0.05
+    assert est.samples.shape[1:] == est.curves.shape and np.all(est.curves >= 0)
+
+
+@needs_cameras
+def test_held_out_cameras_beat_the_average_camera(measured):
+    """Every 7th camera, left out of the prior: from its D65 matrix (made from other reflectances than
+    the fit's) the white points land within 3° (the issue's worst-camera goal) and better than the
+    prior's mean camera on average (bench/sensors.py measures every camera)."""
+    d65, obs = ill.illuminant_spd("D65", G), fit.xyz_observer(G)
+    est_err, mean_err = [], []
+    for i in range(0, len(measured.names), 7):
+        prior = learn_prior(measured.without([measured.names[i]]))
+        m = fit.colour_matrix(measured.curves[i], d65, _refl("CIE 2017"), obs)
+        est = fit.estimate(prior, [(m, d65)], _refl(fit.FIT_REFLECTANCES), obs)
+        est_err.append(wp_error_deg(est.curves, measured.curves[i]))
+        mean_err.append(wp_error_deg(prior.mean, measured.curves[i]))
+    assert max(est_err) < 3.0 and np.mean(est_err) < 0.5 * np.mean(mean_err), (est_err, mean_err)
+
+
+@needs_cameras
+def test_cli_from_an_exported_dng_recovers_the_camera(tmp_path, capsys, monkeypatch):
+    """A DNG written by `illumix export --format dng` with a measured camera → `illumix sensors estimate
+    --from-raw` (that camera left out of the prior) → a sensor file the library loads, within 3°."""
+    import export_testutil
+
+    name = "Canon_EOS_5D_Mark_II"
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(CAMERAS))
+    store = export_testutil.build_export_store(tmp_path / "st")
+    code, _, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", "dng", "--sensors", name,
+                           "--count", "1", "--size", "32x24")
+    assert code == 0, err
+    dng = next((tmp_path / "o").rglob("*.dng"))
+    out = tmp_path / "est.json"
+    code, stdout, err = run_cli(capsys, "sensors", "estimate", "--from-raw", str(dng), "--exclude", name,
+                                "--prior", str(CAMERAS), "--out", str(out), "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["excluded"] == [name]
+    doc = json.loads(out.read_text())
+    assert doc["header"]["illumix_estimate"]["matrices"][0]["calibration_illuminant"] == "D65"
+    wl, rgb = sen.read_sensor_file(out)
+    est = sen.sensor_from_samples("est", wl, rgb, G)
+    true = sen.get_sensor(name)
+    assert wp_error_deg(est.sensitivities, true.sensitivities) < 3.0
+
+
+def test_bad_input_is_one_line(tmp_path, capsys):
+    out = str(tmp_path / "x.json")
+    for argv, says in ((["--out", out], "give --color-matrix"),
+                       (["--out", out, "--color-matrix", "1,2,3"], "nine"),
+                       (["--out", out, "--color-matrix", "1,0,0,0,1,0,0,0,1", "--prior", str(tmp_path)],
+                        "at least 8 measured cameras"),
+                       (["--out", out, "--from-raw", str(tmp_path / "none.dng")], "does not exist"),
+                       (["--out", out, "--color-matrix-2", "1,0,0,0,1,0,0,0,1"], "go together")):
+        line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", *argv))
+        assert says in line, (argv, line)
+    assert not Path(out).exists()
+
+
+@needs_cameras
+def test_unknown_exclusion_names_close_matches(capsys, tmp_path):
+    line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", "--out", str(tmp_path / "x.json"),
+                                          "--color-matrix", "0.6,0,-0.07,-0.47,1.15,0.27,-0.13,0.25,0.54",
+                                          "--prior", str(CAMERAS), "--exclude", "Canon_EOS_5D_Mark2"))
+    assert "Canon_EOS_5D_Mark_II" in line
