@@ -24,7 +24,7 @@ from illumix.engine.limits import Limits
 from illumix.service import errors
 from illumix.service.body_guard import BodyGuard
 from illumix.service.metrics import Metrics, RequestMetrics
-from illumix.service.routes import explore, metrics, registries, samples, status, web
+from illumix.service.routes import explore, metrics, registries, samples, sensor_estimate, status, web
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file
@@ -55,7 +55,7 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.state.token = token
     errors.install(app)
     app.state.metrics = Metrics(app.state.ctx)
-    routers = (samples.router, registries.router, status.router, metrics.router, explore.router, web.router)
+    routers = (samples.router, sensor_estimate.router, registries.router, status.router, metrics.router, explore.router, web.router)
     for router in routers:
         app.include_router(router)
     web.mount_static(app)

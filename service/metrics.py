@@ -115,7 +115,7 @@ class RequestMetrics:
                 continue
             match, _ = route.matches(scope)
             if match == Match.FULL:
-                return route.path
+                return getattr(route, "path_format", route.path)  # "{name}", not "{name:convertor}"
             if match == Match.PARTIAL and partial is None:
-                partial = route.path
+                partial = getattr(route, "path_format", route.path)
         return partial or OTHER

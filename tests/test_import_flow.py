@@ -18,7 +18,7 @@ ALLOWED = {
     "scene_import": {"retarget", "scene"},
     "imagefiles": {"retarget"},
     "engine": {"retarget", "store"},
-    "service": {"retarget", "store", "engine", "imagefiles"},
+    "service": {"retarget", "store", "engine", "imagefiles", "sensor_estimate"},
     "dataset_export": {"retarget", "store", "engine", "imagefiles"},
     "awb_eval": {"retarget", "store", "engine"},
     "sensor_estimate": {"retarget"},

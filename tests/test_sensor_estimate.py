@@ -116,3 +116,43 @@ def test_unknown_exclusion_names_close_matches(capsys, tmp_path):
                                           "--color-matrix", "0.6,0,-0.07,-0.47,1.15,0.27,-0.13,0.25,0.54",
                                           "--prior", str(CAMERAS), "--exclude", "Canon_EOS_5D_Mark2"))
     assert "Canon_EOS_5D_Mark_II" in line
+
+
+@needs_cameras
+def test_service_estimates_and_serves_the_new_sensor(tmp_path, monkeypatch):
+    """POST /sensors/estimate (token-protected): the matrices → a registered sensor /sample serves;
+    a DNG upload works the same; refusals are 4xx with one line."""
+    from fastapi.testclient import TestClient
+
+    import synthetic_store as synth
+    from illumix.service.app import create_app
+    from illumix.store import CubeStore
+
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(CAMERAS))
+    synth.build(tmp_path / "st")
+    app = create_app(CubeStore.open(str(tmp_path / "st"), mode="a"), token="t0k")
+    auth = {"Authorization": "Bearer t0k"}
+    m = "0.6722,-0.0635,-0.0963,-0.4287,1.2460,0.2028,-0.0908,0.2162,0.5668"
+    with TestClient(app) as c:
+        assert c.post("/sensors/estimate", data={"name": "est-cam", "color_matrix": m}).status_code == 401
+        r = c.post("/sensors/estimate", data={"name": "est-cam", "color_matrix": m}, headers=auth)
+        assert r.status_code == 201, r.text
+        assert r.json()["prior_cameras"] == 52 and r.json()["matrices"][0]["calibration_illuminant"] == "D65"
+        assert "est-cam" in c.get("/sensors").json()["uploaded"]
+        s = c.get("/sample", params={"scene": "synth", "view": "v0", "sensor": "est-cam", "pair": "A,D65",
+                                    "outputs": "raw"})
+        assert s.status_code == 200
+        assert c.post("/sensors/estimate", data={"name": "est-cam", "color_matrix": m}, headers=auth).status_code == 409
+        bad = c.post("/sensors/estimate", data={"name": "x", "color_matrix": "1,2"}, headers=auth)
+        assert bad.status_code == 422 and "nine" in bad.json()["detail"]
+        none = c.post("/sensors/estimate", data={"name": "x"}, headers=auth)
+        assert none.status_code == 422 and "color_matrix" in none.json()["detail"]
+        junk = c.post("/sensors/estimate", data={"name": "y"}, files={"file": ("a.dng", b"not a raw")}, headers=auth)
+        assert junk.status_code == 422
+        from illumix.imagefiles.dng import dng_bytes
+
+        cm = np.array([float(v) for v in m.split(",")]).reshape(3, 3)
+        dng = dng_bytes(np.full((32, 32), 500, np.uint16), black=64, white=4095, pattern="RGGB", matrix=cm,
+                        neutral=[1, 1, 1], model="cam")
+        r = c.post("/sensors/estimate", data={"name": "from-dng"}, files={"file": ("cam.dng", dng)}, headers=auth)
+        assert r.status_code == 201 and np.allclose(r.json()["matrices"][0]["color_matrix"], cm, atol=1e-5)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, File, Form, UploadFile
+from starlette.convertors import StringConvertor, register_url_convertor
 
 from illumix.engine import catalogue
 from illumix.engine.library import check_upload_name, parse_illuminant, parse_sensor
@@ -23,6 +24,15 @@ from illumix.service.models import Deleted, IlluminantList, SensorDetail, Sensor
 from illumix.store import StoreError
 
 router = APIRouter()
+
+
+class _SensorName(StringConvertor):
+    """A sensor name in a path: anything but ``estimate`` (``POST /sensors/estimate`` has that path)."""
+
+    regex = r"(?!estimate$)[^/]+"
+
+
+register_url_convertor("sensor_name", _SensorName())
 _WRITE_ERRORS = error_responses(400, 401, 408, 409, 413, 422, 503, 507)
 _DELETE_ERRORS = error_responses(401, 403, 404, 422, 503)
 
@@ -34,7 +44,7 @@ def sensors(ctx: CtxDep) -> SensorList:
     return SensorList.model_validate(catalogue.sensors(ctx))
 
 
-@router.get("/sensors/{name}", response_model=SensorDetail, tags=["sensors"], responses=error_responses(404, 422))
+@router.get("/sensors/{name:sensor_name}", response_model=SensorDetail, tags=["sensors"], responses=error_responses(404, 422))
 def sensor_detail(name: str, ctx: CtxDep) -> SensorDetail:
     """One sensor's band-averaged sensitivities on the default grid."""
     s, _ = ctx.library.sensor(name, DEFAULT_GRID)
@@ -49,13 +59,14 @@ async def upload_sensor(name: Annotated[str, Form(max_length=128)], file: Annota
     """Register a sensor: a rawtoaces camera JSON or a CSV ``wavelength,r,g,b``."""
     data = await _read(file, ctx.limits.max_upload_bytes)
     check_upload_name("sensors", name, sen.builtin_names())
+    _not_reserved(name)
     fmt = "json" if (file.filename or "").lower().endswith(".json") or data.lstrip()[:1] == b"{" else "csv"
     parse_sensor(name, data, fmt, DEFAULT_GRID)  # validate before anything is written
     _put(ctx, "sensors", name, data, fmt, overwrite)
     return Uploaded(name=name, format=fmt, bytes=len(data))
 
 
-@router.delete("/sensors/{name}", response_model=Deleted, tags=["sensors"], dependencies=[TokenDep],
+@router.delete("/sensors/{name:sensor_name}", response_model=Deleted, tags=["sensors"], dependencies=[TokenDep],
                responses=_DELETE_ERRORS)
 def delete_sensor(name: str, ctx: CtxDep) -> Deleted:
     """Delete an uploaded sensor (built-ins are 403)."""
@@ -93,6 +104,12 @@ def delete_illuminant(name: str, ctx: CtxDep) -> Deleted:
 
 
 # -- helpers ----------------------------------------------------------------------------------------
+def _not_reserved(name: str) -> None:
+    if name.lower() == "estimate":
+        raise SpectralError("'estimate' names the estimation endpoint (POST /sensors/estimate); choose another name")
+
+
+
 async def _read(file: UploadFile, limit: int) -> bytes:
     data = await file.read(limit + 1)
     if len(data) > limit:
