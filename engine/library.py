@@ -50,7 +50,11 @@ class Library:
         return name in sen.builtin_names()
 
     def sensor(self, name: str, grid: SpectralGrid) -> tuple[sen.Sensor, str]:
-        """``(Sensor, cache key)`` for a built-in or uploaded sensor name."""
+        """``(Sensor, cache key)`` for a built-in or uploaded sensor name, or ``random:<seed>``: a
+        camera drawn from the prior of the measured cameras in ``ILLUMIX_SENSOR_PATH``
+        (:mod:`sensor_estimate.draw`; ``sensor=random`` names the request's seed)."""
+        if name.lower().startswith(RANDOM + ":"):
+            return random_sensor(name, grid), f"random:{name.partition(':')[2]}"
         if self.is_builtin_sensor(name):
             return sen.get_sensor(name, grid), f"builtin:{name}"
         up = self._upload("sensors", name)
@@ -120,3 +124,22 @@ def parse_illuminant(name: str, data: bytes, grid: SpectralGrid) -> np.ndarray:
 def check_upload_name(kind: str, name: str, builtin: list[str]) -> None:
     if name in builtin or (kind == "illuminants" and ":" in name):
         raise SpectralError(f"{kind[:-1]} name {name!r} is taken by a built-in; choose another name")
+
+
+RANDOM = "random"
+
+
+def random_sensor(name: str, grid: SpectralGrid) -> sen.Sensor:
+    """The camera ``random:<seed>`` names (module docstring of :mod:`sensor_estimate.draw`)."""
+    from illumix.sensor_estimate.draw import draw_camera, measured_prior
+
+    seed_text = name.partition(":")[2]
+    if not seed_text.isdigit() or int(seed_text) >= 2**32:
+        raise SpectralError(f"sensor {name!r}: random:<seed> takes a whole number 0..4294967295, e.g. random:7")
+    folders = tuple(str(d) for d in sen.sensor_dirs())
+    if not folders:
+        raise SpectralError("sensor=random draws from measured cameras, and this service has none: start it "
+                            "with ILLUMIX_SENSOR_PATH pointing at rawtoaces camera JSON files")
+    curves = draw_camera(measured_prior(folders, grid), int(seed_text))
+    return sen.Sensor(name=f"{RANDOM}:{int(seed_text)}", grid=grid, sensitivities=curves / curves.max(),
+                      source=f"drawn from a prior of measured cameras ({', '.join(folders)})")

@@ -40,6 +40,7 @@ class Plan:
     aovs: list[str] = field(default_factory=list)  # the view's stored AOVs
     denoise: str = "none"  # the denoise method whose stored copies are read ("none": the raw cubes)
     denoise_why: str = ""
+    sensor: str = ""  # the sensor to project through: sensor=random becomes random:<seed> (a drawn camera)
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -127,6 +128,7 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
              aovs=list(vmeta.aovs))
+    p.sensor = f"random:{seed & 0xFFFFFFFF}" if spec.sensor.lower() == "random" else spec.sensor
     p.gt, p.gt_why = _ground_truth(spec, p)
     p.denoise, p.denoise_why = _denoising(spec, p)
     wanted = set(spec.outputs)

@@ -139,7 +139,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     t0 = time.perf_counter()
     spec, lib = p.spec, ctx.library
     grid = p.metas[0].spectral_grid
-    sensor, skey = lib.sensor(spec.sensor, grid)
+    sensor, skey = lib.sensor(p.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
     # a CCM fit (~1 ms, then cached per sensor and illuminant) only when an output or the metadata uses it
     if {"ccm", "srgb", "meta"} & set(spec.outputs):

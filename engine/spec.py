@@ -143,7 +143,7 @@ class SampleSpec(BaseModel):
     view: str | None = Field(None, max_length=MAX_NAME, description="view name (random when omitted)")
     seed: Annotated[int | None, BeforeValidator(_seed)] = Field(
         None, ge=0, le=2**63 - 1, description="seed for the random choices and the noise (random when omitted)")
-    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name")
+    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name; random: a camera drawn with the seed from the prior of the measured cameras (random:<seed> names one)")
     pair: Annotated[list[str] | None, BeforeValidator(_names("pair")),
                     _text("two illuminants for the view's first two light groups", "A,D65")] = None
     illuminants: Annotated[list[str] | None, BeforeValidator(_names("illuminants")),

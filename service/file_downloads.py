@@ -109,7 +109,7 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
     black, white = dng_levels(noise)
     raw = arrays["raw"] if noise is not None else simulate_raw(arrays["raw"], DNG_LEVELS, noise=False)
     lib, grid = ctx.library, p.metas[0].spectral_grid
-    sensor, skey = lib.sensor(spec.sensor, grid)
+    sensor, skey = lib.sensor(p.sensor, grid)
     d65 = lib.illuminant("D65", grid)
     ccm, _ = lib.ccm(sensor, skey, *d65)
     lit = [i for i, r in enumerate(p.reads()) if r]

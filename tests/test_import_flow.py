@@ -17,7 +17,7 @@ ALLOWED = {
     "scenegen": {"retarget", "scene", "renderer_jobs"},
     "scene_import": {"retarget", "scene"},
     "imagefiles": {"retarget"},
-    "engine": {"retarget", "store"},
+    "engine": {"retarget", "store", "sensor_estimate"},
     "service": {"retarget", "store", "engine", "imagefiles", "sensor_estimate"},
     "dataset_export": {"retarget", "store", "engine", "imagefiles"},
     "awb_eval": {"retarget", "store", "engine"},

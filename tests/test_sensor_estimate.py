@@ -156,3 +156,35 @@ def test_service_estimates_and_serves_the_new_sensor(tmp_path, monkeypatch):
                         neutral=[1, 1, 1], model="cam")
         r = c.post("/sensors/estimate", data={"name": "from-dng"}, files={"file": ("cam.dng", dng)}, headers=auth)
         assert r.status_code == 201 and np.allclose(r.json()["matrices"][0]["color_matrix"], cm, atol=1e-5)
+
+
+@needs_cameras
+def test_sensor_random_draws_a_plausible_camera_per_seed(tmp_path, monkeypatch):
+    """sensor=random: each seed a camera from the prior (recorded in meta as random:<seed>), the same
+    camera for the same seed; the draws' white points under A and D65 lie among the measured ones'."""
+    import synthetic_store as synth
+    from illumix.engine.context import make_context
+    from illumix.engine.sampling import build_sample
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
+
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(CAMERAS))
+    synth.build(tmp_path / "st")
+    ctx = make_context(CubeStore.open(str(tmp_path / "st"), mode="r"), cache_mb=16)
+    metas, raws = [], []
+    for seed in (1, 2, 1):
+        arrays, meta = build_sample(SampleSpec(scene="synth", view="v0", sensor="random", seed=seed,
+                                               pair="A,D65", outputs="raw,meta"), ctx)
+        metas.append(meta["sensor"]["name"])
+        raws.append(arrays["raw"])
+    assert metas == ["random:1", "random:2", "random:1"]
+    np.testing.assert_array_equal(raws[0], raws[2])
+    assert not np.array_equal(raws[0], raws[1])
+    measured = load_measured([CAMERAS])
+    lights = np.stack([ill.illuminant_spd(n, G) for n in ("A", "D65")])
+    rg = lambda c: (c.T @ lights.T)[0] / (c.T @ lights.T)[1]  # noqa: E731 - R/G under A and D65
+    lo, hi = np.min([rg(c) for c in measured.curves], 0), np.max([rg(c) for c in measured.curves], 0)
+    s, _ = ctx.library.sensor("random:5", G)
+    assert np.all(rg(s.sensitivities) >= 0.8 * lo) and np.all(rg(s.sensitivities) <= 1.2 * hi)
+    with pytest.raises(Exception, match="whole number"):
+        ctx.library.sensor("random:x", G)

@@ -355,7 +355,7 @@ def _check_names(client: Client, pool: IlluminantPool, sensors: Sequence[str]) -
         raise ValueError("sensors must be a list of names, e.g. ['XYZ']")
     known_s = client.sensors()
     known = set(known_s["builtin"]) | set(known_s["uploaded"])
-    bad = [s for s in sensors if s not in known]
+    bad = [s for s in sensors if s not in known and s.partition(":")[0].lower() != "random"]
     if bad:
         raise ValueError(f"unknown sensor(s) {bad}; the service has {sorted(known)}")
     ill = client.illuminants()
