@@ -85,7 +85,7 @@ def _corners(st, place, size: tuple[int, int] | None, cache: dict) -> np.ndarray
 
 def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on_progress) -> None:
     """Write every camera's LSMI folder (module docstring); fills ``summary``."""
-    from illumix.imagefiles.dng import color_matrix, template_bytes
+    from illumix.imagefiles.dng import color_matrix, noise_profile, template_bytes
 
     levels = _levels(o.noise)
     bayer = o.bayer if fmt.bayer else None  # dng without a pattern (--bayer none): LinearRaw RGB frames
@@ -112,7 +112,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         ccm, _ = lib.ccm(sensor, skey, *spds["D65"])
         matrix = color_matrix(sensor.weights(), spds["D65"][0], ccm)
         dng_kw = {"black": int(levels.black_level), "white": int(levels.white), "pattern": o.bayer,
-                  "matrix": matrix, "model": sensor_name}
+                  "matrix": matrix, "model": sensor_name,  # the sensor model's NoiseProfile with --noise
+                  "noise": noise_profile(levels) if o.noise else None}
         entries = _export_places(st, places, journal, composer, o, fmt, cam, sensor_name, dng_kw, ccts, tally,
                                  summary, on_progress)
         splits = {name: [p for p in ps if p in entries] for name, ps in by_split.items()}

@@ -70,6 +70,24 @@ class Library:
                 self._sensors[key] = s
         return s, f"upload:{name}:{key[2]}"
 
+    def camera_noise(self, name: str):
+        """The :class:`~retarget.sensor_model.NoiseModel` a sensor file states (``noise=camera``): the
+        DNG levels and ``NoiseProfile`` ``(S, O)`` it was estimated from, as full well ``1/S`` electrons
+        and read noise ``√O/S`` electrons (variance ``S·x + O`` of a signal ``x`` in [0, 1])."""
+        data = None
+        up = None if name.lower().startswith(RANDOM + ":") else self._upload("sensors", name)
+        if up is not None:
+            data = up[0]
+        else:
+            path = sen.sensor_file(name)
+            data = path.read_bytes() if path is not None else None
+        model = _sensor_model(data)
+        if model is None:
+            raise SpectralError(f"sensor {name!r} states no camera noise model; noise=camera needs a sensor "
+                                "estimated from a DNG with a NoiseProfile (illumix sensors estimate --from-raw), "
+                                "or give noise=low|phone|high|key:value")
+        return model
+
     # -- illuminants ------------------------------------------------------------------------
     def illuminant(self, name: str, grid: SpectralGrid) -> tuple[np.ndarray, str]:
         """``(normalised SPD (n_bands,), cache key)``."""
@@ -143,3 +161,24 @@ def random_sensor(name: str, grid: SpectralGrid) -> sen.Sensor:
     curves = draw_camera(measured_prior(folders, grid), int(seed_text))
     return sen.Sensor(name=f"{RANDOM}:{int(seed_text)}", grid=grid, sensitivities=curves / curves.max(),
                       source=f"drawn from a prior of measured cameras ({', '.join(folders)})")
+
+
+def _sensor_model(data: bytes | None):
+    """The NoiseModel of a camera JSON's ``header.illumix_estimate.sensor_model``, or None."""
+    import json
+    import math
+
+    from illumix.retarget.sensor_model import MAX_FULL_WELL, MAX_READ_NOISE, NoiseModel
+
+    if not data or data.lstrip()[:1] != b"{":
+        return None
+    try:
+        m = json.loads(data)["header"]["illumix_estimate"]["sensor_model"]
+        s_, o_ = (float(x) for x in m["noise_profile"])
+        black, white = float(m["black_level"]), float(m["white_level"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    full_well = min(1.0 / s_, MAX_FULL_WELL)
+    read = min(math.sqrt(o_) * full_well, MAX_READ_NOISE)
+    bits = max(1, min(16, math.ceil(math.log2(white + 1))))
+    return NoiseModel(full_well=full_well, read_noise=read, black_level=black, white_level=white, bit_depth=bits)

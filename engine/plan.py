@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from illumix.engine.errors import NotFound, TooLarge
 from illumix.engine.limits import Limits
-from illumix.engine.spec import SPECTRAL_OUTPUTS, SampleSpec
+from illumix.engine.spec import CAMERA_NOISE, SPECTRAL_OUTPUTS, SampleSpec
 from illumix.retarget.compose import GT_OUTPUTS
 from illumix.retarget.errors import SpectralError, unknown_name
 
@@ -41,6 +41,7 @@ class Plan:
     denoise: str = "none"  # the denoise method whose stored copies are read ("none": the raw cubes)
     denoise_why: str = ""
     sensor: str = ""  # the sensor to project through: sensor=random becomes random:<seed> (a drawn camera)
+    noise: object = None  # the NoiseModel of noise= (noise=camera: the sensor's own), or None
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -129,6 +130,8 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
              aovs=list(vmeta.aovs))
     p.sensor = f"random:{seed & 0xFFFFFFFF}" if spec.sensor.lower() == "random" else spec.sensor
+    camera = spec.noise is not None and spec.noise.strip().lower() == CAMERA_NOISE
+    p.noise = ctx.library.camera_noise(p.sensor) if camera else spec.noise_model()
     p.gt, p.gt_why = _ground_truth(spec, p)
     p.denoise, p.denoise_why = _denoising(spec, p)
     wanted = set(spec.outputs)

@@ -183,7 +183,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
         if not all_finite(a):
             raise SpectralError(f"the composed {k} overflows float32 (intensities × exposure × the stored "
                                 "radiance is too large); lower intensities= or exposure=")
-    noise = spec.noise_model()
+    noise = p.noise
     if noise is not None and "raw" in want:
         arrays["raw"] = simulate_raw(arrays["raw"], noise, seed=p.seed)
     if spec.bayer and "raw" in want:

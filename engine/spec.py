@@ -39,6 +39,7 @@ SPECTRAL_OUTPUTS = frozenset({"reflectance", "illumination"})  # per-pixel spect
 # bandwidth may leave it out (outputs=...) and rebuild it (illumix_client.Sample.ccm_map()).
 DEFAULT_OUTPUTS = (*OUTPUTS, "meta")
 ALL_OUTPUTS = (*OUTPUTS, *AOV_OUTPUTS, "reflectance", "illumination", "meta")
+CAMERA_NOISE = "camera"  # noise=camera: the sensor's own model (a DNG's levels and NoiseProfile)
 MAX_NAME = 256  # longest scene/view/sensor/illuminant name accepted (close-match search is O(n·m))
 
 #: The outputs each single-image format can carry (one per answer).
@@ -172,8 +173,10 @@ class SampleSpec(BaseModel):
                                "(value = stored × scale; meta.encoding.scales); npz and arrays only")
     exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
                                  pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
-    noise: str | None = Field(None, max_length=512, description="low, phone, high or key:value;… "
-                                                                "(full_well, read_noise, black_level, white_level, bit_depth)")
+    noise: str | None = Field(None, max_length=512, description="low, phone, high, key:value;… "
+                                                                "(full_well, read_noise, black_level, white_level, bit_depth), "
+                                                                "or camera: the sensor's own model, from the DNG it was "
+                                                                "estimated from (illumix sensors estimate --from-raw)")
     bayer: str | None = Field(None, description="RGGB, BGGR, GRBG or GBRG (any case): the raw as that mosaic; "
                                                 "none: no mosaic (as omitted; format=dng: a LinearRaw RGB DNG)",
                               pattern=r"^([Rr][Gg][Gg][Bb]|[Bb][Gg][Gg][Rr]|[Gg][Rr][Bb][Gg]|[Gg][Bb][Rr][Gg]|[Nn][Oo][Nn][Ee])$")
@@ -244,6 +247,9 @@ class SampleSpec(BaseModel):
         return float(self.exposure)
 
     def noise_model(self) -> NoiseModel | None:
+        """The noise model named here (``noise=camera`` needs the sensor: :attr:`engine.plan.Plan.noise`)."""
+        if self.noise is not None and self.noise.strip().lower() == CAMERA_NOISE:
+            raise SpectralError("noise=camera is the sensor's own model: resolve it with the plan (Plan.noise)")
         return None if self.noise is None else parse_noise(self.noise)
 
     def array_outputs(self) -> list[str]:
@@ -262,6 +268,8 @@ def parse_noise(text: str) -> NoiseModel | None:
     ``full_well:8000;read_noise:3;bit_depth:12`` (separated by ``;`` or ``|``)."""
     if not text.strip() or text.strip().lower() == "none":
         return None
+    if text.strip().lower() == CAMERA_NOISE:
+        return None  # the sensor's own: resolved with the plan (engine.plan)
     if text in NOISE_PRESETS:
         return NOISE_PRESETS[text]
     fields: dict[str, Any] = {}

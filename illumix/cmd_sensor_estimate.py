@@ -39,7 +39,7 @@ def estimate(
     """Estimate a camera's spectral sensitivities from its colour matrices, under a prior learned from
     measured cameras (bench/SENSORS.md measures how close it comes)."""
     from illumix.retarget.errors import SpectralError
-    from illumix.sensor_estimate.camera_file import raw_matrices, write_camera
+    from illumix.sensor_estimate.camera_file import dng_sensor_model, raw_matrices, write_camera
     from illumix.sensor_estimate.run import EstimateRequest, parse_matrix, run_estimate
 
     try:
@@ -59,7 +59,8 @@ def estimate(
             raise UserError("no measured cameras for the prior: give --prior DIR (rawtoaces camera JSON files, "
                             "e.g. rawtoaces-data/data/camera) or set ILLUMIX_SENSOR_PATH")
         req = EstimateRequest(name=name or out.stem, matrices=matrices, prior=folders,
-                              exclude=[s.strip() for s in (exclude or "").split(",") if s.strip()])
+                              exclude=[s.strip() for s in (exclude or "").split(",") if s.strip()],
+                              sensor_model=dng_sensor_model(from_raw) if from_raw is not None else None)
         doc, summary = run_estimate(req)
         write_camera(out, doc)
     except SpectralError as exc:

@@ -74,10 +74,17 @@ def _rationals(values) -> list[list[int]]:
     return [[round(float(v) * DENOMINATOR), DENOMINATOR] for v in np.ravel(values)]
 
 
+def noise_profile(model: NoiseModel) -> tuple[float, float]:
+    """DNG ``NoiseProfile`` ``(S, O)`` of a sensor model: the variance of a signal ``x`` normalised to
+    [0, 1] is ``S·x + O`` — shot noise ``S = 1/full_well``, read noise ``O = (read_noise/full_well)²``."""
+    return 1.0 / model.full_well, (model.read_noise / model.full_well) ** 2
+
+
 def dng_bytes(image: np.ndarray, *, black: int, white: int, pattern: str | None, matrix: np.ndarray,
-              neutral, model: str, description: str = "") -> bytes:
+              neutral, model: str, description: str = "", noise: tuple[float, float] | None = None) -> bytes:
     """A DNG of ``image`` uint16 (module docstring): a Bayer mosaic ``(H, W)`` with ``pattern`` (e.g.
-    ``"RGGB"``), or a LinearRaw ``(H, W, 3)`` RGB frame with ``pattern=None``."""
+    ``"RGGB"``), or a LinearRaw ``(H, W, 3)`` RGB frame with ``pattern=None``; ``noise``: its
+    ``NoiseProfile`` ``(S, O)`` (:func:`noise_profile`)."""
     from pidng.core import RAW2DNG
     from pidng.defs import (
         CalibrationIlluminant,
@@ -109,18 +116,22 @@ def dng_bytes(image: np.ndarray, *, black: int, white: int, pattern: str | None,
         t.set(tag, value)
     if description:
         t.set(Tag.ImageDescription, description)
+    if noise is not None:
+        t.set(Tag.NoiseProfile, [float(noise[0]), float(noise[1])])
     writer = RAW2DNG()
     writer.options(t, path="", compress=False)
     return bytes(writer.convert(np.ascontiguousarray(image, dtype=np.uint16)))
 
 
-def template_bytes(*, black: int, white: int, pattern: str | None, matrix: np.ndarray, model: str) -> bytes:
+def template_bytes(*, black: int, white: int, pattern: str | None, matrix: np.ndarray, model: str,
+                   noise: tuple[float, float] | None = None) -> bytes:
     """LSMI's per-camera template DNG (``<camera>.dng``: its scripts read ``black_level_per_channel``,
     ``white_level`` and ``raw_pattern`` from it): a 32 × 32 frame at the black level (libraw refuses
     frames under 22 pixels), a mosaic with ``pattern`` or linear without."""
     shape = (32, 32) if pattern else (32, 32, 3)
     return dng_bytes(np.full(shape, black, np.uint16), black=black, white=white, pattern=pattern, matrix=matrix,
-                     neutral=[1.0, 1.0, 1.0], model=model, description="illumix export: camera template (levels)")
+                     neutral=[1.0, 1.0, 1.0], model=model, description="illumix export: camera template (levels)",
+                     noise=noise)
 
 
 def write_dng(path: Path, image: np.ndarray, **kw) -> None:

@@ -70,6 +70,11 @@ def _dir_sensors() -> dict[str, Path]:
     return _list_dirs(tuple(stamp))
 
 
+def sensor_file(name: str) -> Path | None:
+    """The ILLUMIX_SENSOR_PATH file of a sensor name, or None."""
+    return _dir_sensors().get(name)
+
+
 @lru_cache(maxsize=8)
 def _list_dirs(stamp: tuple[tuple[str, int | None], ...]) -> dict[str, Path]:
     found: dict[str, Path] = {}

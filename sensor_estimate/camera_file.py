@@ -66,13 +66,42 @@ def raw_matrices(path: str | Path) -> list[tuple[np.ndarray, str]]:
     return found if found else [(_libraw_matrix(p), "D65")]
 
 
-def _dng_matrices(p: Path) -> list[tuple[np.ndarray, str]]:
+def _dng_tags(p: Path) -> dict:
+    """The first IFD's tags of a DNG (code → value); empty for a file that is no TIFF."""
     import tifffile
 
     try:
         with tifffile.TiffFile(p) as tif:
-            tags = {t.code: t.value for t in tif.pages[0].tags.values()}
+            return {t.code: t.value for t in tif.pages[0].tags.values()}
     except Exception:  # noqa: BLE001 - not a TIFF/DNG: LibRaw may still read it
+        return {}
+
+
+CFA_COLOURS = {0: "R", 1: "G", 2: "B"}
+
+
+def dng_sensor_model(path: str | Path) -> dict | None:
+    """The camera's own sensor model a DNG states, for ``noise=camera``: black and white level (DN),
+    the CFA pattern, and ``NoiseProfile``'s ``(S, O)`` — the variance of a signal ``x`` normalised to
+    [0, 1] is ``S·x + O`` (DNG 1.6 §6.2) — of its first plane. None without a NoiseProfile."""
+    tags = _dng_tags(Path(path))
+    if 51041 not in tags:
+        return None
+    prof = np.asarray(tags[51041], np.float64).ravel()
+    black = np.asarray(tags.get(50714, 0), np.float64).ravel()
+    white = float(np.asarray(tags.get(50717, 4095), np.float64).ravel()[0])
+    cfa = tags.get(33422)
+    codes = list(cfa) if isinstance(cfa, (bytes, bytearray)) else np.asarray(cfa if cfa is not None else []).ravel()
+    pattern = "".join(CFA_COLOURS.get(int(c), "?") for c in codes) if cfa is not None else None
+    if prof.size < 2 or prof[0] <= 0 or prof[1] < 0 or not np.all(np.isfinite(prof[:2])):
+        raise SpectralError(f"{path}: NoiseProfile {prof[:2].tolist()} is not (S > 0, O >= 0)")
+    return {"black_level": float(black.mean()), "white_level": white, "noise_profile": [float(prof[0]), float(prof[1])],
+            "bayer": pattern if pattern and len(pattern) == 4 and "?" not in pattern else None}
+
+
+def _dng_matrices(p: Path) -> list[tuple[np.ndarray, str]]:
+    tags = _dng_tags(p)
+    if not tags:
         return []
     out = []
     for cm_code, ill_code in ((50721, 50778), (50722, 50779)):

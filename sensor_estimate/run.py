@@ -22,6 +22,7 @@ class EstimateRequest:
     exclude: list[str] = field(default_factory=list)
     components: int = 12
     samples: int = 64
+    sensor_model: dict | None = None  # a DNG's black/white level, CFA and NoiseProfile (noise=camera)
 
 
 def parse_matrix(text: str, flag: str) -> np.ndarray:
@@ -55,7 +56,8 @@ def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
                                for m, ill in req.matrices],
                   "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
                   "components": len(prior.variance), "fit_reflectances": fit.FIT_REFLECTANCES,
-                  "relative_residual": round(est.residual, 6), "noise_scale": fit.NOISE_SCALE}
+                  "relative_residual": round(est.residual, 6), "noise_scale": fit.NOISE_SCALE,
+                  **({"sensor_model": req.sensor_model} if req.sensor_model else {})}
     doc = camera_json(req.name, grid, est.curves, est.samples, provenance)
     summary = {"name": req.name, "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
                "matrices": len(req.matrices), "relative_residual": round(est.residual, 6),

@@ -103,7 +103,7 @@ class Image(Encoder):
 
     def encode(self, p, ctx, arrays, meta):
         name = image_output(arrays, self.name)
-        noise = p.spec.noise_model() if name == "raw" else None
+        noise = p.noise if name == "raw" else None
         meta["encoding"] = png_scale(name, noise) if self.name == "png" else None
         body, headers = encode_image(arrays, self.name, noise=noise, meta=meta)
         headers["X-Illumix-Meta"] = meta_json({k: meta[k] for k in ("scene", "view", "seed", "size", "exposure_gain")})

@@ -28,7 +28,7 @@ import numpy as np
 
 from illumix.engine import budget
 from illumix.engine.spec import SampleSpec
-from illumix.imagefiles.dng import DNG_LEVELS, DNG_MIN_SIDE, dng_levels
+from illumix.imagefiles.dng import DNG_LEVELS, DNG_MIN_SIDE, dng_levels, noise_profile
 from illumix.retarget.errors import SpectralError
 from illumix.retarget.sensor_model import simulate_raw
 from illumix.service.errors import fail
@@ -105,7 +105,7 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
     from illumix.service.encoding import meta_json
 
     spec = p.spec
-    noise = spec.noise_model()
+    noise = p.noise
     black, white = dng_levels(noise)
     raw = arrays["raw"] if noise is not None else simulate_raw(arrays["raw"], DNG_LEVELS, noise=False)
     lib, grid = ctx.library, p.metas[0].spectral_grid
@@ -126,7 +126,8 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
         "ground_truth": meta["ground_truth"]["method"]}
     return dng_bytes(np.clip(np.round(raw), 0, white).astype(np.uint16), black=black, white=white,
                      pattern=spec.bayer, matrix=color_matrix(sensor.weights(), d65[0], ccm), neutral=neutral,
-                     model=spec.sensor, description="illumix GET /sample " + meta_json(about))
+                     model=spec.sensor, description="illumix GET /sample " + meta_json(about),
+                     noise=noise_profile(noise) if noise is not None else None)
 
 
 def encode_exr(p, arrays: dict[str, np.ndarray], meta: dict | None) -> bytes:

@@ -188,3 +188,35 @@ def test_sensor_random_draws_a_plausible_camera_per_seed(tmp_path, monkeypatch):
     assert np.all(rg(s.sensitivities) >= 0.8 * lo) and np.all(rg(s.sensitivities) <= 1.2 * hi)
     with pytest.raises(Exception, match="whole number"):
         ctx.library.sensor("random:x", G)
+
+
+@needs_cameras
+def test_noise_camera_is_the_dngs_own_sensor_model(tmp_path, capsys, monkeypatch):
+    """A DNG exported with --noise phone states its NoiseProfile and levels; the sensor estimated from
+    it carries them, and noise=camera serves raws with that very model (full well 6000 e-, read noise
+    2.5 e-, black 64, white 4095)."""
+    import export_testutil
+    from illumix.engine.context import make_context
+    from illumix.engine.plan import plan
+    from illumix.engine.spec import SampleSpec
+    from illumix.store import CubeStore
+
+    name = "Canon_EOS_5D_Mark_II"
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(CAMERAS))
+    store = export_testutil.build_export_store(tmp_path / "st")
+    code, _, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", "dng", "--sensors", name,
+                           "--count", "1", "--size", "32x24", "--noise", "phone")
+    assert code == 0, err
+    dng = next(p for p in (tmp_path / "o").rglob("*.dng") if p.parent != tmp_path / "o")
+    code, _, err = run_cli(capsys, "sensors", "estimate", "--from-raw", str(dng), "--exclude", name,
+                           "--prior", str(CAMERAS), "--out", str(tmp_path / "est.json"))
+    assert code == 0, err
+    st = CubeStore.open(store, mode="a")
+    st.registry("sensors").put("est", (tmp_path / "est.json").read_bytes(), "json")
+    ctx = make_context(st, cache_mb=16)
+    view = st.views(st.scenes()[0])[0]
+    p = plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="est", noise="camera", illuminants="D65,D65"), ctx)
+    assert (p.noise.full_well, p.noise.read_noise, p.noise.black_level, p.noise.white) == pytest.approx(
+        (6000, 2.5, 64, 4095))
+    with pytest.raises(Exception, match="states no camera noise model"):
+        plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="XYZ", noise="camera", illuminants="D65,D65"), ctx)

@@ -65,15 +65,16 @@ async def estimate_sensor(name: Annotated[str, Form(max_length=128)], ctx: CtxDe
 
 
 def _estimate(name: str, raw: bytes | None, cm: str | None, ill: str, cm2: str | None, ill2: str | None):
-    from illumix.sensor_estimate.camera_file import raw_matrices
+    from illumix.sensor_estimate.camera_file import dng_sensor_model, raw_matrices
     from illumix.sensor_estimate.run import EstimateRequest, parse_matrix, run_estimate
 
-    matrices = []
+    matrices, model = [], None
     if raw is not None:
         with tempfile.TemporaryDirectory() as d:
             path = Path(d) / "upload.dng"
             path.write_bytes(raw)
             matrices += raw_matrices(path)
+            model = dng_sensor_model(path)
     if cm is not None:
         matrices.append((parse_matrix(cm, "color_matrix"), ill))
     if (cm2 is None) != (ill2 is None):
@@ -86,4 +87,4 @@ def _estimate(name: str, raw: bytes | None, cm: str | None, ill: str, cm2: str |
     if not folders:
         raise SpectralError("this service has no measured cameras to learn a prior from: start it with "
                             "ILLUMIX_SENSOR_PATH pointing at rawtoaces camera JSON files")
-    return run_estimate(EstimateRequest(name=name, matrices=matrices, prior=folders))
+    return run_estimate(EstimateRequest(name=name, matrices=matrices, prior=folders, sensor_model=model))
