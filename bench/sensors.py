@@ -63,6 +63,29 @@ def ccm_delta_e(est: np.ndarray, true: np.ndarray, d65: np.ndarray, chart: np.nd
     return float(np.mean(colour.delta_E(linear_srgb_to_lab(raw @ m.T), linear_srgb_to_lab(target), method="CIE 2000")))
 
 
+def draws_span(ms, lights: np.ndarray, n: int = 500) -> dict:
+    """``sensor=random``'s draws against the measured cameras: the share of measured white points
+    (R/G, B/G under each of the 11 illuminants) inside the draws' range, and the nearest draw's mean
+    white-point error to each measured camera (beside the nearest other measured camera's)."""
+    from illumix.sensor_estimate.draw import draw_camera
+    from illumix.sensor_estimate.prior import learn_prior
+
+    def ratios(c):
+        wp = c.T @ lights.T  # (3, n_lights)
+        return np.stack([wp[0] / wp[1], wp[2] / wp[1]])
+
+    prior = learn_prior(ms)
+    draws = [draw_camera(prior, s) for s in range(n)]
+    d, m = np.stack([ratios(c) for c in draws]), np.stack([ratios(c) for c in ms.curves])
+    inside = (m >= d.min(0)) & (m <= d.max(0))
+    near_draw = [min(wp_error(c, t, lights) for c in draws) for t in ms.curves]
+    near_meas = [min(wp_error(ms.curves[j], t, lights) for j in range(len(ms.curves)) if j != i)
+                 for i, t in enumerate(ms.curves)]
+    return {"draws": n, "measured_white_points_inside_draw_range": round(float(inside.mean()), 4),
+            "nearest_draw_deg_mean": round(float(np.mean(near_draw)), 3),
+            "nearest_other_measured_deg_mean": round(float(np.mean(near_meas)), 3)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cameras", default=str(CAMERAS))
@@ -99,6 +122,7 @@ def main() -> None:
         v = np.array([r[key] for r in rows])[sel]
         return round(float(v.mean()), 3)
 
+    span = draws_span(ms, lights)
     worst = max(rows, key=lambda r: r["d65"])
     out = {"n_cameras": len(rows), "synth_reflectances": args.synth_set, "fit_reflectances": fit.FIT_REFLECTANCES,
            "noise_scale": fit.NOISE_SCALE,
@@ -110,7 +134,7 @@ def main() -> None:
            "held_out_odd": {"d65": stat("d65", slice(1, None, 2)), "pair": stat("pair", slice(1, None, 2)),
                             "nearest": stat("nearest", slice(1, None, 2))},
            "ccm_de00_mean_d65": stat("ccm_de00_d65"), "ccm_de00_mean_true_curves": stat("ccm_de00_true"),
-           "curves_rmse_d65": stat("rmse_d65"), "seconds": round(time.perf_counter() - t0, 1),
+           "curves_rmse_d65": stat("rmse_d65"), "random_draws": span, "seconds": round(time.perf_counter() - t0, 1),
            "cameras": rows}
     print(json.dumps(out, indent=1))
 
