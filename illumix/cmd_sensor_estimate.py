@@ -28,6 +28,13 @@ def estimate(
                                                         help="The illuminant of --color-matrix-2, e.g. A."),
     from_raw: Path | None = typer.Option(None, "--from-raw", help="A DNG (its ColorMatrix1/2 and calibration "
                                                                   "illuminants) or any raw file LibRaw reads (its Adobe-derived D65 matrix)."),
+    chart_photo: Path | None = typer.Option(None, "--chart-photo", help="A photo of a ColorChecker Classic under "
+                                                                        "--illuminant: a raw file LibRaw reads, or a linear "
+                                                                        "camera-RGB TIFF/.npy; with --corners."),
+    illuminant: str | None = typer.Option(None, "--illuminant", help="The light the chart photo was taken under."),
+    corners: str | None = typer.Option(None, "--corners", help="The chart's patch-area corners in the photo's "
+                                                               "pixels: x1,y1,…,x4,y4 (top-left at dark skin, "
+                                                               "top-right, bottom-right, bottom-left)."),
     exclude: str | None = typer.Option(None, "--exclude", help="Comma-separated measured cameras to leave out of "
                                                                "the prior (an honest leave-one-out)."),
     prior: str | None = typer.Option(None, "--prior", help="Folders of measured cameras (rawtoaces JSON) for the "
@@ -52,15 +59,17 @@ def estimate(
             raise UserError("--color-matrix-2 and --calibration-illuminant-2 go together")
         if color_matrix_2 is not None:
             matrices.append((parse_matrix(color_matrix_2, "--color-matrix-2"), calibration_illuminant_2))
-        if not matrices:
-            raise UserError("give --color-matrix (with --calibration-illuminant) or --from-raw FILE")
+        chart = _chart(chart_photo, illuminant, corners)
+        if not matrices and chart is None:
+            raise UserError("give --color-matrix (with --calibration-illuminant), --from-raw FILE or --chart-photo FILE")
         folders = [Path(p) for p in (prior or os.environ.get("ILLUMIX_SENSOR_PATH", "")).split(os.pathsep) if p]
         if not folders:
             raise UserError("no measured cameras for the prior: give --prior DIR (rawtoaces camera JSON files, "
                             "e.g. rawtoaces-data/data/camera) or set ILLUMIX_SENSOR_PATH")
         req = EstimateRequest(name=name or out.stem, matrices=matrices, prior=folders,
                               exclude=[s.strip() for s in (exclude or "").split(",") if s.strip()],
-                              sensor_model=dng_sensor_model(from_raw) if from_raw is not None else None)
+                              sensor_model=dng_sensor_model(from_raw) if from_raw is not None else None,
+                              chart=chart)
         doc, summary = run_estimate(req)
         write_camera(out, doc)
     except SpectralError as exc:
@@ -70,3 +79,17 @@ def estimate(
                   highlight=False)
     if as_json:
         print(json.dumps({**summary, "out": str(out)}))
+
+
+def _chart(photo: Path | None, illuminant: str | None, corners: str | None):
+    """``(patch means (24, 3), illuminant)`` of ``--chart-photo`` or None."""
+    from illumix.sensor_estimate.chart import parse_corners, patch_means, read_linear
+
+    if photo is None:
+        if illuminant is not None or corners is not None:
+            raise UserError("--illuminant and --corners go with --chart-photo")
+        return None
+    if illuminant is None or corners is None:
+        raise UserError("--chart-photo needs --illuminant (the light it was taken under) and --corners (the "
+                        "chart's four corners; automatic detection is not built yet)")
+    return patch_means(read_linear(photo), parse_corners(corners)), illuminant

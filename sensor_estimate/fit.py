@@ -28,6 +28,10 @@ FIT_REFLECTANCES = "ColorChecker N Ohta"
 #: (leave-one-out from synthetic D65 matrices, mean white-point error: × 0.1 → 0.68°, × 0.2 → 0.63°,
 #: × 0.3 → 0.68°, × 1 → 1.25°), reported on the odd-indexed ones (bench/SENSORS.md)
 NOISE_SCALE = 0.2
+#: a chart photo's model noise: the patch means' relative error (sensor noise, the chart's reflectances
+#: against the library's, flare). Chosen on the even-indexed cameras from synthetic chart photos (x 0.01 ->
+#: 0.64 deg, 0.02 -> 0.56, 0.03 -> 0.56, 0.1 -> 0.82: bench/sensors.py), reported on the odd ones
+CHART_NOISE = 0.02
 
 
 def xyz_observer(grid) -> np.ndarray:
@@ -101,6 +105,25 @@ def estimate(prior: Prior, matrices: list[tuple[np.ndarray, np.ndarray]], reflec
         targets.append(t / scale)
     sigma = model_noise(prior, [np.asarray(s, np.float64) for _, s in matrices], reflectances, observer)
     return _solve(prior, blocks, consts, targets, sigma, samples, seed)
+
+
+def estimate_from_patches(prior: Prior, responses: np.ndarray, spd: np.ndarray, reflectances: np.ndarray,
+                          noise: float | None = None, samples: int = 64, seed: int = 0) -> Estimate:
+    """The posterior of the curves given a chart photo's patch means ``responses`` ``(P, 3)`` (linear
+    camera RGB, any exposure) under illuminant ``spd``, the patches' ``reflectances`` ``(n_bands, P)``:
+    ``Sᵀ diag(E) R = α · responses`` (one unknown exposure ``α``), noise ``noise`` relative to the
+    responses' RMS (default :data:`CHART_NOISE`)."""
+    responses = np.asarray(responses, np.float64)
+    if responses.shape != (reflectances.shape[1], 3) or not np.all(np.isfinite(responses)):
+        raise SpectralError(f"chart: need {reflectances.shape[1]} finite RGB patch means, got {responses.shape}")
+    if np.any(responses.max(axis=0) <= 0):
+        raise SpectralError("chart: a channel reads zero on every patch; is the photo exposed and the chart in it?")
+    lit = np.asarray(spd, np.float64)[:, None] * reflectances
+    jac = np.stack([(b.T @ lit).T.ravel() for b in prior.basis], axis=1)
+    r0 = (prior.mean.T @ lit).T.ravel()
+    t = responses.ravel()
+    s0, st = np.sqrt(np.mean(r0 ** 2)), np.sqrt(np.mean(t ** 2))  # residuals relative to the responses
+    return _solve(prior, [jac / s0], [r0 / s0], [t / st], CHART_NOISE if noise is None else noise, samples, seed)
 
 
 def _solve(prior: Prior, blocks, consts, targets, sigma: float, n_samples: int, seed: int) -> Estimate:

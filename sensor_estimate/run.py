@@ -23,6 +23,7 @@ class EstimateRequest:
     components: int = 12
     samples: int = 64
     sensor_model: dict | None = None  # a DNG's black/white level, CFA and NoiseProfile (noise=camera)
+    chart: tuple[np.ndarray, str] | None = None  # a chart photo's (24, 3) patch means and its illuminant
 
 
 def parse_matrix(text: str, flag: str) -> np.ndarray:
@@ -49,17 +50,26 @@ def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
     prior = learn_prior(measured, req.components)
     refl = np.asarray(get_reflectances(fit.FIT_REFLECTANCES, grid)[1])
     refl = refl if refl.shape[0] == grid.n_bands else refl.T
-    pairs = [(m, illuminant_spd(ill, grid)) for m, ill in req.matrices]
-    est = fit.estimate(prior, pairs, refl, fit.xyz_observer(grid), samples=req.samples)
+    if req.chart is not None:
+        if req.matrices:
+            raise SpectralError("give a chart photo or colour matrices, not both")
+        responses, light = req.chart
+        est = fit.estimate_from_patches(prior, responses, illuminant_spd(light, grid), refl, samples=req.samples)
+    else:
+        pairs = [(m, illuminant_spd(ill, grid)) for m, ill in req.matrices]
+        est = fit.estimate(prior, pairs, refl, fit.xyz_observer(grid), samples=req.samples)
     provenance = {"method": "Gaussian linear model on a PCA prior of measured cameras (sensor_estimate.fit)",
                   "matrices": [{"color_matrix": np.round(m, 6).tolist(), "calibration_illuminant": ill}
                                for m, ill in req.matrices],
+                  **({"chart_photo": {"illuminant": req.chart[1], "patch_means": np.round(req.chart[0], 6).tolist()}}
+                     if req.chart is not None else {}),
                   "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
                   "components": len(prior.variance), "fit_reflectances": fit.FIT_REFLECTANCES,
                   "relative_residual": round(est.residual, 6), "noise_scale": fit.NOISE_SCALE,
                   **({"sensor_model": req.sensor_model} if req.sensor_model else {})}
     doc = camera_json(req.name, grid, est.curves, est.samples, provenance)
     summary = {"name": req.name, "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
-               "matrices": len(req.matrices), "relative_residual": round(est.residual, 6),
+               "matrices": len(req.matrices), "chart_photo": req.chart is not None,
+               "relative_residual": round(est.residual, 6),
                "max_std": round(float(est.samples.std(axis=0).max() / est.curves.max()), 5)}
     return doc, summary

@@ -220,3 +220,36 @@ def test_noise_camera_is_the_dngs_own_sensor_model(tmp_path, capsys, monkeypatch
         (6000, 2.5, 64, 4095))
     with pytest.raises(Exception, match="states no camera noise model"):
         plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="XYZ", noise="camera", illuminants="D65,D65"), ctx)
+
+
+@needs_cameras
+def test_cli_from_a_chart_photo(tmp_path, capsys, measured):
+    """A linear camera-RGB photo of a ColorChecker (its patches the camera's responses to a real chart's
+    measured reflectances, BabelColor's, under A) with its corners → within 3° of the camera."""
+    import cv2
+    import tifffile
+
+    i = 11
+    spd = ill.illuminant_spd("A", G)
+    resp = (measured.curves[i].T @ (spd[:, None] * _refl("BabelColor Average"))).T
+    resp = resp / resp.max() * 0.7
+    cell = 20
+    chart = np.zeros((4 * cell, 6 * cell, 3), np.float32)
+    for k, v in enumerate(resp):
+        r, c = divmod(k, 6)
+        chart[r * cell + 2:(r + 1) * cell - 2, c * cell + 2:(c + 1) * cell - 2] = v
+    corners = np.float32([[30, 20], [170, 30], [160, 120], [25, 105]])
+    hom = cv2.getPerspectiveTransform(np.float32([[0, 0], [6 * cell, 0], [6 * cell, 4 * cell], [0, 4 * cell]]), corners)
+    photo = cv2.warpPerspective(chart, hom, (200, 140), flags=cv2.INTER_NEAREST)
+    tifffile.imwrite(tmp_path / "chart.tif", (photo * 65535).astype(np.uint16))
+    out = tmp_path / "est.json"
+    code, stdout, err = run_cli(capsys, "sensors", "estimate", "--chart-photo", str(tmp_path / "chart.tif"),
+                                "--illuminant", "A", "--corners", ",".join(f"{v:g}" for v in corners.ravel()),
+                                "--exclude", measured.names[i], "--prior", str(CAMERAS), "--out", str(out), "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["chart_photo"] is True
+    wl, rgb = sen.read_sensor_file(out)
+    assert wp_error_deg(sen.sensor_from_samples("e", wl, rgb, G).sensitivities, measured.curves[i]) < 3.0
+    line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", "--chart-photo", str(tmp_path / "chart.tif"),
+                                          "--out", str(out)))
+    assert "--illuminant" in line and "--corners" in line

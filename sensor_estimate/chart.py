@@ -1,0 +1,86 @@
+"""A photo of a ColorChecker Classic under a known light → its 24 patch means in linear camera RGB.
+
+The chart's outline is given by its four corners (top-left, top-right, bottom-right, bottom-left of
+the patch area, as the dark-skin patch sits top-left), in pixels of the image; each patch is averaged
+over the middle half of its cell (edges, the black gaps and parallax stay out)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from illumix.retarget.errors import SpectralError
+
+ROWS, COLS = 4, 6
+INNER = 0.5  # the share of a cell (each way) averaged
+
+
+def parse_corners(text: str) -> np.ndarray:
+    """``x1,y1,…,x4,y4`` → ``(4, 2)`` (TL, TR, BR, BL)."""
+    try:
+        v = [float(x) for x in text.replace(";", ",").split(",") if x.strip()]
+    except ValueError:
+        v = []
+    if len(v) != 8 or not np.all(np.isfinite(v)):
+        raise SpectralError(f"--corners {text!r}: give eight numbers x1,y1,…,x4,y4 (the chart's top-left, "
+                            "top-right, bottom-right and bottom-left corners, in pixels)")
+    return np.asarray(v).reshape(4, 2)
+
+
+def read_linear(path: str | Path) -> np.ndarray:
+    """``(H, W, 3)`` float64 linear camera RGB of a photo: a raw file LibRaw reads (demosaiced at half
+    size, black subtracted, no white balance, no colour conversion, no curve), or a linear 16-bit or
+    float TIFF / ``.npy`` of camera RGB."""
+    p = Path(path)
+    if not p.is_file():
+        raise SpectralError(f"{p}: {'is a directory' if p.is_dir() else 'does not exist'}")
+    if p.suffix.lower() == ".npy":
+        img = np.load(p)
+    elif p.suffix.lower() in (".tif", ".tiff"):
+        import tifffile
+
+        img = tifffile.imread(p)
+    else:
+        img = _raw(p)
+    img = np.asarray(img, np.float64)
+    if img.ndim != 3 or img.shape[2] < 3:
+        raise SpectralError(f"{p}: expected an RGB image, got shape {img.shape}")
+    return img[..., :3]
+
+
+def _raw(p: Path) -> np.ndarray:
+    try:
+        import rawpy
+    except ImportError:
+        raise SpectralError("--chart-photo of a raw file needs rawpy: pip install 'illumix[export]'") from None
+    try:
+        with rawpy.imread(str(p)) as raw:
+            return raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, half_size=True,
+                                   user_wb=[1.0, 1.0, 1.0, 1.0], output_color=rawpy.ColorSpace.raw)
+    except (rawpy.LibRawError, OSError) as exc:
+        raise SpectralError(f"{p}: not a raw file LibRaw can read ({type(exc).__name__}: {exc})") from None
+
+
+def patch_means(image: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """``(24, 3)`` mean RGB of each patch (row by row from the top-left), the chart's outline
+    ``corners`` ``(4, 2)`` (TL, TR, BR, BL) in the image's pixels."""
+    import cv2
+
+    h, w = image.shape[:2]
+    if np.any(corners < 0) or np.any(corners[:, 0] > w) or np.any(corners[:, 1] > h):
+        raise SpectralError(f"chart corners {corners.round(1).tolist()} lie outside the {w}x{h} image")
+    src = np.float32([[0, 0], [COLS, 0], [COLS, ROWS], [0, ROWS]])
+    hom = cv2.getPerspectiveTransform(src, np.float32(corners))
+    out = np.zeros((ROWS * COLS, 3))
+    grid = (np.arange(8) + 0.5) / 8 * INNER + (1 - INNER) / 2  # 8 × 8 sample points in the cell's middle
+    for k in range(ROWS * COLS):
+        r, c = divmod(k, COLS)
+        pts = np.stack(np.meshgrid(c + grid, r + grid), -1).reshape(-1, 1, 2).astype(np.float32)
+        xy = cv2.perspectiveTransform(pts, hom).reshape(-1, 2)
+        xi = np.clip(np.round(xy[:, 0] - 0.5).astype(int), 0, w - 1)
+        yi = np.clip(np.round(xy[:, 1] - 0.5).astype(int), 0, h - 1)
+        out[k] = image[yi, xi].mean(axis=0)
+    if not np.all(out.max(axis=0) > 0):
+        raise SpectralError("chart: a channel reads zero on every patch; check --corners and the exposure")
+    return out
