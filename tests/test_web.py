@@ -217,3 +217,30 @@ def test_screenshot_artifact(browser, url, tmp_path):
     ARTIFACT.parent.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(shot, ARTIFACT)
     print(f"web explorer screenshot: {shot} (copied to {ARTIFACT})")
+
+
+def test_a_dng_upload_estimates_a_sensor(browser, url, tmp_path, monkeypatch):
+    """Issue 35: the explorer's DNG form posts to /sensors/estimate; the estimated sensor joins the list."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from illumix.imagefiles.dng import dng_bytes
+
+    cameras = Path(__file__).resolve().parents[2] / "shared" / "data" / "rawtoaces-data" / "data" / "camera"
+    if not cameras.is_dir():
+        pytest.skip("the measured cameras live in ../shared/data")
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(cameras))  # the service runs in this process
+    cm = np.array([[0.6722, -0.0635, -0.0963], [-0.4287, 1.2460, 0.2028], [-0.0908, 0.2162, 0.5668]])
+    dng = tmp_path / "browser.dng"
+    dng.write_bytes(dng_bytes(np.full((32, 32), 500, np.uint16), black=64, white=4095, pattern="RGGB", matrix=cm,
+                              neutral=[1, 1, 1], model="cam"))
+    open_page(browser, url)
+    browser.find_element(By.ID, "token").send_keys(TOKEN)
+    form = browser.find_element(By.ID, "up-dng")
+    form.find_element(By.NAME, "name").send_keys("browser-dng")
+    form.find_element(By.NAME, "file").send_keys(str(dng))
+    form.find_element(By.TAG_NAME, "button").click()
+    WebDriverWait(browser, WAIT_S).until(lambda d: "browser-dng" in d.execute_script(
+        "return Array.from(document.querySelectorAll('#sensor option'), o => o.value)"))
+    assert "uploaded sensor 'browser-dng'" in browser.find_element(By.ID, "upload-status").text

@@ -35,12 +35,15 @@ export function setDownloads(params, stem, outputs) {
 }
 
 /**
- * Wire both upload forms. `onUploaded(kind, name)` runs after the service accepted the file
- * (kind "sensors" or "illuminants"); errors are shown as the service's one-line detail.
+ * Wire the upload forms: a sensor file, a DNG (the service estimates the sensor from its colour
+ * matrices) and an illuminant. `onUploaded(kind, name)` runs after the service accepted it (kind
+ * "sensors" or "illuminants"); errors are shown as the service's one-line detail.
  */
 export function wireUploads(onUploaded) {
   const status = document.getElementById("upload-status");
-  for (const [id, kind] of [["up-sensor", "sensors"], ["up-illuminant", "illuminants"]]) {
+  const forms = [["up-sensor", "sensors", "/sensors"], ["up-dng", "sensors", "/sensors/estimate"],
+                 ["up-illuminant", "illuminants", "/illuminants"]];
+  for (const [id, kind, path] of forms) {
     const form = document.getElementById(id);
     form.addEventListener("submit", async (ev) => {
       ev.preventDefault();
@@ -49,7 +52,7 @@ export function wireUploads(onUploaded) {
       status.className = "";
       status.textContent = `uploading ${kind.slice(0, -1)} '${name}'…`;
       try {
-        await postForm(`/${kind}`, data, document.getElementById("token").value.trim());
+        await postForm(path, data, document.getElementById("token").value.trim());
         status.textContent = `uploaded ${kind.slice(0, -1)} '${name}'`;
         form.reset();
         await onUploaded(kind, name);
