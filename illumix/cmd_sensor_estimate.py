@@ -46,19 +46,12 @@ def estimate(
     """Estimate a camera's spectral sensitivities from its colour matrices, under a prior learned from
     measured cameras (bench/SENSORS.md measures how close it comes)."""
     from illumix.retarget.errors import SpectralError
-    from illumix.sensor_estimate.camera_file import dng_sensor_model, raw_matrices, write_camera
-    from illumix.sensor_estimate.run import EstimateRequest, parse_matrix, run_estimate
+    from illumix.sensor_estimate.camera_file import write_camera
+    from illumix.sensor_estimate.run import EstimateRequest, collect_matrices, run_estimate
 
     try:
-        matrices = []
-        if from_raw is not None:
-            matrices += raw_matrices(from_raw)
-        if color_matrix is not None:
-            matrices.append((parse_matrix(color_matrix, "--color-matrix"), calibration_illuminant))
-        if (color_matrix_2 is None) != (calibration_illuminant_2 is None):
-            raise UserError("--color-matrix-2 and --calibration-illuminant-2 go together")
-        if color_matrix_2 is not None:
-            matrices.append((parse_matrix(color_matrix_2, "--color-matrix-2"), calibration_illuminant_2))
+        matrices, model = collect_matrices(from_raw, color_matrix, calibration_illuminant, color_matrix_2,
+                                           calibration_illuminant_2)
         chart = _chart(chart_photo, illuminant, corners)
         if not matrices and chart is None:
             raise UserError("give --color-matrix (with --calibration-illuminant), --from-raw FILE or --chart-photo FILE")
@@ -68,8 +61,7 @@ def estimate(
                             "e.g. rawtoaces-data/data/camera) or set ILLUMIX_SENSOR_PATH")
         req = EstimateRequest(name=name or out.stem, matrices=matrices, prior=folders,
                               exclude=[s.strip() for s in (exclude or "").split(",") if s.strip()],
-                              sensor_model=dng_sensor_model(from_raw) if from_raw is not None else None,
-                              chart=chart)
+                              sensor_model=model, chart=chart)
         doc, summary = run_estimate(req)
         write_camera(out, doc)
     except SpectralError as exc:

@@ -120,17 +120,23 @@ def _dng_matrices(p: Path) -> list[tuple[np.ndarray, str]]:
     return out
 
 
-def _libraw_matrix(path: Path) -> np.ndarray:
-    """LibRaw's D65 XYZ → camera matrix of a raw file's camera (its Adobe-derived table)."""
+def with_raw(path: str | Path, read, what: str):
+    """``read(rawpy object)`` of a raw file LibRaw opens; one-line errors for a missing rawpy (``what``
+    names the option) or an unreadable file."""
     try:
         import rawpy
     except ImportError:
-        raise SpectralError("--from-raw needs rawpy: pip install 'illumix[export]'") from None
+        raise SpectralError(f"{what} needs rawpy: pip install 'illumix[export]'") from None
     try:
         with rawpy.imread(str(path)) as raw:
-            m = np.asarray(raw.rgb_xyz_matrix, np.float64)[:3]
+            return read(raw)
     except (rawpy.LibRawError, OSError) as exc:
         raise SpectralError(f"{path}: not a raw file LibRaw can read ({type(exc).__name__}: {exc})") from None
+
+
+def _libraw_matrix(path: Path) -> np.ndarray:
+    """LibRaw's D65 XYZ → camera matrix of a raw file's camera (its Adobe-derived table)."""
+    m = with_raw(path, lambda raw: np.asarray(raw.rgb_xyz_matrix, np.float64)[:3], "--from-raw")
     if not np.any(m):
         raise SpectralError(f"{path}: carries no colour matrix (LibRaw knows none for this camera)")
     return m

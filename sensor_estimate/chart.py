@@ -50,16 +50,13 @@ def read_linear(path: str | Path) -> np.ndarray:
 
 
 def _raw(p: Path) -> np.ndarray:
-    try:
-        import rawpy
-    except ImportError:
-        raise SpectralError("--chart-photo of a raw file needs rawpy: pip install 'illumix[export]'") from None
-    try:
-        with rawpy.imread(str(p)) as raw:
-            return raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, half_size=True,
-                                   user_wb=[1.0, 1.0, 1.0, 1.0], output_color=rawpy.ColorSpace.raw)
-    except (rawpy.LibRawError, OSError) as exc:
-        raise SpectralError(f"{p}: not a raw file LibRaw can read ({type(exc).__name__}: {exc})") from None
+    import rawpy
+
+    from illumix.sensor_estimate.camera_file import with_raw
+
+    return with_raw(p, lambda raw: raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, half_size=True,
+                                                   user_wb=[1.0, 1.0, 1.0, 1.0], output_color=rawpy.ColorSpace.raw),
+                    "--chart-photo of a raw file")
 
 
 def patch_means(image: np.ndarray, corners: np.ndarray) -> np.ndarray:

@@ -37,6 +37,26 @@ def parse_matrix(text: str, flag: str) -> np.ndarray:
     return np.asarray(vals).reshape(3, 3)
 
 
+def collect_matrices(raw: Path | None, cm: str | None, ill: str, cm2: str | None, ill2: str | None,
+                     spell=lambda name: "--" + name.replace("_", "-")) -> tuple[list, dict | None]:
+    """``(matrices, the raw file's sensor model)`` of the inputs: a raw file's (a DNG's ColorMatrix1/2,
+    another raw's LibRaw D65 matrix) and the matrices given as text; ``spell`` names a parameter the
+    way the caller's user wrote it (``--color-matrix`` on the command line, ``color_matrix`` over HTTP)."""
+    from illumix.sensor_estimate.camera_file import dng_sensor_model, raw_matrices
+
+    matrices, model = [], None
+    if raw is not None:
+        matrices += raw_matrices(raw)
+        model = dng_sensor_model(raw)
+    if cm is not None:
+        matrices.append((parse_matrix(cm, spell("color_matrix")), ill))
+    if (cm2 is None) != (ill2 is None):
+        raise SpectralError(f"{spell('color_matrix_2')} and {spell('calibration_illuminant_2')} go together")
+    if cm2 is not None:
+        matrices.append((parse_matrix(cm2, spell("color_matrix_2")), ill2))
+    return matrices, model
+
+
 def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
     """``(camera JSON document, summary)`` of an estimate."""
     from illumix.retarget.illuminants import illuminant_spd

@@ -65,22 +65,14 @@ async def estimate_sensor(name: Annotated[str, Form(max_length=128)], ctx: CtxDe
 
 
 def _estimate(name: str, raw: bytes | None, cm: str | None, ill: str, cm2: str | None, ill2: str | None):
-    from illumix.sensor_estimate.camera_file import dng_sensor_model, raw_matrices
-    from illumix.sensor_estimate.run import EstimateRequest, parse_matrix, run_estimate
+    from illumix.sensor_estimate.run import EstimateRequest, collect_matrices, run_estimate
 
-    matrices, model = [], None
-    if raw is not None:
-        with tempfile.TemporaryDirectory() as d:
+    with tempfile.TemporaryDirectory() as d:
+        path = None
+        if raw is not None:
             path = Path(d) / "upload.dng"
             path.write_bytes(raw)
-            matrices += raw_matrices(path)
-            model = dng_sensor_model(path)
-    if cm is not None:
-        matrices.append((parse_matrix(cm, "color_matrix"), ill))
-    if (cm2 is None) != (ill2 is None):
-        raise SpectralError("color_matrix_2 and calibration_illuminant_2 go together")
-    if cm2 is not None:
-        matrices.append((parse_matrix(cm2, "color_matrix_2"), ill2))
+        matrices, model = collect_matrices(path, cm, ill, cm2, ill2, spell=lambda name: name)
     if not matrices:
         raise SpectralError("give color_matrix (with calibration_illuminant) or a DNG file")
     folders = sen.sensor_dirs()
