@@ -38,16 +38,16 @@ CAMERAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "rawtoaces-d
 
 
 def reflectances(name: str, grid) -> np.ndarray:
-    from illumix.retarget.reflectances import get_reflectances
+    from illumix.sensor_estimate.fit import reflectance_columns
 
-    r = np.asarray(get_reflectances(name, grid)[1])
-    return r if r.shape[0] == grid.n_bands else r.T
+    return reflectance_columns(name, grid)
 
 
 def wp_error(est: np.ndarray, true: np.ndarray, lights: np.ndarray) -> float:
-    e, t = est.T @ lights.T, true.T @ lights.T
-    cos = (e * t).sum(0) / np.linalg.norm(e, axis=0) / np.linalg.norm(t, axis=0)
-    return float(np.degrees(np.arccos(np.clip(cos, -1, 1))).mean())
+    """Mean white-point angular error (degrees) of curves ``est`` against ``true`` over ``lights``."""
+    from illumix.retarget.metrics import angular_error
+
+    return float(angular_error(lights @ est, lights @ true).mean())
 
 
 def ccm_delta_e(est: np.ndarray, true: np.ndarray, d65: np.ndarray, chart: np.ndarray, grid) -> float:

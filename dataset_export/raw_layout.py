@@ -38,6 +38,11 @@ def _levels(noise: str | None):
     from illumix.retarget.errors import SpectralError
     from illumix.retarget.sensor_model import NoiseModel
 
+    from illumix.engine.spec import CAMERA_NOISE
+
+    if noise and noise.strip().lower() == CAMERA_NOISE:  # parse_noise leaves it to the plan: it would be ignored here
+        raise ExportError("--noise camera is /sample's (one estimated sensor's own model); an export states one set of "
+                          "levels for every camera: give --noise low|phone|high or key:value pairs")
     model = (parse_noise(noise) if noise else None) or NoiseModel()
     try:
         dng_levels(model)

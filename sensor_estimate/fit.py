@@ -34,6 +34,13 @@ NOISE_SCALE = 0.2
 CHART_NOISE = 0.02
 
 
+def reflectance_columns(name: str, grid) -> np.ndarray:
+    """``(n_bands, N)`` reflectances of a library set (``get_reflectances`` gives ``(N, n_bands)``)."""
+    from illumix.retarget.reflectances import get_reflectances
+
+    return np.asarray(get_reflectances(name, grid)[1], np.float64).T
+
+
 def xyz_observer(grid) -> np.ndarray:
     """``(n_bands, 3)`` CIE 1931 2° colour matching functions, band averages on ``grid``."""
     from illumix.retarget.sensors import get_sensor
@@ -74,6 +81,19 @@ def _design(prior: Prior, matrix: np.ndarray, spd: np.ndarray, reflectances: np.
     return jac, r0, t
 
 
+def _dng_scaled(m: np.ndarray, spd: np.ndarray, observer: np.ndarray) -> np.ndarray:
+    """``m`` scaled as DNG states it (the illuminant's white, Y = 1, at max camera channel 1; a DNG's
+    own matrices are already): the fit weighs each matrix by its responses' size, so any input scale
+    (1e-300 or 1e300 entries) gives the same estimate."""
+    m = m / np.abs(m).max()
+    white = observer.T @ spd
+    peak = np.max(m @ (white / white[1]))
+    if not peak > 0:
+        raise SpectralError("the colour matrix maps the illuminant's white to no positive camera channel: check the "
+                            "nine numbers' signs and order (rows R, G, B; XYZ -> camera)")
+    return m / peak
+
+
 def model_noise(prior: Prior, spds: list[np.ndarray], reflectances: np.ndarray, observer: np.ndarray) -> float:
     """Relative RMS of the mean camera's responses no 3×3 matrix of XYZ explains (module docstring)."""
     out = []
@@ -95,9 +115,10 @@ def estimate(prior: Prior, matrices: list[tuple[np.ndarray, np.ndarray]], reflec
         m = np.asarray(m, np.float64)
         if m.shape != (3, 3) or not np.all(np.isfinite(m)):
             raise SpectralError(f"a colour matrix is 3x3 finite numbers (rows R, G, B), got {m.shape}")
-        if abs(np.linalg.det(m)) < 1e-9 * max(np.abs(m).max(), 1e-300) ** 3:
+        if not np.any(m) or abs(np.linalg.det(m / np.abs(m).max())) < 1e-9:
             raise SpectralError("the colour matrix is singular (its rows are not independent): check the "
                                 "nine numbers and their order (rows R, G, B; XYZ -> camera)")
+        m = _dng_scaled(m, np.asarray(spd, np.float64), observer)
         jac, r0, t = _design(prior, m, np.asarray(spd, np.float64), reflectances, observer)
         scale = np.sqrt(np.mean(t ** 2))
         blocks.append(jac / scale)
@@ -114,6 +135,8 @@ def estimate_from_patches(prior: Prior, responses: np.ndarray, spd: np.ndarray, 
     ``Sᵀ diag(E) R = α · responses`` (one unknown exposure ``α``), noise ``noise`` relative to the
     responses' RMS (default :data:`CHART_NOISE`)."""
     responses = np.asarray(responses, np.float64)
+    if responses.shape == (reflectances.shape[1], 3) and np.all(np.isfinite(responses)) and responses.max() > 0:
+        responses = responses / responses.max()  # exposure is the free α: any scale stays finite
     if responses.shape != (reflectances.shape[1], 3) or not np.all(np.isfinite(responses)):
         raise SpectralError(f"chart: need {reflectances.shape[1]} finite RGB patch means, got {responses.shape}")
     if np.any(responses.max(axis=0) <= 0):
@@ -146,6 +169,8 @@ def _solve(prior: Prior, blocks, consts, targets, sigma: float, n_samples: int, 
     cov = np.linalg.pinv(prec, hermitian=True)
     z = cov @ rhs
     c, cov_c = z[:k], cov[:k, :k]
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(cov_c))):
+        raise SpectralError("the estimate is not finite: the inputs are degenerate (check the matrices or the chart)")
     rng = np.random.default_rng(seed)
     draws = rng.multivariate_normal(c, (cov_c + cov_c.T) / 2, size=n_samples, method="eigh")
     curves = _clean(prior.curves(c))

@@ -60,7 +60,6 @@ def collect_matrices(raw: Path | None, cm: str | None, ill: str, cm2: str | None
 def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
     """``(camera JSON document, summary)`` of an estimate."""
     from illumix.retarget.illuminants import illuminant_spd
-    from illumix.retarget.reflectances import get_reflectances
     from illumix.sensor_estimate import fit
     from illumix.sensor_estimate.camera_file import camera_json
     from illumix.sensor_estimate.prior import learn_prior, load_measured
@@ -68,8 +67,7 @@ def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
     grid = DEFAULT_GRID
     measured = load_measured(req.prior, grid).without(req.exclude)
     prior = learn_prior(measured, req.components)
-    refl = np.asarray(get_reflectances(fit.FIT_REFLECTANCES, grid)[1])
-    refl = refl if refl.shape[0] == grid.n_bands else refl.T
+    refl = fit.reflectance_columns(fit.FIT_REFLECTANCES, grid)
     if req.chart is not None:
         if req.matrices:
             raise SpectralError("give a chart photo or colour matrices, not both")

@@ -106,7 +106,8 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--split", "0.5,0.5"], "three fractions"),
     (["--gt", "physics"], "physical or formula"),
     (["--noise", "loud"], "noise"),
-    (["--noise", "black_level:64.6"], "whole digital numbers"),  # a DNG's BlackLevel, a TIFF's DN offset
+    (["--noise", "black_level:64.6"], "whole digital numbers"),
+    (["--noise", "camera"], "--noise camera is /sample's"),  # not silently noise-free frames  # a DNG's BlackLevel, a TIFF's DN offset
     (["--format", "dng", "--size", "10x8"], "at least 22x22"),  # libraw refuses smaller DNGs
     (["--format", "exr", "--sensors", "XYZ", "--bayer", "BGGR"], "drop --sensors, --bayer"),
     (["--format", "exr", "--gt", "formula", "--noise", "phone"], "drop --noise, --gt"),

@@ -13,7 +13,6 @@ from cli_testutil import run_cli
 from illumix.retarget import illuminants as ill
 from illumix.retarget import sensors as sen
 from illumix.retarget.grid import DEFAULT_GRID as G
-from illumix.retarget.reflectances import get_reflectances
 from illumix.sensor_estimate import fit
 from illumix.sensor_estimate.prior import learn_prior, load_measured
 from test_cli_spectra import assert_one_line_error
@@ -25,15 +24,14 @@ EVAL = ["A", "D50", "D65", "D75", "FL2", "FL7", "FL11", "LED-B3", "LED-RGB1", "L
 
 def wp_error_deg(est: np.ndarray, true: np.ndarray) -> float:
     """Mean white-point angular error (degrees) over the 11 illuminants of issue 35."""
+    from illumix.retarget.metrics import angular_error
+
     lights = np.stack([ill.illuminant_spd(n, G) for n in EVAL])
-    e, t = est.T @ lights.T, true.T @ lights.T
-    cos = (e * t).sum(0) / np.linalg.norm(e, axis=0) / np.linalg.norm(t, axis=0)
-    return float(np.degrees(np.arccos(np.clip(cos, -1, 1))).mean())
+    return float(angular_error(lights @ est, lights @ true).mean())
 
 
 def _refl(name: str) -> np.ndarray:
-    r = np.asarray(get_reflectances(name, G)[1])
-    return r if r.shape[0] == G.n_bands else r.T
+    return fit.reflectance_columns(name, G)
 
 
 @pytest.fixture(scope="module")
@@ -253,3 +251,20 @@ def test_cli_from_a_chart_photo(tmp_path, capsys, measured):
     line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", "--chart-photo", str(tmp_path / "chart.tif"),
                                           "--out", str(out)))
     assert "--illuminant" in line and "--corners" in line
+
+
+
+@needs_cameras
+def test_the_estimate_ignores_a_matrix_scale_and_refuses_a_negative_white(measured):
+    """A matrix is rescaled to the DNG convention first: 1e-300 or 1e300 × it gives the same curves (no
+    overflow, no NaN); one mapping the white to no positive channel is refused in one line."""
+    from illumix.retarget.errors import SpectralError
+
+    d65, obs = ill.illuminant_spd("D65", G), fit.xyz_observer(G)
+    prior, refl = learn_prior(measured), _refl(fit.FIT_REFLECTANCES)
+    m = fit.colour_matrix(measured.curves[3], d65, _refl("CIE 2017"), obs)
+    ref = fit.estimate(prior, [(m, d65)], refl, obs).curves
+    for scale in (1e-300, 1e300):
+        np.testing.assert_allclose(fit.estimate(prior, [(m * scale, d65)], refl, obs).curves, ref, rtol=1e-9, atol=1e-12)
+    with pytest.raises(SpectralError, match="no positive camera channel"):
+        fit.estimate(prior, [(-m, d65)], refl, obs)
