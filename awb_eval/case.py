@@ -27,6 +27,7 @@ class Case:
     ccm : ``(H, W, 3, 3)`` or ``(3, 3)`` float32 camera → linear sRGB, the same for every method
     (the GT CCM map of a store sample; the camera's DNG matrix of an LSMI folder).
     usable : ``(H, W)`` bool pixels a method may use for its statistics (not saturated), or None.
+    sensor : the camera the image was made for (``random:<seed>`` for a drawn one), or "".
     """
 
     name: str
@@ -38,6 +39,7 @@ class Case:
     white_points: np.ndarray
     ccm: np.ndarray
     usable: np.ndarray | None = None
+    sensor: str = ""
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -33,10 +33,23 @@ def aggregate(res: Results, labels: list[str]) -> dict:
         return {"methods": {}, "pairs": {}}
     pairs = sorted({im["pair"] for im in res.images}, key=[im["pair"] for im in res.images].index)
     return {
+        "white_points": white_point_span(res.images),
         "methods": {m: _mean_scores(res.images, m) for m in labels},
         "pairs": {p: {m: _mean_scores([im for im in res.images if im["pair"] == p], m) for m in labels}
                   for p in pairs},
     }
+
+
+def white_point_span(images: list[dict]) -> dict:
+    """The cameras the images were made for and the range of their illuminants' white points
+    (R/G, B/G): with ``--sensor random`` each image has its own drawn camera, and this range is how
+    widely the draws spread (bench/SENSORS.md compares it with the measured cameras')."""
+    wps = np.array([w for im in images for w in im.get("white_points_rg_bg", [])], np.float64).reshape(-1, 2)
+    out = {"sensors": len({im.get("sensor", "") for im in images})}
+    if len(wps):
+        out |= {"r_over_g": [round(float(wps[:, 0].min()), 4), round(float(wps[:, 0].max()), 4)],
+                "b_over_g": [round(float(wps[:, 1].min()), 4), round(float(wps[:, 1].max()), 4)]}
+    return out
 
 
 def _fmt(key: str, v: float) -> str:
@@ -55,4 +68,8 @@ def markdown(summary: dict, title: str = "AWB evaluation") -> str:
     for p, by_method in summary["pairs"].items():
         for m, s in by_method.items():
             lines.append(f"| {p} | {m} | {s['images']} | " + " | ".join(_fmt(k, s[k]) for _, k in per_pair) + " |")
+    span = summary.get("white_points", {})
+    if span.get("sensors", 0) > 1 and "r_over_g" in span:
+        lines += ["", f"{span['sensors']} cameras; white points R/G {span['r_over_g'][0]:.3f}–{span['r_over_g'][1]:.3f}, "
+                      f"B/G {span['b_over_g'][0]:.3f}–{span['b_over_g'][1]:.3f}"]
     return "\n".join(lines) + "\n"

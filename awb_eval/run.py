@@ -58,7 +58,9 @@ def evaluate(cases: Iterable[Case | Unusable], methods: list[Method], *, maps: i
                 scores[m.label] = s | {"ms": ms}
                 if keep is not None:
                     keep.errors[m.label] = err
+            wp = case.white_points / case.white_points[:, 1:2]
             out.images.append({"name": case.name, "pair": case.pair, "pixels": int(case.mask.sum()),
+                               "sensor": case.sensor, "white_points_rg_bg": np.round(wp[:, [0, 2]], 5).tolist(),
                                "methods": scores})
             if keep is not None:
                 out.maps.append(keep)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from illumix.awb_eval.case import Case, Unusable, unsaturated
+from illumix.engine.library import RANDOM
 from illumix.retarget.errors import SpectralError
 
 DEFAULT_SENSOR = "Nikon 5100 (NPL)"  # a measured camera that every install has (colour-science)
@@ -53,6 +54,7 @@ class Job:
     scene: str
     view: str
     lights: tuple[str, ...]
+    sensor: str = ""
 
     @property
     def pair(self) -> str:
@@ -89,6 +91,7 @@ class StoreCases:
         if count is not None and count < len(views):
             views = sorted(random.Random(seed).sample(views, count))
         self.jobs = [Job(s, v, tuple(p)) for s, v, n in views for p in self.pairs if len(p) == 1 or n >= 2]
+        self.jobs = [Job(j.scene, j.view, j.lights, self._sensor(k)) for k, j in enumerate(self.jobs)]
         if not self.jobs:
             raise SpectralError(f"store {path}: no view has the two light groups a pair needs (views: "
                                 f"{', '.join(f'{s}/{v}' for s, v, _ in views[:5])}); give single illuminants, "
@@ -96,10 +99,14 @@ class StoreCases:
         self.skipped = len(views) * len(self.pairs) - len(self.jobs)
         self.spec(self.jobs[0])  # bad options fail here, not as every image skipped
 
+    def _sensor(self, k: int) -> str:
+        """``--sensor random``: each image its own camera drawn from the prior, ``random:<seed + k>``."""
+        return f"{RANDOM}:{self.seed + k}" if self.sensor.strip().lower() == RANDOM else self.sensor
+
     def _check_names(self, first: tuple[str, str, int]) -> None:
         """Unknown sensor or illuminant → one line with close matches, before any composition."""
         grid = self.store.cube_meta(first[0], first[1], self.store.groups(first[0], first[1])[0]).spectral_grid
-        self.ctx.library.sensor(self.sensor, grid)
+        self.ctx.library.sensor(self._sensor(0), grid)
         for name in {n for p in self.pairs for n in p}:
             self.ctx.library.illuminant(name, grid)
 
@@ -131,7 +138,7 @@ class StoreCases:
         n_groups = len(self.store.groups(job.scene, job.view))
         light = {"pair": list(job.lights)} if len(job.lights) == 2 else {"illuminants": list(job.lights) * n_groups}
         try:
-            return SampleSpec(scene=job.scene, view=job.view, sensor=self.sensor, seed=self.seed, size=self.size,
+            return SampleSpec(scene=job.scene, view=job.view, sensor=job.sensor, seed=self.seed, size=self.size,
                               gt=self.gt, outputs=list(OUTPUTS), exposure="auto", **light)
         except ValidationError as exc:
             first = exc.errors()[0]
@@ -155,4 +162,4 @@ class StoreCases:
         raw = np.minimum(arrays["raw"], np.float32(1))  # the white level
         return Case(name=job.name, pair=job.pair, raw=raw, illum=arrays["illum"], mask=arrays["mask"],
                     mixture=arrays["mixture"][..., lit], white_points=wps[lit], ccm=arrays["ccm"],
-                    usable=unsaturated(raw, 1.0))
+                    usable=unsaturated(raw, 1.0), sensor=meta["sensor"]["name"])

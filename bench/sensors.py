@@ -124,22 +124,34 @@ def adobe_matrices(path: str, names) -> dict:
     return out
 
 
-def real_matrices(ms, table: dict, lights, prior_of, chart, obs, d65) -> dict:
-    """The acceptance check: each camera from its real Adobe D65 matrix, left out of the prior."""
+def real_matrices(ms, table: dict, lights, prior_of, chart, obs, d65, full_prior) -> dict:
+    """The acceptance check: each camera from its real Adobe D65 matrix, left out of the prior; and two
+    floors: the same with the camera *in* the prior, and how far the real matrix's own D65 white lies
+    from the measured curves' (what no estimator honouring the matrix can undo)."""
     from illumix.sensor_estimate import fit
+
+    def angle(a, b):
+        cos = (a @ b) / (np.linalg.norm(a) * np.linalg.norm(b))
+        return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
 
     rows = []
     for i, name in enumerate(ms.names):
         if name not in table:
             continue
         est = fit.estimate(prior_of(name), [(table[name], d65)], chart, obs).curves
-        rows.append({"camera": name, "deg": wp_error(est, ms.curves[i], lights)})
+        inside = fit.estimate(full_prior, [(table[name], d65)], chart, obs).curves
+        rows.append({"camera": name, "deg": wp_error(est, ms.curves[i], lights),
+                     "in_prior": wp_error(inside, ms.curves[i], lights),
+                     "own_white": angle(table[name] @ (obs.T @ d65), ms.curves[i].T @ d65)})
     if not rows:
         return {"cameras": 0}
-    errs = np.array([r["deg"] for r in rows])
+    errs, own = np.array([r["deg"] for r in rows]), np.array([r["own_white"] for r in rows])
     worst = rows[int(np.argmax(errs))]
     return {"cameras": len(rows), "wp_err_mean_deg": round(float(errs.mean()), 3),
             "wp_err_max_deg": round(float(errs.max()), 3), "worst_camera": worst["camera"],
+            "camera_in_prior_mean_deg": round(float(np.mean([r["in_prior"] for r in rows])), 3),
+            "matrix_own_d65_white_deg": {"mean": round(float(own.mean()), 3), "median": round(float(np.median(own)), 3),
+                                         "max": round(float(own.max()), 3), "over_1_5": int((own > 1.5).sum())},
             "per_camera": {r["camera"]: round(r["deg"], 3) for r in rows}}
 
 
@@ -169,9 +181,11 @@ def main() -> None:
         e1 = fit.estimate(prior, [(mats[i], d65)], chart, obs).curves
         e2 = fit.estimate(prior, [(mats[i], d65), (fit.colour_matrix(true, a, synth, obs), a)], chart, obs).curves
         near = min((k for k in range(len(ms.names)) if k != i), key=lambda k: np.linalg.norm(mats[k] - mats[i]))
-        chart_err = [wp_error(fit.estimate_from_patches(prior, chart_photo(true, spd, real_chart, i), spd, chart).curves,
+        chart_err = [wp_error(fit.estimate_from_patches(prior, [(chart_photo(true, spd, real_chart, i), spd)], chart).curves,
                               true, lights) for spd in (d65, a)]
+        both = fit.estimate_from_patches(prior, [(chart_photo(true, spd, real_chart, i), spd) for spd in (d65, a)], chart)
         rows.append({"camera": name, "d65": wp_error(e1, true, lights), "pair": wp_error(e2, true, lights),
+                     "chart_two_photos": wp_error(both.curves, true, lights),
                      "mean": wp_error(prior.mean, true, lights), "nearest": wp_error(ms.curves[near], true, lights),
                      "nearest_camera": ms.names[near], "chart": float(np.mean(chart_err)),
                      "ccm_de00_d65": ccm_delta_e(e1, true, d65, chart, G),
@@ -188,11 +202,12 @@ def main() -> None:
     real = None
     if args.adobe_table:
         real = real_matrices(ms, adobe_matrices(args.adobe_table, ms.names), lights,
-                             lambda n: learn_prior(ms.without([n])), chart, obs, d65)
+                             lambda n: learn_prior(ms.without([n])), chart, obs, d65, learn_prior(ms))
     worst = max(rows, key=lambda r: r["d65"])
     out = {"n_cameras": len(rows), "synth_reflectances": args.synth_set, "fit_reflectances": fit.FIT_REFLECTANCES,
            "noise_scale": fit.NOISE_SCALE,
            "wp_err_mean_deg_d65": stat("d65"), "wp_err_mean_deg_pair": stat("pair"), "wp_err_mean_deg_chart": stat("chart"),
+           "wp_err_mean_deg_chart_two_photos": stat("chart_two_photos"),
            "baseline_nearest_deg": stat("nearest"), "baseline_mean_deg": stat("mean"),
            "wp_err_max_deg_d65": round(worst["d65"], 3), "worst_camera_d65": worst["camera"],
            "wp_err_max_deg_pair": round(max(r["pair"] for r in rows), 3),
@@ -200,6 +215,7 @@ def main() -> None:
            "tuning_even": {"d65": stat("d65", slice(0, None, 2)), "pair": stat("pair", slice(0, None, 2))},
            "held_out_odd": {"d65": stat("d65", slice(1, None, 2)), "pair": stat("pair", slice(1, None, 2)),
                             "chart": stat("chart", slice(1, None, 2)),
+                            "chart_two_photos": stat("chart_two_photos", slice(1, None, 2)),
                             "nearest": stat("nearest", slice(1, None, 2))},
            "ccm_de00_mean_d65": stat("ccm_de00_d65"), "ccm_de00_mean_true_curves": stat("ccm_de00_true"),
            "curves_rmse_d65": stat("rmse_d65"), "random_draws": span, "real_adobe_d65": real, "seconds": round(time.perf_counter() - t0, 1),

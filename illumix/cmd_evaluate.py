@@ -61,7 +61,9 @@ def evaluate(
                                 help=f"Comma-separated AWB methods (any case; aliases): {', '.join(AWB_METHODS.names)}; "
                                      "or a plug-in module.path:callable (raw (H,W,3) float32 → gain map (H,W,3))."),
     sensor: str | None = typer.Option(None, "--sensor", help="Store: the camera to compose for (default Nikon 5100 "
-                                                             "(NPL)). LSMI: the camera folder (default: the only one)."),
+                                                             "(NPL)); 'random': each image its own camera drawn from "
+                                                             "the measured cameras' prior (random:<seed + k>). LSMI: "
+                                                             "the camera folder (default: the only one)."),
     pairs: str | None = typer.Option(None, "--pairs", help="Store: lightings separated by ';', each 'A,D65' (a pair "
                                                            "for the first two groups) or 'D65' (every group); default "
                                                            "\"A,D65;FL11,D50\". LSMI: light sets, e.g. \"12;13\" (default all)."),
@@ -102,7 +104,8 @@ def evaluate(
     summary = aggregate(res, labels)
     doc = {"input": source.describe(), "settings": {"methods": labels, "grid": list(_grid(grid)),
                                                    "interpolation": interpolation},
-           "methods": summary["methods"], "pairs": summary["pairs"], "images": res.images, "skipped": res.skipped,
+           "white_points": summary["white_points"], "methods": summary["methods"], "pairs": summary["pairs"],
+           "images": res.images, "skipped": res.skipped,
            "seconds": round(time.perf_counter() - t0, 3)}
     table = markdown(summary, title=f"AWB evaluation: {len(res.images)} images of {data}")
     if out is not None:

@@ -28,13 +28,15 @@ def estimate(
                                                         help="The illuminant of --color-matrix-2, e.g. A."),
     from_raw: Path | None = typer.Option(None, "--from-raw", help="A DNG (its ColorMatrix1/2 and calibration "
                                                                   "illuminants) or any raw file LibRaw reads (its Adobe-derived D65 matrix)."),
-    chart_photo: Path | None = typer.Option(None, "--chart-photo", help="A photo of a ColorChecker Classic under "
-                                                                        "--illuminant: a raw file LibRaw reads, or a linear "
-                                                                        "camera-RGB TIFF/.npy; with --corners."),
-    illuminant: str | None = typer.Option(None, "--illuminant", help="The light the chart photo was taken under."),
-    corners: str | None = typer.Option(None, "--corners", help="The chart's patch-area corners in the photo's "
-                                                               "pixels: x1,y1,…,x4,y4 (top-left at dark skin, "
-                                                               "top-right, bottom-right, bottom-left)."),
+    chart_photo: list[Path] | None = typer.Option(None, "--chart-photo", help="A photo of a ColorChecker Classic "
+                                                  "under --illuminant: a raw file LibRaw reads, or a linear camera-RGB "
+                                                  "TIFF/.npy. The chart is found automatically, or give --corners. "
+                                                  "Repeat for several photos (one --illuminant each, or one for all)."),
+    illuminant: list[str] | None = typer.Option(None, "--illuminant", help="The light the chart photo was taken under."),
+    corners: list[str] | None = typer.Option(None, "--corners", help="The chart's patch-area corners in the photo's "
+                                                                     "pixels: x1,y1,…,x4,y4 (top-left at dark skin, "
+                                                                     "top-right, bottom-right, bottom-left); one per "
+                                                                     "--chart-photo. Default: found automatically."),
     exclude: str | None = typer.Option(None, "--exclude", help="Comma-separated measured cameras to leave out of "
                                                                "the prior (an honest leave-one-out)."),
     prior: str | None = typer.Option(None, "--prior", help="Folders of measured cameras (rawtoaces JSON) for the "
@@ -73,15 +75,29 @@ def estimate(
         print(json.dumps({**summary, "out": str(out)}))
 
 
-def _chart(photo: Path | None, illuminant: str | None, corners: str | None):
-    """``(patch means (24, 3), illuminant)`` of ``--chart-photo`` or None."""
-    from illumix.sensor_estimate.chart import parse_corners, patch_means, read_linear
+def _chart(photos: list[Path] | None, illuminants: list[str] | None, corners: list[str] | None):
+    """``[(patch means (24, 3), illuminant)]`` of the ``--chart-photo`` files, or None."""
+    from illumix.retarget.errors import SpectralError
+    from illumix.sensor_estimate.chart import find_patches, parse_corners, patch_means, read_linear
 
-    if photo is None:
-        if illuminant is not None or corners is not None:
+    photos, illuminants, corners = photos or [], illuminants or [], corners or []
+    if not photos:
+        if illuminants or corners:
             raise UserError("--illuminant and --corners go with --chart-photo")
         return None
-    if illuminant is None or corners is None:
-        raise UserError("--chart-photo needs --illuminant (the light it was taken under) and --corners (the "
-                        "chart's four corners; automatic detection is not built yet)")
-    return patch_means(read_linear(photo), parse_corners(corners)), illuminant
+    if len(illuminants) not in (1, len(photos)):
+        raise UserError(f"--chart-photo needs --illuminant (the light it was taken under): one for all "
+                        f"{len(photos)} photos or one each, got {len(illuminants)}")
+    if corners and len(corners) != len(photos):
+        raise UserError(f"--corners: one per --chart-photo ({len(photos)}), got {len(corners)}; or none to find "
+                        "the charts automatically")
+    lights = illuminants * len(photos) if len(illuminants) == 1 else illuminants
+    out = []
+    for i, (photo, light) in enumerate(zip(photos, lights)):
+        try:
+            image = read_linear(photo)
+            patches = patch_means(image, parse_corners(corners[i])) if corners else find_patches(image)
+        except SpectralError as exc:
+            raise UserError(f"{photo}: {exc}") from None
+        out.append((patches, light))
+    return out

@@ -43,6 +43,10 @@ if [ "$have_llvm" = 0 ]; then
   fi
 fi
 python3 -m pip install -q -e ".[${extras}]"
+# Automatic ColorChecker detection for `sensors estimate --chart-photo`: without its dependencies,
+# which would add opencv-python beside our opencv-contrib (two packages writing one cv2) and
+# OpenImageIO (only used to read files by path; illumix hands it arrays).
+python3 -m pip install -q --no-deps "colour-checker-detection>=0.2.3,<0.3"
 # The Python client is its own package (numpy + httpx only); install it beside the server.
 python3 -m pip install -q -e clients/python
 if [ "$blender" = 1 ]; then

@@ -81,3 +81,44 @@ def patch_means(image: np.ndarray, corners: np.ndarray) -> np.ndarray:
     if not np.all(out.max(axis=0) > 0):
         raise SpectralError("chart: a channel reads zero on every patch; check --corners and the exposure")
     return out
+
+
+def find_patches(image: np.ndarray) -> np.ndarray:
+    """``(24, 3)`` patch means of the ColorChecker Classic found in ``image`` ``(H, W, 3)`` linear RGB by
+    colour-checker-detection's segmentation (Dallas 2024), in the chart's own patch order whichever way
+    it lies. The detector fits a rotated rectangle, not a perspective: a patch whose sample straddles an
+    edge (halves differing by more than noise explains) is refused, never averaged into the estimate."""
+    try:
+        from colour_checker_detection import detect_colour_checkers_segmentation
+    except ImportError:
+        raise SpectralError("automatic chart detection needs colour-checker-detection (bash scripts/install.sh "
+                            "installs it); or give the chart's four --corners") from None
+    scale = 1.5 * float(np.percentile(image, 99.9))  # headroom: only outliers (speculars, hot pixels) clip
+    if not (np.isfinite(scale) and scale > 0):
+        raise SpectralError("chart photo: the image is black or not finite")
+    work = np.clip(image / scale, 0.0, 1.0).astype(np.float32)  # the detector wants [0, 1]
+    found = detect_colour_checkers_segmentation(work, additional_data=True)
+    if not found:
+        raise SpectralError("chart photo: no ColorChecker found; give its four --corners (x1,y1,…,x4,y4)")
+    best = found[0]
+    rect, masks = np.asarray(best.colour_checker, np.float64), np.asarray(best.swatch_masks)
+    _check_uniform(rect, masks)
+    return np.asarray(best.swatch_colours, np.float64)[:, :3] * scale
+
+
+def _check_uniform(rect: np.ndarray, masks: np.ndarray) -> None:
+    """Each patch's sample box: its left/right and top/bottom halves agree within 10 standard errors
+    (the detector's resampling correlates neighbouring pixels), 3 % of the patch and 1 % of the
+    chart's brightest value: an edge or a neighbouring patch in the box shows as a step, noise does not."""
+    floor = 0.01 * float(rect[..., :3].max())
+    for k, (y0, y1, x0, x1) in enumerate(masks):
+        box = rect[y0:y1, x0:x1, :3]
+        hy, hx = box.shape[0] // 2, box.shape[1] // 2
+        if hy == 0 or hx == 0:
+            raise SpectralError("chart photo: the chart found is too small; give its four --corners")
+        se = box.std(axis=(0, 1)) / np.sqrt(box.shape[0] * box.shape[1] / 2)
+        tol = 10 * se + 0.03 * np.abs(box.mean(axis=(0, 1))) + floor
+        for a, b in ((box[:hy], box[hy:]), (box[:, :hx], box[:, hx:])):
+            if np.any(np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))) > tol):
+                raise SpectralError(f"chart photo: patch {k + 1} of the chart found is not sampled cleanly "
+                                    "(the photo is too oblique for the detector); give its four --corners")

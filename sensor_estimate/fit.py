@@ -128,25 +128,32 @@ def estimate(prior: Prior, matrices: list[tuple[np.ndarray, np.ndarray]], reflec
     return _solve(prior, blocks, consts, targets, sigma, samples, seed)
 
 
-def estimate_from_patches(prior: Prior, responses: np.ndarray, spd: np.ndarray, reflectances: np.ndarray,
+def estimate_from_patches(prior: Prior, photos: list[tuple[np.ndarray, np.ndarray]], reflectances: np.ndarray,
                           noise: float | None = None, samples: int = 64, seed: int = 0) -> Estimate:
-    """The posterior of the curves given a chart photo's patch means ``responses`` ``(P, 3)`` (linear
-    camera RGB, any exposure) under illuminant ``spd``, the patches' ``reflectances`` ``(n_bands, P)``:
-    ``Sᵀ diag(E) R = α · responses`` (one unknown exposure ``α``), noise ``noise`` relative to the
+    """The posterior of the curves given chart photos ``[(patch means (P, 3), illuminant spd (n_bands,))]``
+    (linear camera RGB, any exposure), the patches' ``reflectances`` ``(n_bands, P)``: for each photo
+    ``Sᵀ diag(E) R = α · responses`` (its own unknown exposure ``α``), noise ``noise`` relative to the
     responses' RMS (default :data:`CHART_NOISE`)."""
-    responses = np.asarray(responses, np.float64)
-    if responses.shape == (reflectances.shape[1], 3) and np.all(np.isfinite(responses)) and responses.max() > 0:
-        responses = responses / responses.max()  # exposure is the free α: any scale stays finite
-    if responses.shape != (reflectances.shape[1], 3) or not np.all(np.isfinite(responses)):
-        raise SpectralError(f"chart: need {reflectances.shape[1]} finite RGB patch means, got {responses.shape}")
-    if np.any(responses.max(axis=0) <= 0):
-        raise SpectralError("chart: a channel reads zero on every patch; is the photo exposed and the chart in it?")
-    lit = np.asarray(spd, np.float64)[:, None] * reflectances
-    jac = np.stack([(b.T @ lit).T.ravel() for b in prior.basis], axis=1)
-    r0 = (prior.mean.T @ lit).T.ravel()
-    t = responses.ravel()
-    s0, st = np.sqrt(np.mean(r0 ** 2)), np.sqrt(np.mean(t ** 2))  # residuals relative to the responses
-    return _solve(prior, [jac / s0], [r0 / s0], [t / st], CHART_NOISE if noise is None else noise, samples, seed)
+    if not photos:
+        raise SpectralError("give at least one chart photo")
+    blocks, consts, targets = [], [], []
+    for responses, spd in photos:
+        responses = np.asarray(responses, np.float64)
+        if responses.shape == (reflectances.shape[1], 3) and np.all(np.isfinite(responses)) and responses.max() > 0:
+            responses = responses / responses.max()  # exposure is the free α: any scale stays finite
+        if responses.shape != (reflectances.shape[1], 3) or not np.all(np.isfinite(responses)):
+            raise SpectralError(f"chart: need {reflectances.shape[1]} finite RGB patch means, got {responses.shape}")
+        if np.any(responses.max(axis=0) <= 0):
+            raise SpectralError("chart: a channel reads zero on every patch; is the photo exposed and the chart in it?")
+        lit = np.asarray(spd, np.float64)[:, None] * reflectances
+        jac = np.stack([(b.T @ lit).T.ravel() for b in prior.basis], axis=1)
+        r0 = (prior.mean.T @ lit).T.ravel()
+        t = responses.ravel()
+        s0, st = np.sqrt(np.mean(r0 ** 2)), np.sqrt(np.mean(t ** 2))  # residuals relative to the responses
+        blocks.append(jac / s0)
+        consts.append(r0 / s0)
+        targets.append(t / st)
+    return _solve(prior, blocks, consts, targets, CHART_NOISE if noise is None else noise, samples, seed)
 
 
 def _solve(prior: Prior, blocks, consts, targets, sigma: float, n_samples: int, seed: int) -> Estimate:

@@ -23,7 +23,7 @@ class EstimateRequest:
     components: int = 12
     samples: int = 64
     sensor_model: dict | None = None  # a DNG's black/white level, CFA and NoiseProfile (noise=camera)
-    chart: tuple[np.ndarray, str] | None = None  # a chart photo's (24, 3) patch means and its illuminant
+    chart: list[tuple[np.ndarray, str]] | None = None  # chart photos: (24, 3) patch means, illuminant
 
 
 def parse_matrix(text: str, flag: str) -> np.ndarray:
@@ -68,26 +68,26 @@ def run_estimate(req: EstimateRequest) -> tuple[dict, dict]:
     measured = load_measured(req.prior, grid).without(req.exclude)
     prior = learn_prior(measured, req.components)
     refl = fit.reflectance_columns(fit.FIT_REFLECTANCES, grid)
-    if req.chart is not None:
+    if req.chart:
         if req.matrices:
             raise SpectralError("give a chart photo or colour matrices, not both")
-        responses, light = req.chart
-        est = fit.estimate_from_patches(prior, responses, illuminant_spd(light, grid), refl, samples=req.samples)
+        photos = [(responses, illuminant_spd(light, grid)) for responses, light in req.chart]
+        est = fit.estimate_from_patches(prior, photos, refl, samples=req.samples)
     else:
         pairs = [(m, illuminant_spd(ill, grid)) for m, ill in req.matrices]
         est = fit.estimate(prior, pairs, refl, fit.xyz_observer(grid), samples=req.samples)
     provenance = {"method": "Gaussian linear model on a PCA prior of measured cameras (sensor_estimate.fit)",
                   "matrices": [{"color_matrix": np.round(m, 6).tolist(), "calibration_illuminant": ill}
                                for m, ill in req.matrices],
-                  **({"chart_photo": {"illuminant": req.chart[1], "patch_means": np.round(req.chart[0], 6).tolist()}}
-                     if req.chart is not None else {}),
+                  **({"chart_photos": [{"illuminant": light, "patch_means": np.round(resp, 6).tolist()}
+                                       for resp, light in req.chart]} if req.chart else {}),
                   "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
                   "components": len(prior.variance), "fit_reflectances": fit.FIT_REFLECTANCES,
                   "relative_residual": round(est.residual, 6), "noise_scale": fit.NOISE_SCALE,
                   **({"sensor_model": req.sensor_model} if req.sensor_model else {})}
     doc = camera_json(req.name, grid, est.curves, est.samples, provenance)
     summary = {"name": req.name, "prior_cameras": len(prior.cameras), "excluded": sorted(req.exclude),
-               "matrices": len(req.matrices), "chart_photo": req.chart is not None,
+               "matrices": len(req.matrices), "chart_photo": bool(req.chart), "chart_photos": len(req.chart or []),
                "relative_residual": round(est.residual, 6),
                "max_std": round(float(est.samples.std(axis=0).max() / est.curves.max()), 5)}
     return doc, summary

@@ -248,3 +248,20 @@ def test_damaged_lsmi_files_are_one_line_errors(tmp_path):
         meta.write_text(json.dumps(doc))
         with pytest.raises(SpectralError, match="must be 3 positive"):
             LsmiCases(root, pairs="12", split="train").load(item)
+
+
+def test_sensor_random_draws_a_camera_per_image(store, monkeypatch):
+    """``--sensor random``: each image its own camera from the prior (``random:<seed + k>``), recorded
+    per image, and the summary states how widely the white points spread."""
+    from pathlib import Path
+
+    cameras = Path(__file__).resolve().parents[2] / "shared/data/rawtoaces-data/data/camera"
+    if not cameras.is_dir():
+        pytest.skip("the measured cameras live in ../shared/data")
+    monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(cameras))
+    src = StoreCases(store, pairs="A;D65;FL11", sensor="Random", seed=5)
+    assert [j.sensor for j in src.jobs] == ["random:5", "random:6", "random:7"]
+    res = evaluate(src, resolve(["Gray World"]))
+    assert [im["sensor"] for im in res.images] == ["random:5", "random:6", "random:7"]
+    span = aggregate(res, ["Gray World"])["white_points"]
+    assert span["sensors"] == 3 and span["r_over_g"][0] < span["r_over_g"][1]

@@ -250,7 +250,61 @@ def test_cli_from_a_chart_photo(tmp_path, capsys, measured):
     assert wp_error_deg(sen.sensor_from_samples("e", wl, rgb, G).sensitivities, measured.curves[i]) < 3.0
     line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", "--chart-photo", str(tmp_path / "chart.tif"),
                                           "--out", str(out)))
-    assert "--illuminant" in line and "--corners" in line
+    assert "--illuminant" in line
+
+
+def _chart_image(resp: np.ndarray, corners, size=(800, 600), seed=0) -> np.ndarray:
+    """A linear photo of a ColorChecker (patches ``resp`` (24, 3), black gaps and border) warped onto
+    ``corners`` on a grey background, with 1 % Gaussian noise."""
+    import cv2
+
+    cell, gap, border = 100, 8, 10
+    chart = np.full((4 * cell + 2 * border, 6 * cell + 2 * border, 3), 0.03, np.float32)
+    for k, v in enumerate(resp):
+        r, c = divmod(k, 6)
+        y, x = border + r * cell, border + c * cell
+        chart[y + gap:y + cell - gap, x + gap:x + cell - gap] = v
+    h, w = chart.shape[:2]
+    hom = cv2.getPerspectiveTransform(np.float32([[0, 0], [w, 0], [w, h], [0, h]]), np.float32(corners))
+    warped = cv2.warpPerspective(chart, hom, size, flags=cv2.INTER_LINEAR, borderValue=(-1, -1, -1))
+    img = np.where(warped >= 0, warped, np.float32(0.15))
+    return img + np.random.default_rng(seed).normal(0, 0.01, img.shape).astype(np.float32)
+
+
+def _rotated(cx, cy, w, h, angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]) @ [[c, s], [-s, c]] + [cx, cy]
+
+
+@needs_cameras
+def test_cli_finds_the_chart_itself_in_several_photos(tmp_path, capsys, measured):
+    """No --corners: colour-checker-detection finds the chart (turned 0.3 rad, or upside down) and the
+    patch means agree with the chart's within 1 % of white; two photos (A and D65) give an estimate
+    within 3° of the camera; a chart seen too obliquely for the detector is refused in one line."""
+    pytest.importorskip("colour_checker_detection")
+    from illumix.sensor_estimate.chart import find_patches
+
+    i = 11
+    paths = []
+    for light, angle in (("A", 0.3), ("D65", np.pi)):
+        resp = (measured.curves[i].T @ (ill.illuminant_spd(light, G)[:, None] * _refl("BabelColor Average"))).T
+        resp = resp / resp.max() * 0.7
+        img = _chart_image(resp, _rotated(400, 300, 500, 340, angle))
+        np.testing.assert_allclose(find_patches(img.astype(np.float64) * 4000) / 4000, resp, atol=0.007)
+        paths.append(tmp_path / f"{light}.npy")
+        np.save(paths[-1], img)
+    out = tmp_path / "est.json"
+    code, stdout, err = run_cli(capsys, "sensors", "estimate", "--chart-photo", str(paths[0]), "--illuminant", "A",
+                                "--chart-photo", str(paths[1]), "--illuminant", "D65", "--exclude", measured.names[i],
+                                "--prior", str(CAMERAS), "--out", str(out), "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["chart_photos"] == 2
+    wl, rgb = sen.read_sensor_file(out)
+    assert wp_error_deg(sen.sensor_from_samples("e", wl, rgb, G).sensitivities, measured.curves[i]) < 3.0
+    np.save(tmp_path / "oblique.npy", _chart_image(resp, [[150, 120], [640, 150], [620, 470], [170, 440]]))
+    line = assert_one_line_error(*run_cli(capsys, "sensors", "estimate", "--chart-photo", str(tmp_path / "oblique.npy"),
+                                          "--illuminant", "D65", "--prior", str(CAMERAS), "--out", str(out)))
+    assert "oblique.npy" in line and "--corners" in line
 
 
 
