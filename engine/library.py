@@ -71,9 +71,9 @@ class Library:
         return s, f"upload:{name}:{key[2]}"
 
     def camera_noise(self, name: str):
-        """The :class:`~retarget.sensor_model.NoiseModel` a sensor file states (``noise=camera``): the
-        DNG levels and ``NoiseProfile`` ``(S, O)`` it was estimated from, as full well ``1/S`` electrons
-        and read noise ``√O/S`` electrons (variance ``S·x + O`` of a signal ``x`` in [0, 1])."""
+        """``(NoiseModel, CFA pattern or None)`` a sensor file states (``noise=camera``): the DNG levels
+        and ``NoiseProfile`` ``(S, O)`` it was estimated from, as full well ``1/S`` electrons and read
+        noise ``√O/S`` electrons (variance ``S·x + O`` of a signal ``x`` in [0, 1]), and its mosaic."""
         data = None
         up = None if name.lower().startswith(RANDOM + ":") else self._upload("sensors", name)
         if up is not None:
@@ -164,11 +164,12 @@ def random_sensor(name: str, grid: SpectralGrid) -> sen.Sensor:
 
 
 def _sensor_model(data: bytes | None):
-    """The NoiseModel of a camera JSON's ``header.illumix_estimate.sensor_model``, or None."""
+    """``(NoiseModel, CFA pattern or None)`` of a camera JSON's ``header.illumix_estimate.sensor_model``,
+    or None."""
     import json
     import math
 
-    from illumix.retarget.sensor_model import MAX_FULL_WELL, MAX_READ_NOISE, NoiseModel
+    from illumix.retarget.sensor_model import BAYER_PATTERNS, MAX_FULL_WELL, MAX_READ_NOISE, NoiseModel
 
     if not data or data.lstrip()[:1] != b"{":
         return None
@@ -181,4 +182,6 @@ def _sensor_model(data: bytes | None):
     full_well = min(1.0 / s_, MAX_FULL_WELL)
     read = min(math.sqrt(o_) * full_well, MAX_READ_NOISE)
     bits = max(1, min(16, math.ceil(math.log2(white + 1))))
-    return NoiseModel(full_well=full_well, read_noise=read, black_level=black, white_level=white, bit_depth=bits)
+    cfa = m.get("bayer")
+    cfa = cfa.upper() if isinstance(cfa, str) and cfa.upper() in BAYER_PATTERNS else None
+    return NoiseModel(full_well=full_well, read_noise=read, black_level=black, white_level=white, bit_depth=bits), cfa

@@ -42,6 +42,7 @@ class Plan:
     denoise_why: str = ""
     sensor: str = ""  # the sensor to project through: sensor=random becomes random:<seed> (a drawn camera)
     noise: object = None  # the NoiseModel of noise= (noise=camera: the sensor's own), or None
+    bayer: str | None = None  # the raw's mosaic (bayer=, else the camera's own with noise=camera; DNG: RGGB)
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -131,12 +132,23 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
              aovs=list(vmeta.aovs))
     p.sensor = f"random:{seed & 0xFFFFFFFF}" if spec.sensor.lower() == "random" else spec.sensor
     camera = spec.noise is not None and spec.noise.strip().lower() == CAMERA_NOISE
-    p.noise = ctx.library.camera_noise(p.sensor) if camera else spec.noise_model()
+    p.noise, cfa = ctx.library.camera_noise(p.sensor) if camera else (spec.noise_model(), None)
+    p.bayer = _mosaic(spec, cfa)
     p.gt, p.gt_why = _ground_truth(spec, p)
     p.denoise, p.denoise_why = _denoising(spec, p)
     wanted = set(spec.outputs)
     p.illumination = bool(SPECTRAL_OUTPUTS & wanted) or (p.gt == "physical" and bool(PHYSICAL_OUTPUTS & wanted))
     return p
+
+
+def _mosaic(spec: SampleSpec, camera_cfa: str | None) -> str | None:
+    """The raw's Bayer pattern: ``bayer=`` as given (``bayer=none``: none); else the camera's own
+    (``noise=camera``, from its DNG); else RGGB for a DNG, none otherwise."""
+    if "bayer" in spec.model_fields_set:
+        return spec.bayer
+    if camera_cfa:
+        return camera_cfa
+    return "RGGB" if spec.format == "dng" else None
 
 
 # Outputs the physical ground truth changes (the formula's weights are eq. 3.3's whatever gt is).

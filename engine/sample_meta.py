@@ -27,7 +27,7 @@ def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exp
                          "pixels": reasons | ({"no_light": int(np.count_nonzero(~mask)) - sum(reasons.values())}
                                               if mask is not None and valid is not None else {})},
         "crop": list(p.window), "size": list(p.out_size), "exposure_gain": exposure_gain,
-        "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": spec.bayer,
+        "noise": None if noise is None else noise.__dict__ | {"seed": p.seed}, "bayer": p.bayer,
         "grid": grid.to_dict(),
         "provenance": [{"group": g, "emission": m.emission_name, "renderer": m.renderer.model_dump(),
                         "spp": m.spp, "seed": m.seed, "scene_hash": m.scene_hash, "created": m.created,

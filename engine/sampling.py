@@ -186,8 +186,8 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     noise = p.noise
     if noise is not None and "raw" in want:
         arrays["raw"] = simulate_raw(arrays["raw"], noise, seed=p.seed)
-    if spec.bayer and "raw" in want:
-        arrays["raw"] = mosaic(arrays["raw"], spec.bayer)
+    if p.bayer and "raw" in want:
+        arrays["raw"] = mosaic(arrays["raw"], p.bayer)
     t_compose = time.perf_counter()
     meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain,
                        noise, {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),

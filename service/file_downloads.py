@@ -48,15 +48,14 @@ def require(fmt: str) -> None:
 
 
 def compose_spec(spec: SampleSpec) -> SampleSpec:
-    """What to compose for ``spec``: a DNG needs the raw (the ``bayer=`` mosaic, RGGB when not given; RGB
-    for ``bayer=none``, which the spec holds as ``None`` among its given fields), the mixture, the mask
-    and the metadata. A 501 when the package writing the format is not installed (:func:`require`)."""
+    """What to compose for ``spec``: a DNG needs the raw (the ``bayer=`` mosaic; when not given the
+    camera's own with ``noise=camera``, else RGGB (:func:`engine.plan._mosaic`); RGB for ``bayer=none``),
+    the mixture, the mask and the metadata. A 501 when the package writing the format is not installed (:func:`require`)."""
     if spec.format in FILE_FORMATS:
         require(spec.format)
     if spec.format != "dng":
         return spec
-    bayer = spec.bayer if "bayer" in spec.model_fields_set else "RGGB"
-    return spec.model_copy(update={"outputs": list(DNG_OUTPUTS), "bayer": bayer})
+    return spec.model_copy(update={"outputs": list(DNG_OUTPUTS)})  # the plan picks the mosaic (engine.plan)
 
 
 def check(p) -> None:
@@ -120,12 +119,12 @@ def encode_dng(p, ctx, arrays: dict[str, np.ndarray], meta: dict) -> bytes:
         neutral = as_shot_neutral(wps)
     else:
         neutral = as_shot_neutral(wps, arrays["mixture"][..., lit], arrays["mask"])
-    meta["encoding"] = {"black_level": black, "white_level": white, "cfa": spec.bayer, "as_shot_neutral": neutral}
+    meta["encoding"] = {"black_level": black, "white_level": white, "cfa": p.bayer, "as_shot_neutral": neutral}
     about = {k: meta[k] for k in ("scene", "view", "seed", "exposure_gain")} | {
         "illuminants": [(i["group"], i["illuminant"], i["intensity"]) for i in meta["illuminants"]],
         "ground_truth": meta["ground_truth"]["method"]}
     return dng_bytes(np.clip(np.round(raw), 0, white).astype(np.uint16), black=black, white=white,
-                     pattern=spec.bayer, matrix=color_matrix(sensor.weights(), d65[0], ccm), neutral=neutral,
+                     pattern=p.bayer, matrix=color_matrix(sensor.weights(), d65[0], ccm), neutral=neutral,
                      model=spec.sensor, description="illumix GET /sample " + meta_json(about),
                      noise=noise_profile(noise) if noise is not None else None)
 

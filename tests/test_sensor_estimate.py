@@ -192,7 +192,7 @@ def test_sensor_random_draws_a_plausible_camera_per_seed(tmp_path, monkeypatch):
 def test_noise_camera_is_the_dngs_own_sensor_model(tmp_path, capsys, monkeypatch):
     """A DNG exported with --noise phone states its NoiseProfile and levels; the sensor estimated from
     it carries them, and noise=camera serves raws with that very model (full well 6000 e-, read noise
-    2.5 e-, black 64, white 4095)."""
+    2.5 e-, black 64, white 4095) and that camera's mosaic (GRBG here), unless bayer= says otherwise."""
     import export_testutil
     from illumix.engine.context import make_context
     from illumix.engine.plan import plan
@@ -203,7 +203,7 @@ def test_noise_camera_is_the_dngs_own_sensor_model(tmp_path, capsys, monkeypatch
     monkeypatch.setenv("ILLUMIX_SENSOR_PATH", str(CAMERAS))
     store = export_testutil.build_export_store(tmp_path / "st")
     code, _, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", "dng", "--sensors", name,
-                           "--count", "1", "--size", "32x24", "--noise", "phone")
+                           "--count", "1", "--size", "32x24", "--noise", "phone", "--bayer", "GRBG")
     assert code == 0, err
     dng = next(p for p in (tmp_path / "o").rglob("*.dng") if p.parent != tmp_path / "o")
     code, _, err = run_cli(capsys, "sensors", "estimate", "--from-raw", str(dng), "--exclude", name,
@@ -216,6 +216,11 @@ def test_noise_camera_is_the_dngs_own_sensor_model(tmp_path, capsys, monkeypatch
     p = plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="est", noise="camera", illuminants="D65,D65"), ctx)
     assert (p.noise.full_well, p.noise.read_noise, p.noise.black_level, p.noise.white) == pytest.approx(
         (6000, 2.5, 64, 4095))
+    assert p.bayer == "GRBG"
+    assert plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="est", noise="camera", illuminants="D65,D65",
+                           bayer="RGGB"), ctx).bayer == "RGGB"
+    assert plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="est", noise="phone", illuminants="D65,D65"),
+                ctx).bayer is None
     with pytest.raises(Exception, match="states no camera noise model"):
         plan(SampleSpec(scene=st.scenes()[0], view=view, sensor="XYZ", noise="camera", illuminants="D65,D65"), ctx)
 
