@@ -9,25 +9,43 @@ from illumix.engine.context import Context
 from illumix.retarget import illuminants as ill
 from illumix.retarget import sensors as sen
 from illumix.retarget.grid import DEFAULT_GRID
+from illumix.store import StoreError
 
 
 def scenes(ctx: Context) -> list[dict]:
     """Every scene, view and light group the store holds: ``[{"name", "views": [{"name", "width",
-    "height", "groups": [{"name", "emission", "illumination", "denoised"}]}]}]``. A damaged view
-    raises the store's error (never silently left out)."""
+    "height", "groups": [{"name", "emission", "illumination", "denoised"}], "damaged"}]}]``. A view
+    whose metadata or a group's is damaged is listed with ``damaged`` saying why (and no size or
+    groups): never silently left out, and never hiding the healthy views beside it."""
     store = ctx.store
     out = []
     for s in store.scenes():
         views = []
-        for v in store.views(s):
-            vm = store.view_meta(s, v)
-            groups = [{"name": g, "emission": m.emission_name,
-                       "illumination": m.illumination is not None and m.illumination.storage is not None,
-                       "denoised": m.denoised.method if m.denoised is not None and m.denoised.storage else None}
-                      for g, m in ((g, store.cube_meta(s, v, g)) for g in store.groups(s, v))]
-            views.append({"name": v, "width": vm.width, "height": vm.height, "groups": groups})
-        out.append({"name": s, "views": views})
+        try:
+            names, broken = store.views(s), store.damaged_views(s)
+        except StoreError as exc:  # the scene's own group document
+            out.append({"name": s, "views": [], "damaged": str(exc)})
+            continue
+        for v in sorted([*names, *broken]):
+            try:
+                views.append(_view(store, s, v) if v in names else _damaged(v, broken[v]))
+            except StoreError as exc:
+                views.append(_damaged(v, str(exc)))
+        out.append({"name": s, "views": views, "damaged": None})
     return out
+
+
+def _view(store, s: str, v: str) -> dict:
+    vm = store.view_meta(s, v)
+    groups = [{"name": g, "emission": m.emission_name,
+               "illumination": m.illumination is not None and m.illumination.storage is not None,
+               "denoised": m.denoised.method if m.denoised is not None and m.denoised.storage else None}
+              for g, m in ((g, store.cube_meta(s, v, g)) for g in store.groups(s, v))]
+    return {"name": v, "width": vm.width, "height": vm.height, "groups": groups, "damaged": None}
+
+
+def _damaged(v: str, why: str) -> dict:
+    return {"name": v, "width": None, "height": None, "groups": [], "damaged": why}
 
 
 def sensors(ctx: Context) -> dict:

@@ -16,13 +16,24 @@ store_app = typer.Typer(help="Inspect and check a cube store.", no_args_is_help=
 PATH_HELP = "Store directory or fsspec URL (e.g. ./illumix-store, s3://bucket/store)."
 
 
-def _open(path: str):
+def _open(path: str, writable: bool = False):
     from illumix.store import CubeStore, StoreError
 
     try:
-        return CubeStore.open(path, mode="r")
+        if writable and not CubeStore.exists(path):
+            return CubeStore.open(path, mode="r")  # "no store here", in the read-only wording
+        return CubeStore.open(path, mode="a" if writable else "r")
     except StoreError as exc:
         raise UserError(str(exc)) from None
+
+
+def _has_root_document(path: str) -> bool:
+    from illumix.store.backend import Backend
+
+    try:
+        return Backend(path, read_only=True).exists("zarr.json")
+    except Exception:  # noqa: BLE001 - an unreachable location: not a damaged store
+        return False
 
 
 def _size(n: int | None) -> str:
@@ -76,16 +87,29 @@ def info(path: str = typer.Argument(..., help=PATH_HELP),
 
 @store_app.command("verify")
 def verify(path: str = typer.Argument(..., help=PATH_HELP),
-           as_json: bool = typer.Option(False, "--json", help="Print the report as JSON.")) -> None:
-    """Check every array and all metadata (schema, shapes, chunks, finiteness, statistics).
+           as_json: bool = typer.Option(False, "--json", help="Print the report as JSON."),
+           repair: bool = typer.Option(False, "--repair", help="First remove what interrupted writes left: "
+                                       "orphaned .partial files, staged writes of dead writers, replaced "
+                                       "nodes in _trash (printed). Damaged data is only reported, never removed."),
+           min_age: float = typer.Option(600.0, "--min-age", min=0, help="--repair: also remove leftovers of "
+                                         "unknown writers older than this many seconds.")) -> None:
+    """Check every byte: each file against its node's checksums (SHA-256 manifests, CRC-32C per
+    chunk), every array and all metadata (schema, shapes, chunks, finiteness, statistics).
 
     Exit code 0 when the store is sound, 1 when any problem is found (each printed with where)."""
     from illumix.store import StoreError
     from illumix.store.report import verify as store_verify
 
-    st = _open(path)
     try:
-        rep = store_verify(st)
+        st = _open(path, writable=repair)
+    except UserError as exc:
+        if not _has_root_document(path):
+            raise
+        # the store is there but its root document is damaged: a problem found, not a usage error
+        console.print(f"[red]PROBLEM[/] zarr.json: {exc}", soft_wrap=True, highlight=False)
+        raise typer.Exit(1) from None
+    try:
+        rep = store_verify(st, repair=repair, min_age_s=min_age)
     except StoreError as exc:
         raise UserError(str(exc)) from None
     if as_json:
@@ -95,10 +119,13 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
             console.print(f"[red]PROBLEM[/] {p['where']}: {p['what']}", soft_wrap=True, highlight=False)
         for n in rep["notes"]:
             console.print(f"[yellow]note[/] {n['where']}: {n['what']}", soft_wrap=True, highlight=False)
+        for r in rep["repaired"]:
+            console.print(f"[cyan]removed[/] {r}", soft_wrap=True, highlight=False)
         c = rep["checked"]
         status = "[green]OK[/]" if rep["ok"] else f"[red]{len(rep['problems'])} problem(s)[/]"
         console.print(f"{status}: checked {c['views']} views, {c['aovs']} AOVs, {c['cubes']} cubes, "
-                      f"{c['registry_entries']} registry entries in {rep['store']}", soft_wrap=True, highlight=False)
+                      f"{c['registry_entries']} registry entries, {c['files_checksummed']} files against their "
+                      f"checksums in {rep['store']}", soft_wrap=True, highlight=False)
     if not rep["ok"]:
         raise typer.Exit(1)
 

@@ -118,7 +118,12 @@ def _view_meta(scene: Scene, view: str):
 def _stored_view(st, scene: str, view: str):
     from illumix.store import StoreKeyError
 
+    from illumix.store import StoreError
+
     try:
+        damaged = st.damaged_views(scene)
+        if view in damaged:  # views() leaves a damaged view out: here it must not read as "missing"
+            raise StoreError(f"view {scene}/{view} is damaged: {damaged[view]}")
         if view not in st.views(scene):
             return None
         return st.view_meta(scene, view)

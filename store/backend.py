@@ -24,6 +24,7 @@ import threading
 import time
 import uuid
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,8 @@ import zarr
 
 from illumix.store.errors import StoreError
 
+#: an empty zarr v3 group's ``zarr.json`` as illumix writes it (:func:`store.nodes.group_meta_bytes`)
+EMPTY_GROUP_BYTES = b'{"zarr_format":3,"node_type":"group","attributes":{}}'
 STAGING = "_staging"
 TRASH = "_trash"
 #: bytes of parsed metadata a local store remembers (a parsed cube ``zarr.json`` takes ~3× its
@@ -112,8 +115,9 @@ class Backend:
         except IsADirectoryError:
             return None
 
-    def read_json(self, key: str) -> Any:
+    def read_json(self, key: str, validate: Callable[[bytes], None] | None = None) -> Any:
         """Parsed JSON of ``key``; ``None`` when missing; :class:`StoreError` when unreadable.
+        ``validate(raw bytes)`` runs on every fresh read (not on a remembered one) and may raise.
 
         Local stores remember what they parsed while the file's inode, mtime and size stay the same
         (files older than :data:`JSON_MEMO_SETTLE_NS`, up to :data:`JSON_MEMO_BYTES`), so the result
@@ -137,6 +141,8 @@ class Backend:
             parsed = json.loads(raw)
         except ValueError as exc:
             raise StoreError(f"corrupt metadata file {key} in {self.url}: {exc}; rewrite this node") from None
+        if validate is not None:
+            validate(raw)
         # a file replaced since the stat has another inode or mtime: the next call reads it again
         if stamp is not None and time.time_ns() - stamp[1] > JSON_MEMO_SETTLE_NS:
             self._remember(key, stamp, parsed, 3 * len(raw))
@@ -163,7 +169,8 @@ class Backend:
         if self.local:
             p = self._p(key)
             p.parent.mkdir(parents=True, exist_ok=True)
-            tmp = p.with_name(f"{p.name}.{uuid.uuid4().hex}.partial")
+            # the writer's pid in the name: `store verify --repair` removes a partial whose writer died
+            tmp = p.with_name(f"{p.name}.{os.getpid()}.{uuid.uuid4().hex}.partial")
             try:
                 with open(tmp, "wb") as f:
                     f.write(data)
@@ -194,6 +201,27 @@ class Backend:
         except FileNotFoundError:
             return []
         return sorted(e["name"].rstrip("/").rsplit("/", 1)[-1] for e in entries if e.get("type") == "directory")
+
+    def list_files(self, key: str) -> list[str]:
+        """Every file under ``key`` (recursively), as sorted paths relative to it; ``[]`` when absent."""
+        if self.local:
+            base = self._p(key)
+            out = []
+            for dirpath, _, files in os.walk(base):
+                rel = os.path.relpath(dirpath, base)
+                out += [name if rel == "." else f"{rel}/{name}".replace(os.sep, "/") for name in files]
+            return sorted(out)
+        root = self._f(key)
+        try:
+            found = self.fs.find(root)
+        except FileNotFoundError:
+            return []
+        strip = root.rstrip("/") + "/"
+        return sorted(f[len(strip):] if f.startswith(strip) else f for f in found)
+
+    def mtime(self, key: str) -> float:
+        """Modification time (s since the epoch) of the local file ``key``."""
+        return os.stat(self._s(key)).st_mtime
 
     def size(self, key: str) -> int:
         """Total bytes of all files under ``key``."""
@@ -227,13 +255,17 @@ class Backend:
 
     def ensure_group(self, key: str) -> None:
         """Create the zarr group ``key`` (and its parents) if missing; never touches existing attrs.
-        Safe against concurrent writers creating the same group (the loser finds it there)."""
-        if not self.exists(f"{key}/zarr.json"):
-            try:
-                zarr.open_group(self.zstore, path=key, mode="a")
-            except zarr.errors.ContainsGroupError:
-                if not self.exists(f"{key}/zarr.json"):
-                    raise
+        Safe against concurrent writers creating the same group (the loser finds it there). Written
+        in illumix's compact form, so ``store verify`` can tell any altered byte
+        (:func:`store.checksums.check_empty_group`)."""
+        parts = key.strip("/").split("/")
+        for i in range(1, len(parts) + 1):
+            sub = "/".join(parts[:i])
+            if not self.exists(f"{sub}/zarr.json"):
+                try:
+                    self.write_bytes(f"{sub}/zarr.json", EMPTY_GROUP_BYTES, exclusive=True)
+                except FileExistsError:
+                    pass
 
     def new_write_path(self, final: str) -> tuple[str, str]:
         """(path to write the node at, write id). A staging path when publishing by rename."""
@@ -269,8 +301,16 @@ class Backend:
         """Delete the node ``key`` (atomically invisible locally: renamed to ``_trash`` first)."""
         self.check_writable()
         if self.local:
-            self.ensure_group(TRASH)
-            trash = self._p(f"{TRASH}/{uuid.uuid4().hex}")
+            try:
+                self.ensure_group(TRASH)
+                trash = self._p(f"{TRASH}/{uuid.uuid4().hex}")
+            except OSError as exc:
+                if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
+                    raise
+                # a full disk: _trash cannot be created, but deleting must still free space; a rename
+                # beside the node needs no new blocks and still hides it from readers at once
+                p = self._p(key)
+                trash = p.with_name(f".{p.name}.{uuid.uuid4().hex}.deleting")
             try:
                 os.rename(self._p(key), trash)
             except FileNotFoundError:
@@ -281,6 +321,17 @@ class Backend:
                 self.fs.rm(self._f(key), recursive=True)
             except FileNotFoundError:
                 pass
+
+    def discard_file(self, key: str) -> None:
+        """Remove one file (a leftover temporary file); absent is fine."""
+        self.check_writable()
+        try:
+            if self.local:
+                os.unlink(self._s(key))
+            else:
+                self.fs.rm_file(self._f(key))
+        except FileNotFoundError:
+            pass
 
     def discard(self, key: str) -> None:
         """Best-effort removal of a staging node after a failed write."""

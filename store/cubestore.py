@@ -106,9 +106,11 @@ class CubeStore:
                     raise StoreError(f"{b.url} exists, is not empty and is not an illumix store; "
                                      "choose a new or empty directory")
             if attrs is None:
+                from illumix.store.checksums import write_manifest
                 from illumix.store.nodes import write_group
 
                 write_group(b, "", {ROOT_ATTR: {"schema_version": SCHEMA_VERSION, "created": utc_now()}})
+                write_manifest(b, "", ["zarr.json"])
         if attrs is not None:
             root = attrs.get(ROOT_ATTR)
             if not isinstance(root, dict):
@@ -154,14 +156,27 @@ class CubeStore:
         return [s for s in self._b.list_dirs("scenes") if self._b.exists(f"scenes/{s}/zarr.json")]
 
     def views(self, scene: str) -> list[str]:
-        """Names of the scene's views that have metadata (written by :meth:`write_view`), sorted."""
+        """Names of the scene's views that have metadata (written by :meth:`write_view`), sorted. A view
+        whose metadata is damaged is not among them: :meth:`damaged_views` names it, with why."""
+        return self._view_health(scene)[0]
+
+    def damaged_views(self, scene: str) -> dict[str, str]:
+        """``{view: why}`` for the scene's views whose metadata cannot be read (damaged, or failing its
+        checksum): one damaged view never hides the healthy ones (:meth:`views`)."""
+        return self._view_health(scene)[1]
+
+    def _view_health(self, scene: str) -> tuple[list[str], dict[str, str]]:
         self._check_scene(scene)
-        out = []
+        out, damaged = [], {}
         for v in self._b.list_dirs(f"scenes/{scene}"):
-            attrs = node_attrs(self._b, layout.view_path(scene, v))
+            try:
+                attrs = node_attrs(self._b, layout.view_path(scene, v))
+            except StoreError as exc:
+                damaged[v] = str(exc)
+                continue
             if attrs is not None and VIEW_ATTR in attrs:
                 out.append(v)
-        return out
+        return out, damaged
 
     def has_scene(self, scene: str) -> bool:
         """Whether ``scene`` exists (one file test; :meth:`scenes` lists them all)."""
@@ -349,26 +364,11 @@ class CubeStore:
                 raise StoreKeyError("group", group, self.groups(scene, view, True), f"{scene}/{view}")
             self._b.remove(path)
 
-    def cleanup(self, older_than_s: float = 3600.0) -> int:
-        """Remove staged writes older than ``older_than_s`` (left by killed writers) and replaced
-        nodes in ``_trash``. Returns how many entries were removed."""
-        import time
-        from datetime import datetime
-
-        self._b.check_writable()
-        n = 0
-        for st in self.pending_writes():
-            try:
-                age = time.time() - datetime.fromisoformat(str(st["started"]).replace("Z", "+00:00")).timestamp()
-            except (KeyError, ValueError):
-                age = float("inf")
-            if age >= older_than_s:
-                self._b.discard(st["path"])
-                n += 1
-        for tid in self._b.list_dirs(TRASH):
-            self._b.discard(f"{TRASH}/{tid}")
-            n += 1
-        return n
+    def cleanup(self, older_than_s: float = 3600.0, dead_writers: bool = False) -> int:
+        """Remove staged writes older than ``older_than_s`` (left by killed writers; ``dead_writers``:
+        also younger ones whose writer on this host is dead) and replaced nodes in ``_trash``.
+        Returns how many entries were removed."""
+        return writer.cleanup(self, older_than_s, dead_writers)
 
     def registry(self, kind: str, max_bytes: int | None = None) -> Any:
         """The persistent user registry ``"sensors"`` or ``"illuminants"`` (:class:`store.Registry`)."""

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from zarr.codecs import BloscCodec, ZstdCodec
+from zarr.codecs import BloscCodec, Crc32cCodec, ZstdCodec
 
 #: Default full-band tile edge in pixels.
 DEFAULT_TILE = 128
@@ -63,18 +63,19 @@ are exact. Decompression alone (numcodecs, one thread): blosc-lz4 ~2.6 GB/s, zst
 
 def compressors(name: str, itemsize: int) -> Any:
     """zarr v3 compressor list for a codec name: ``zstd`` (level 3, no shuffle), ``blosc-lz4``
-    (bit shuffle, level 5), ``blosc-zstd`` (byte shuffle, level 3) or ``none``.
+    (bit shuffle, level 5), ``blosc-zstd`` (byte shuffle, level 3) or ``none`` — each followed by
+    a CRC-32C of the stored chunk, which zarr checks on every decode (:mod:`store.checksums`).
 
     Shuffles matter for float16: they separate the sign/exponent bits, which compress, from the
     low mantissa bits, which carry Monte-Carlo noise and do not."""
     if name == "zstd":
-        return [ZstdCodec(level=3)]
+        return [ZstdCodec(level=3), Crc32cCodec()]
     if name == "blosc-lz4":
-        return [BloscCodec(cname="lz4", clevel=5, shuffle="bitshuffle", typesize=itemsize)]
+        return [BloscCodec(cname="lz4", clevel=5, shuffle="bitshuffle", typesize=itemsize), Crc32cCodec()]
     if name == "blosc-zstd":
-        return [BloscCodec(cname="zstd", clevel=3, shuffle="shuffle", typesize=itemsize)]
+        return [BloscCodec(cname="zstd", clevel=3, shuffle="shuffle", typesize=itemsize), Crc32cCodec()]
     if name == "none":
-        return None
+        return [Crc32cCodec()]
     raise ValueError(f"unknown codec {name!r}; use one of {', '.join(CODECS)}")
 
 

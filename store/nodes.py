@@ -16,6 +16,7 @@ import numpy as np
 import zarr
 
 from illumix.store.backend import Backend
+from illumix.store.checksums import check_document
 from illumix.store.errors import StoreError
 from illumix.store.layout import compressors
 from illumix.store.lru import LRUCache
@@ -36,8 +37,10 @@ def write_group(backend: Backend, path: str, attrs: dict[str, Any]) -> None:
 
 def node_attrs(backend: Backend, path: str) -> dict[str, Any] | None:
     """Attributes of the node at ``path``; ``None`` if it does not exist. Shared with every other
-    reader of the unchanged file (:meth:`store.backend.Backend.read_json`): never change them."""
-    js = backend.read_json(f"{path}/zarr.json")
+    reader of the unchanged file (:meth:`store.backend.Backend.read_json`): never change them.
+    A document its node's manifest disagrees with is refused (:func:`store.checksums.check_document`)."""
+    js = backend.read_json(f"{path}/zarr.json" if path else "zarr.json",
+                           lambda raw: check_document(backend, path, "zarr.json", raw))
     if js is None:
         return None
     if not isinstance(js, dict) or js.get("zarr_format") != 3:
@@ -88,9 +91,20 @@ def array_handles(size: int = 256) -> LRUCache[zarr.Array]:
     return LRUCache(size)
 
 
-def open_array(handles: LRUCache[zarr.Array], backend: Backend, path: str, write_id: str) -> zarr.Array:
-    """The read-only zarr array at ``path`` of the node version ``write_id``, through ``handles``."""
-    return handles.get((path, write_id), lambda: zarr.open_array(backend.zstore, path=path, mode="r"))
+def open_array(handles: LRUCache[zarr.Array], backend: Backend, path: str, write_id: str,
+               node: str | None = None) -> zarr.Array:
+    """The read-only zarr array at ``path`` of the node version ``write_id``, through ``handles``;
+    its ``zarr.json`` checked against the manifest of ``node`` (the array's own node by default)
+    when first opened."""
+    def opened() -> zarr.Array:
+        root = path if node is None else node
+        rel = "zarr.json" if root == path else f"{path[len(root) + 1:]}/zarr.json"
+        raw = backend.read_bytes(f"{path}/zarr.json")
+        if raw is not None:
+            check_document(backend, root, rel, raw)
+        return zarr.open_array(backend.zstore, path=path, mode="r")
+
+    return handles.get((path, write_id), opened)
 
 
 def crop_region(crop: tuple[int, int, int, int] | None, height: int, width: int,

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from illumix.store import layout
+from illumix.store.checksums import describe_chunk_error
 from illumix.store.codec import EXPONENT_FILL, decode
 from illumix.store.errors import StoreError, StoreKeyError
 from illumix.store.names import check_name
@@ -55,8 +56,8 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
         beta = None if beta is None else (beta if idx is None else np.asarray(beta)[idx])
         out = np.empty((y1 - y0, x1 - x0, k), np.float32)
         try:
-            data = open_array(st.array_handles, b, f"{path}/data", wid)
-            exp = open_array(st.array_handles, b, f"{path}/exponent", wid) if storage.dtype == "float16" else None
+            data = open_array(st.array_handles, b, f"{path}/data", wid, node)
+            exp = open_array(st.array_handles, b, f"{path}/exponent", wid, node) if storage.dtype == "float16" else None
             ex = exp[y0:y1, x0:x1] if exp is not None else None  # one byte per pixel: read it whole
             if ex is not None and np.any(ex == EXPONENT_FILL):
                 raise StoreError("missing exponent chunk")
@@ -69,8 +70,9 @@ def read_cube(st: CubeStore, scene: str, view: str, group: str, crop, bands: Seq
         except Exception as exc:  # noqa: BLE001 - any zarr/codec/IO failure
             if current_write_id(b, node) != wid:
                 continue  # replaced while we read: retry on the new version
-            raise StoreError(f"corrupt array {st.url}/{path}/data: {type(exc).__name__}: {exc}; "
-                             "delete and rewrite this cube") from None
+            why = describe_chunk_error(exc) or f"{type(exc).__name__}: {exc}"
+            raise StoreError(f"cube {scene}/{view}/{group} is damaged ({st.url}/{path}/data): {why}; re-render "
+                             "this cube (`illumix store verify` lists the damage)") from None
         if current_write_id(b, node) != wid:
             continue
         if np.isnan(out.sum(dtype=np.float64)):
@@ -107,8 +109,9 @@ def read_aov(st: CubeStore, scene: str, view: str, name: str, crop) -> np.ndarra
         except Exception as exc:  # noqa: BLE001
             if current_write_id(b, path) != wid:
                 continue
-            raise StoreError(f"corrupt array {st.url}/{path}: {type(exc).__name__}: {exc}; "
-                             "rewrite the view's AOVs") from None
+            why = describe_chunk_error(exc) or f"{type(exc).__name__}: {exc}"
+            raise StoreError(f"AOV {scene}/{view}/{name} is damaged ({st.url}/{path}): {why}; rewrite the "
+                             "view's AOVs (`illumix store verify` lists the damage)") from None
         if current_write_id(b, path) == wid:
             if out.dtype.kind == "f" and np.isnan(out.sum(dtype=np.float64)):
                 raise StoreError(f"missing or corrupt chunks in {st.url}/{path}; rewrite the view's AOVs")

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import zarr
 
-from illumix.store import layout
+from illumix.store import checksums, layout
 from illumix.store.codec import EXPONENT_FILL, decode
 from illumix.store.cubestore import CUBE_ATTR, VIEW_ATTR, CubeStore
 from illumix.store.errors import StoreError
@@ -76,7 +76,7 @@ class _Report:
     def __init__(self) -> None:
         self.problems: list[dict[str, str]] = []
         self.notes: list[dict[str, str]] = []
-        self.checked = {"views": 0, "aovs": 0, "cubes": 0, "registry_entries": 0}
+        self.checked = {"views": 0, "aovs": 0, "cubes": 0, "registry_entries": 0, "files_checksummed": 0}
 
     def bad(self, where: str, what: str) -> None:
         self.problems.append({"where": where, "what": what})
@@ -205,10 +205,56 @@ def _check_group(b, rep: _Report, path: str) -> bool:
         return False
 
 
-def verify(st: CubeStore) -> dict[str, Any]:
-    """Check the whole store. Returns ``{ok, problems: [{where, what}], notes: [...], checked}``."""
+def _check_checksums(st: CubeStore, rep: _Report) -> None:
+    """Every file against its node's manifest, every intermediate group against its exact content
+    (:mod:`store.checksums`); the nodes' own files only where sub-folders are nodes of their own."""
+    b = st.backend
+    n = checksums.check_node(b, "", rep.bad, rep.note, own=["zarr.json"])
+    for g in ("scenes", "_registry", "_staging", "_trash", *(f"_registry/{k}" for k in KINDS)):
+        checksums.check_empty_group(b, g, rep.bad)
+    for s in b.list_dirs("scenes"):
+        if not checksums.check_empty_group(b, f"scenes/{s}", rep.bad):
+            continue
+        for v in b.list_dirs(f"scenes/{s}"):
+            vp = layout.view_path(s, v)
+            n += checksums.check_node(b, vp, rep.bad, rep.note, own=["zarr.json"])
+            for sub in ("cubes", "aov"):
+                if checksums.check_empty_group(b, f"{vp}/{sub}", rep.bad):
+                    for node in b.list_dirs(f"{vp}/{sub}"):
+                        n += checksums.check_node(b, f"{vp}/{sub}/{node}", rep.bad, rep.note)
+    for k in KINDS:
+        for e in b.list_dirs(f"_registry/{k}"):
+            n += checksums.check_node(b, f"_registry/{k}/{e}", rep.bad, rep.note, own=["zarr.json"])
+    rep.checked["files_checksummed"] = n
+
+
+def _partials(st: CubeStore, rep: _Report, repair: bool, min_age_s: float) -> list[str]:
+    """Temporary ``.partial`` files of interrupted writes: noted, and removed with ``repair`` when
+    orphaned (:func:`store.checksums.orphaned`). Returns the keys removed."""
+    removed = []
+    for key, pid, age in checksums.partial_files(st.backend):
+        if repair and checksums.orphaned(pid, age, min_age_s):
+            b = st.backend
+            b.discard(key) if b.list_files(key) else b.discard_file(key)  # a staged folder, or a file
+            removed.append(key)
+        else:
+            rep.note(key, f"temporary file of an interrupted write (writer pid {pid}, {age:.0f} s old); "
+                          "`illumix store verify --repair` removes it once its writer is gone")
+    return removed
+
+
+def verify(st: CubeStore, repair: bool = False, min_age_s: float = 600.0) -> dict[str, Any]:
+    """Check the whole store. Returns ``{ok, problems: [{where, what}], notes: [...], checked,
+    repaired}``. ``repair``: first remove what interrupted writes left (orphaned ``.partial`` files,
+    staged writes of dead writers, ``_trash``); damaged data is never removed, only reported."""
     rep = _Report()
     b = st.backend
+    repaired = _partials(st, rep, repair, min_age_s)
+    if repair:
+        n = st.cleanup(older_than_s=min_age_s, dead_writers=True)
+        if n:
+            repaired.append(f"{n} staged write(s) of dead writers or trashed node(s)")
+    _check_checksums(st, rep)
     _check_group(b, rep, "scenes")
     for s in b.list_dirs("scenes"):
         if not b.exists(f"scenes/{s}/zarr.json"):
@@ -256,4 +302,4 @@ def verify(st: CubeStore) -> dict[str, Any]:
             except StoreError as exc:
                 rep.bad(f"_registry/{k}/{n}", str(exc))
     return {"store": st.url, "ok": not rep.problems, "problems": rep.problems, "notes": rep.notes,
-            "checked": rep.checked}
+            "checked": rep.checked, "repaired": repaired}

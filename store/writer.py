@@ -18,7 +18,9 @@ from illumix.store import layout
 from illumix.store.codec import EXPONENT_FILL, Policy, encode
 from illumix.store.errors import StoreError
 from illumix.store.names import check_name
-from illumix.store.nodes import STATE_ATTR, create_array, node_attrs, read_state, write_group
+from illumix.store.backend import TRASH
+from illumix.store.checksums import pid_alive, write_manifest
+from illumix.store.nodes import STATE_ATTR, create_array, group_meta_bytes, node_attrs, read_state, write_group
 from illumix.store.schema import (SCHEMA_VERSION, BandStats, CubeMeta, DenoisedInfo, IlluminationInfo, StorageInfo, ViewMeta,
                           utc_now)
 
@@ -104,6 +106,7 @@ def write_array_node(st: CubeStore, final: str, arr: np.ndarray, chunks: tuple[i
         a = create_array(b, wpath, arr.shape, chunks, arr.dtype, st.codec, fill, dims, {STATE_ATTR: state})
         a[...] = arr
         a.attrs.update({STATE_ATTR: {**state, "complete": True, "finished": utc_now()}})
+        write_manifest(b, wpath)
         b.publish(wpath, final, replace=True)
     except BaseException:
         if wpath != final:
@@ -111,22 +114,35 @@ def write_array_node(st: CubeStore, final: str, arr: np.ndarray, chunks: tuple[i
         raise
 
 
-def _pid_alive(pid: Any) -> bool:
-    try:
-        os.kill(int(pid), 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, TypeError, ValueError, OverflowError):
-        return True
-    return True
-
-
 def discard_dead_staging(st: CubeStore, target: str) -> None:
     """Remove staged writes of ``target`` left by writers that died on this host (a rerun's cleanup)."""
     host = socket.gethostname()
     for pw in st.pending_writes():
-        if pw.get("target") == target and pw.get("host") == host and not _pid_alive(pw.get("pid")):
+        if pw.get("target") == target and pw.get("host") == host and not pid_alive(pw.get("pid")):
             st.backend.discard(pw["path"])
+
+
+def cleanup(st: CubeStore, older_than_s: float, dead_writers: bool) -> int:
+    """See :meth:`store.CubeStore.cleanup`."""
+    import time
+    from datetime import datetime
+
+    b = st.backend
+    b.check_writable()
+    n = 0
+    for pw in st.pending_writes():
+        try:
+            age = time.time() - datetime.fromisoformat(str(pw["started"]).replace("Z", "+00:00")).timestamp()
+        except (KeyError, ValueError):
+            age = float("inf")
+        dead = dead_writers and pw.get("host") == socket.gethostname() and not pid_alive(pw.get("pid"))
+        if age >= older_than_s or dead:
+            b.discard(pw["path"])
+            n += 1
+    for tid in b.list_dirs(TRASH):
+        b.discard(f"{TRASH}/{tid}")
+        n += 1
+    return n
 
 
 def write_view(st: CubeStore, scene: str, view: str, meta: ViewMeta | Mapping[str, Any],
@@ -170,7 +186,9 @@ def write_view(st: CubeStore, scene: str, view: str, meta: ViewMeta | Mapping[st
     new = meta.model_copy(update={
         "aovs": sorted(kept | set(prepared)), "schema_version": SCHEMA_VERSION,
         "created": meta.created or (old.created if old else None) or utc_now()})
-    write_group(b, vp, {**old_attrs, VIEW_ATTR: new.model_dump(mode="json")})
+    doc = {**old_attrs, VIEW_ATTR: new.model_dump(mode="json")}
+    write_group(b, vp, doc)
+    write_manifest(b, vp, ["zarr.json"], {"zarr.json": group_meta_bytes(doc)})  # the AOVs have their own
     return new
 
 
@@ -240,6 +258,7 @@ def write_cube(st: CubeStore, scene: str, view: str, group: str, cube: np.ndarra
             _write_planes(st, wpath, _planes(meta, enc, enc_u, enc_d), shape, chunks, progress)
         state = {**state, "complete": True, "finished": utc_now()}
         write_group(b, wpath, {CUBE_ATTR: meta.model_dump(mode="json"), STATE_ATTR: state})
+        write_manifest(b, wpath)  # every file of the node, before it is published (store.checksums)
         try:
             b.publish(wpath, final, replace=overwrite or (prev is not None and not prev.get("complete")))
         except FileExistsError:

@@ -40,8 +40,9 @@ def stores(tmp_path_factory) -> tuple[Path, Path]:
 def test_verify_damaged_store_exits_1(stores):
     r = illumix("store", "verify", str(stores[1]))
     assert r.returncode == 1, (r.stdout, r.stderr)
-    assert "PROBLEM scenes/synth/v0/cubes/lamp: unreadable" in r.stdout
-    assert "1 problem(s)" in r.stdout and "Traceback" not in r.stderr
+    assert "PROBLEM scenes/synth/v0/cubes/lamp/data/c/0/0/0: fails its checksum" in r.stdout  # the file
+    assert "PROBLEM scenes/synth/v0/cubes/lamp: unreadable" in r.stdout  # and the cube it breaks
+    assert "2 problem(s)" in r.stdout and "Traceback" not in r.stderr
 
 
 def test_verify_damaged_store_json_lists_the_problem_and_exits_1(stores):
@@ -49,8 +50,9 @@ def test_verify_damaged_store_json_lists_the_problem_and_exits_1(stores):
     assert r.returncode == 1, r.stderr
     doc = json.loads(r.stdout)  # stdout holds the report and nothing else
     assert doc["ok"] is False
-    assert [p["where"] for p in doc["problems"]] == ["scenes/synth/v0/cubes/lamp"]
-    assert doc["problems"][0]["what"].startswith("unreadable")
+    assert [p["where"] for p in doc["problems"]] == ["scenes/synth/v0/cubes/lamp/data/c/0/0/0",
+                                                     "scenes/synth/v0/cubes/lamp"]
+    assert "fails its checksum" in doc["problems"][0]["what"] and doc["problems"][1]["what"].startswith("unreadable")
 
 
 @pytest.mark.parametrize("json_flag", [[], ["--json"]])

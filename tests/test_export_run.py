@@ -224,4 +224,4 @@ def test_a_damaged_cube_is_one_line(tmp_path, capsys, fmt):
     (tmp_path / "store" / "scenes" / "room_1" / "v0" / "cubes" / "window" / "data" / "c" / "0" / "0" / "0").write_bytes(b"x")
     code, _, err = run_cli(capsys, "export", store, str(tmp_path / "o"), "--format", fmt)
     last = err.strip().splitlines()[-1]  # after the progress bar's line
-    assert code == 2 and "Traceback" not in err and last.startswith("illumix: error: corrupt array"), err
+    assert code == 2 and "Traceback" not in err and last.startswith("illumix: error: cube room_1/v0/window is damaged"), err

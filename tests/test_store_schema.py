@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from illumix import cmd_store
 from illumix.retarget.grid import SpectralGrid
+from illumix.store.checksums import MANIFEST, manifest_bytes, sha256
 from illumix.store import CubeMeta, CubeStore, StoreError
 from illumix.store.report import verify
 
@@ -43,9 +44,16 @@ def store_path(tmp_path) -> Path:
 
 
 def _edit(path: Path, fn) -> None:
+    """Rewrite a metadata document as a writer would (its node's manifest re-sealed), so the checks
+    below the checksums are what is tested (tests/test_store_checksums.py tests the checksums)."""
     js = json.loads(path.read_text())
     fn(js["attributes"])
     path.write_text(json.dumps(js))
+    node = path.parent
+    if (node / MANIFEST).is_file():
+        files = sorted(str(f.relative_to(node)) for f in node.rglob("*") if f.is_file()
+                       and not str(f.relative_to(node)).startswith("_checksums"))
+        (node / MANIFEST).write_bytes(manifest_bytes({f: sha256((node / f).read_bytes()) for f in files}))
 
 
 def _problems(p: Path) -> list[str]:
@@ -100,7 +108,7 @@ def test_corrupt_chunk_is_named_and_verify_fails_with_exit_1(store_path):
     chunk = store_path / CUBE / "data" / "c" / "1" / "0" / "0"
     chunk.write_bytes(b"\x00garbage" * 10)
     st = CubeStore.open(store_path, mode="r")
-    with pytest.raises(StoreError, match=r"corrupt array .*scenes/s/v/cubes/g/data"):
+    with pytest.raises(StoreError, match=r"is damaged .*scenes/s/v/cubes/g/data"):
         st.read_cube("s", "v", "g")
     assert st.read_cube("s", "v", "g", crop=(40, 0, 10, 10)).shape == (10, 10, NB)  # other chunks fine
     assert any(p.startswith(CUBE) for p in _problems(store_path))

@@ -51,10 +51,13 @@ class ViewInfo:
 
 
 def views_from_scenes(scenes: Sequence[Mapping[str, Any]]) -> list[ViewInfo]:
-    """Flatten GET /scenes into :class:`ViewInfo` rows, sorted by ``scene/view``."""
+    """Flatten GET /scenes into :class:`ViewInfo` rows, sorted by ``scene/view`` (views the service
+    lists as ``damaged`` are left out: they cannot be served)."""
     out = []
     for s in scenes:
         for v in s["views"]:
+            if v.get("damaged"):
+                continue
             groups = tuple(g["name"] for g in v["groups"])
             out.append(ViewInfo(s["name"], v["name"], int(v["width"]), int(v["height"]), groups,
                                 tuple(g.get("emission") for g in v["groups"])))

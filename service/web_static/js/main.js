@@ -261,11 +261,13 @@ async function refreshLists() {
 
 async function start() {
   const [scenes, health] = await Promise.all([getJSON("/scenes"), getJSON("/health"), refreshLists()]);
-  lib.scenes = scenes.scenes.filter((s) => s.views.length);
+  // a damaged view is listed with why (GET /scenes); it cannot be served, so it is left out here
+  const damaged = scenes.scenes.flatMap((s) => s.views.filter((v) => v.damaged).map((v) => `${s.name}/${v.name}`));
+  lib.scenes = scenes.scenes.map((s) => ({ ...s, views: s.views.filter((v) => !v.damaged) })).filter((s) => s.views.length);
   if (!lib.scenes.length) { status("the store holds no rendered views yet: run `illumix render`", true); return; }
   const link = stateFromLink(new URLSearchParams(location.search), lib);
   Object.assign(state, link.state);
-  notice(link.notes);
+  notice(damaged.length ? [...link.notes, `damaged, not shown (run \`illumix store verify\`): ${damaged.join(", ")}`] : link.notes);
   $("notice-close").onclick = () => notice([]);
   $("notice-text").onclick = () => $("notice").classList.toggle("open");
   const nviews = lib.scenes.reduce((n, s) => n + s.views.length, 0);
