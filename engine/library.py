@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import hashlib
 import threading
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
 
+from illumix.retarget import conditioning as cond
 from illumix.retarget import illuminants as ill
 from illumix.retarget import sensors as sen
 from illumix.retarget.ccm import fit_ccm
@@ -65,7 +67,7 @@ class Library:
         with self._lock:
             s = self._sensors.get(key)
         if s is None:
-            s = parse_sensor(name, data, fmt, grid)
+            s = parse_sensor(name, data, fmt, grid, conditioned=False)
             with self._lock:
                 self._sensors[key] = s
         return s, f"upload:{name}:{key[2]}"
@@ -100,11 +102,26 @@ class Library:
                                    + [f"{k}:<K>" for k in ill.PARAMETRIC] + self.uploaded_illuminants())
             return ill.illuminant_spd(name, grid), f"builtin:{name}"
         data, _ = up
-        return parse_illuminant(name, data, grid), f"upload:{name}:{hashlib.sha1(data).hexdigest()}"
+        return (parse_illuminant(name, data, grid, conditioned=False),
+                f"upload:{name}:{hashlib.sha1(data).hexdigest()}")
 
     # -- derived, cached ----------------------------------------------------------------------
-    def ccm(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str) -> tuple[np.ndarray, float]:
-        return _ccm(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
+    def ccm(self, sensor: sen.Sensor, skey: str, spd: np.ndarray, ikey: str,
+            illuminant: str | None = None) -> tuple[np.ndarray, cond.Conditioning]:
+        """``(CCM (3, 3), its Conditioning)`` of a sensor × illuminant, fitted once per cache-key pair.
+
+        Refuses (:class:`SpectralError`, one line) a pair beyond the bounds of
+        :mod:`retarget.conditioning`, whoever asks: a degenerate CCM is never served, whatever the
+        route. ``illuminant`` names it in that message (default: the name in its cache key)."""
+        matrix, q = _ccm(skey, ikey, sensor.grid, _Frozen(sensor.weights()), _Frozen(spd))
+        cond.require(q, sensor.name, illuminant or _display(ikey))
+        return matrix, q
+
+
+def _display(ikey: str) -> str:
+    """The illuminant name in a cache key (``builtin:<name>`` or ``upload:<name>:<sha1>``)."""
+    kind, _, rest = ikey.partition(":")
+    return rest.rpartition(":")[0] if kind == "upload" else rest
 
 
 class _Frozen:
@@ -121,27 +138,68 @@ class _Frozen:
 
 
 @lru_cache(maxsize=4096)
-def _ccm(skey: str, ikey: str, grid: SpectralGrid, w: _Frozen, spd: _Frozen) -> tuple[np.ndarray, float]:
+def _ccm(skey: str, ikey: str, grid: SpectralGrid, w: _Frozen, spd: _Frozen
+         ) -> tuple[np.ndarray | None, cond.Conditioning]:
+    """The fit and its conditioning; no fit (``None``) where the white point is already beyond its
+    bound (a zero channel would make the fit refuse with a less telling message)."""
+    rgb, gain = cond.white_gains(w.a, spd.a)
+    white = cond.Conditioning(tuple(map(float, rgb[0])), float(gain[0]))
+    if not gain[0] <= cond.MAX_WHITE_GAIN:
+        return None, white
     _, refl = get_reflectances(DEFAULT_TRAINING_SET, grid)
     fit = fit_ccm(w.a, spd.a, refl, grid)
-    return fit.matrix, fit.delta_e00_mean
+    return fit.matrix, replace(white, condition=fit.condition, delta_e00_mean=fit.delta_e00_mean,
+                               delta_e00_max=fit.delta_e00_max)
 
 
-def parse_sensor(name: str, data: bytes, fmt: str, grid: SpectralGrid) -> sen.Sensor:
-    """Validate uploaded sensor bytes (rawtoaces JSON or CSV ``wavelength,r,g,b``) into a Sensor."""
+def parse_sensor(name: str, data: bytes, fmt: str, grid: SpectralGrid, *, conditioned: bool = True) -> sen.Sensor:
+    """Validate uploaded sensor bytes (rawtoaces JSON or CSV ``wavelength,r,g,b``) into a Sensor.
+
+    ``conditioned`` (an upload): also refuse a sensor that is degenerate under the reference
+    illuminants (:data:`retarget.conditioning.REFERENCE_ILLUMINANTS`), before it is stored. The
+    library re-reads stored sensors with ``False``: each composition checks its own pair
+    (:meth:`Library.ccm`), which also covers sensors stored before these bounds existed."""
     wl, rgb = sen.read_sensor_file(data, fmt=fmt, what=f"uploaded sensor {name!r}")
-    return sen.sensor_from_samples(name, wl, rgb, grid, source="uploaded")
+    s = sen.sensor_from_samples(name, wl, rgb, grid, source="uploaded")
+    if conditioned:
+        refs = cond.REFERENCE_ILLUMINANTS
+        _check_reference(s.weights(), np.stack([ill.illuminant_spd(n, grid) for n in refs]), grid,
+                         [name] * len(refs), list(refs), "sensor")
+    return s
 
 
-def parse_illuminant(name: str, data: bytes, grid: SpectralGrid) -> np.ndarray:
-    """Validate uploaded SPD bytes (CSV ``wavelength,value``) into a normalised band-averaged SPD."""
+def parse_illuminant(name: str, data: bytes, grid: SpectralGrid, *, conditioned: bool = True) -> np.ndarray:
+    """Validate uploaded SPD bytes (CSV ``wavelength,value``) into a normalised band-averaged SPD.
+
+    ``conditioned`` (an upload): also refuse an SPD that is degenerate through the reference sensors
+    (:data:`retarget.conditioning.REFERENCE_SENSORS`); see :func:`parse_sensor`."""
     wl, v, _ = read_csv_table(data, columns=1, what=f"uploaded illuminant {name!r}")
-    return ill.spd_from_samples(wl, v[:, 0], grid, what=f"uploaded illuminant {name!r}")
+    spd = ill.spd_from_samples(wl, v[:, 0], grid, what=f"uploaded illuminant {name!r}")
+    if conditioned:
+        for s in cond.REFERENCE_SENSORS:
+            _check_reference(sen.get_sensor(s, grid).weights(), spd[None], grid, [s], [name], "illuminant")
+    return spd
+
+
+def _check_reference(weights: np.ndarray, spds: np.ndarray, grid: SpectralGrid, sensors: list[str],
+                     illuminants: list[str], blame: str) -> None:
+    """Refuse (:mod:`retarget.conditioning`) the first degenerate pair of one sensor's ``(n_bands, 3)``
+    weights × ``(G, n_bands)`` SPDs: all white points first (one product), then each CCM fit."""
+    rgb, gains = cond.white_gains(weights, spds)
+    for r, g, s, i in zip(rgb, gains, sensors, illuminants):
+        cond.check_white(r, float(g), s, i, blame)
+    _, refl = get_reflectances(DEFAULT_TRAINING_SET, grid)
+    for spd, s, i in zip(spds, sensors, illuminants):
+        cond.check_ccm(fit_ccm(weights, spd, refl, grid).condition, s, i, blame)
 
 
 def check_upload_name(kind: str, name: str, builtin: list[str]) -> None:
-    if name in builtin or (kind == "illuminants" and ":" in name):
-        raise SpectralError(f"{kind[:-1]} name {name!r} is taken by a built-in; choose another name")
+    """Refuse an upload name a built-in already answers to: lookups ignore case, so ``d65`` would
+    be stored and never served (the upload form's schema pattern states the same rule)."""
+    taken = name.casefold() in {b.casefold() for b in builtin}
+    if taken or (kind == "illuminants" and ":" in name):
+        raise SpectralError(f"{kind[:-1]} name {name!r} is taken by a built-in (names are matched ignoring "
+                            "case); choose another name")
 
 
 RANDOM = "random"

@@ -5,10 +5,16 @@ from __future__ import annotations
 import numpy as np
 
 from illumix.engine import extra_outputs as extra
+from illumix.retarget import conditioning as cond
+
+#: The bounds every served pair is within (:mod:`retarget.conditioning`), stated beside the values.
+CONDITIONING_LIMITS = {"max_white_balance_gain": cond.MAX_WHITE_GAIN,
+                       "max_ccm_condition_number": cond.MAX_CCM_CONDITION}
 
 
-def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exposure_gain, noise, timings) -> dict:
-    """The sample's metadata (module docstring)."""
+def sample_meta(p, sensor, white_points, ccms, quality, mask, valid, reasons, exposure_gain, noise, timings) -> dict:
+    """The sample's metadata (module docstring); ``quality``: per group the
+    :class:`retarget.conditioning.Conditioning` of its sensor × illuminant, or None (not fitted)."""
     spec, grid = p.spec, p.metas[0].spectral_grid
     meta = {
         "scene": p.scene, "view": p.view, "groups": p.groups, "seed": p.seed,
@@ -16,11 +22,11 @@ def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exp
         "illuminants": [
             {"group": g, "illuminant": n, "intensity": a,
              "white_point_rgb": [float(v) for v in wp],
-             "ccm": None if c is None else np.asarray(c).round(8).tolist(),
-             "ccm_fit_delta_e00_mean": None if de is None else float(de)}
-            for g, n, a, wp, c, de in zip(p.groups, p.names, p.intensities, white_points,
-                                          ccms if ccms is not None else [None] * len(p.groups), fit_de)
+             "ccm": None if c is None else np.asarray(c).round(8).tolist()} | _quality(q, c is not None)
+            for g, n, a, wp, c, q in zip(p.groups, p.names, p.intensities, white_points,
+                                         ccms if ccms is not None else [None] * len(p.groups), quality)
         ],
+        "conditioning_limits": CONDITIONING_LIMITS,
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "denoise": _denoise_meta(p),
         "mask_reasons": {"meaning": extra.MASK_REASONS,
@@ -37,6 +43,16 @@ def sample_meta(p, sensor, white_points, ccms, fit_de, mask, valid, reasons, exp
         "timings_ms": timings,
     }
     return meta
+
+
+def _quality(q, served: bool) -> dict:
+    """What ``meta`` states of a group's CCM: its real fit error (CIEDE2000 mean and max over the training
+    set, of the matrix as served) and its condition number, with the white-balance gain its white point
+    implies; nulls where no CCM is served. Each is within the bounds of :mod:`retarget.conditioning`
+    (:data:`CONDITIONING_LIMITS`), or the sample would have been refused."""
+    fields = dict.fromkeys(("ccm_fit_delta_e00_mean", "ccm_fit_delta_e00_max", "ccm_condition_number",
+                            "white_balance_gain"))
+    return fields | (q.meta() if q is not None and served else {})
 
 
 def _denoise_meta(p) -> dict:

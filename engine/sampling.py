@@ -82,6 +82,19 @@ def unit_weights(spd: np.ndarray, emission: np.ndarray, group: str, sensor, grid
     return raw_weights(scales, sensor.weights())[0]
 
 
+def _checked_ccms(p: Plan, lib, sensor, skey: str, spds, ikeys, wanted: bool) -> tuple[list | None, list]:
+    """``(the groups' CCMs, or None unless ``wanted``; per group its Conditioning, or None if not fitted)``.
+
+    Every lit group's sensor × illuminant is checked against the bounds of :mod:`retarget.conditioning`
+    (:meth:`engine.library.Library.ccm` refuses a degenerate one) whatever the outputs, so the raw of a
+    degenerate pair is refused like its CCM. A group at intensity 0 is checked only when its CCM is
+    served (``wanted``: then a degenerate one is refused, never served): an illuminant it does not
+    light cannot spoil a raw-only sample. A fit costs ~1 ms once, then it is cached per pair."""
+    fits = [lib.ccm(sensor, skey, s, k, n or "E") if wanted or a > 0 else (None, None)
+            for s, k, n, a in zip(spds, ikeys, p.names, p.intensities)]
+    return ([m for m, _ in fits] if wanted else None), [q for _, q in fits]
+
+
 def group_inputs(ctx: Context, p: Plan, kind: str, unit: list[np.ndarray | None], keys: list[tuple]) -> list:
     """Per group what :func:`retarget.compose.compose` projects: zeros for a group not read, else the
     window of the frame's cached projection (:mod:`engine.projections`) or of the cube itself.
@@ -141,11 +154,8 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     grid = p.metas[0].spectral_grid
     sensor, skey = lib.sensor(p.sensor, grid)
     spds, ikeys = zip(*(lib.illuminant(n or "E", grid) for n in p.names))
-    # a CCM fit (~1 ms, then cached per sensor and illuminant) only when an output or the metadata uses it
-    if {"ccm", "srgb", "meta"} & set(spec.outputs):
-        ccms, fit_de = zip(*(lib.ccm(sensor, skey, s, k) for s, k in zip(spds, ikeys)))
-    else:
-        ccms, fit_de = None, [None] * len(spds)
+    served = bool({"ccm", "srgb", "meta"} & set(spec.outputs))  # outputs that use (or state) the CCMs
+    ccms, quality = _checked_ccms(p, lib, sensor, skey, spds, ikeys, served)
     emissions = np.stack([np.asarray(m.emission, dtype=np.float64) for m in p.metas])
     want = set(spec.array_outputs())
     on_device = ctx.torch is not None and torch_refusal(spec) is None
@@ -159,7 +169,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     valid, reasons = extra.view_validity(aov, *p.out_size)
     if on_device:
         try:
-            return build_on_device(p, ctx, unit, sensor, spds, ccms, fit_de, valid, reasons, keep_device, t0, t_setup)
+            return build_on_device(p, ctx, unit, sensor, spds, ccms, quality, valid, reasons, keep_device, t0, t_setup)
         except Exception as exc:
             if keep_device or not ctx.torch.out_of_memory(exc):
                 raise
@@ -189,7 +199,7 @@ def build(p: Plan, ctx: Context, keep_device: bool = False) -> tuple[dict[str, n
     if p.bayer and "raw" in want:
         arrays["raw"] = mosaic(arrays["raw"], p.bayer)
     t_compose = time.perf_counter()
-    meta = sample_meta(p, sensor, comp.white_points, ccms, fit_de, comp.mask, valid, reasons, comp.exposure_gain,
+    meta = sample_meta(p, sensor, comp.white_points, ccms, quality, comp.mask, valid, reasons, comp.exposure_gain,
                        noise, {"setup": 1e3 * (t_setup - t0), "read": 1e3 * (t_read - t_setup),
                                "compose": 1e3 * (t_compose - t_read)})
     if comp.srgb is not None:

@@ -12,7 +12,8 @@ set ``S_n``:
 - ``M = argmin Σ_n ‖M ρ̂_n − t_n‖²`` subject to ``M (1, 1, 1)ᵀ = (1, 1, 1)ᵀ`` (white preserving), each
   row solved on the constraint's null space by least squares (robust to near-degenerate sensors).
 
-The fit's quality is reported as CIEDE2000 between ``M ρ̂_n`` and ``t_n`` in CIELAB (D65).
+The fit's quality is reported as CIEDE2000 between ``M ρ̂_n`` (``M`` rounded to float32, as served) and
+``t_n`` in CIELAB (D65), and by ``M``'s condition number (bounded by :mod:`retarget.conditioning`).
 Methods are dispatched by name through :data:`CCM_METHODS` (case-insensitive, with aliases; defined
 in :mod:`retarget.ccm_methods`):
 ``method="White Preserving"`` (default; alias ``"wp"``) or ``"Unconstrained"`` (alias
@@ -29,6 +30,7 @@ from functools import lru_cache
 import numpy as np
 
 from illumix.retarget.ccm_methods import CCM_METHODS
+from illumix.retarget.conditioning import ccm_condition
 from illumix.retarget.errors import SpectralError
 from illumix.retarget.grid import SpectralGrid, resample
 
@@ -47,6 +49,11 @@ class CCMFit:
     @property
     def delta_e00_max(self) -> float:
         return float(np.max(self.delta_e00))
+
+    @property
+    def condition(self) -> float:
+        """The matrix's 2-norm condition number (see :mod:`retarget.conditioning`)."""
+        return ccm_condition(self.matrix)
 
 
 @lru_cache(maxsize=1)
@@ -117,5 +124,9 @@ def fit_ccm(sensor_weights: np.ndarray, spd: np.ndarray, reflectances: np.ndarra
     if not np.all(np.isfinite(m)):
         raise SpectralError("CCM: the fit is degenerate (sensor channels are linearly dependent)")
     colour = _srgb()[0]
-    de = colour.delta_E(linear_srgb_to_lab(raw @ m.T), linear_srgb_to_lab(target), method="CIE 2000")
+    # The error of the matrix as it is served (float32 maps), not of the float64 solution: for an
+    # ill-conditioned fit (huge, cancelling entries) only the former shows how wrong it is.
+    with np.errstate(over="ignore", invalid="ignore"):  # an entry beyond float32 serves as inf: its ΔE is NaN
+        served = m.astype(np.float32).astype(np.float64)
+        de = colour.delta_E(linear_srgb_to_lab(raw @ served.T), linear_srgb_to_lab(target), method="CIE 2000")
     return CCMFit(matrix=m, delta_e00=np.asarray(de, dtype=np.float64))

@@ -45,7 +45,9 @@ def band_scales(illuminants: np.ndarray, emissions: np.ndarray, intensities: np.
         raise SpectralError(f"relight: intensities must be finite and >= 0, got {a.tolist()}")
     if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(emi))):
         raise SpectralError("relight: illuminant or emission spectra contain NaN or inf")
-    wanted = (a[:, None] * phi) > 0
+    # Not ``a·Φ̄ > 0``: that product underflows for a subnormal intensity (1e-320), which must be
+    # refused or relit exactly like any tiny positive one.
+    wanted = (a[:, None] > 0) & (phi > 0)
     dark = emi <= 0
     bad = wanted & dark
     if np.any(bad):
