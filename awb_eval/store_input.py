@@ -73,6 +73,7 @@ class StoreCases:
     def __init__(self, path: str, *, sensor: str | None = None, pairs: str | None = None, count: int | None = None,
                  seed: int = 0, size: str | None = None, gt: str | None = None, cache_mb: int = 1024) -> None:
         from illumix.engine.context import make_context
+        from illumix.engine.local_library import LocalLibrary
         from illumix.store import CubeStore, StoreError
 
         try:
@@ -81,6 +82,7 @@ class StoreCases:
             raise SpectralError(f"store {path}: {exc}") from None
         self.path, self.sensor, self.seed, self.size, self.gt = path, sensor or DEFAULT_SENSOR, seed, size, gt
         self.ctx = make_context(self.store, cache_mb=cache_mb)
+        self.ctx.library = LocalLibrary(self.store)  # sensors and illuminants also given by path, as elsewhere
         self.pairs = parse_pairs(pairs)
         views = [(s, v, len(self.store.groups(s, v))) for s in sorted(self.store.scenes())
                  for v in sorted(self.store.views(s))]

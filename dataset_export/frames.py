@@ -81,8 +81,10 @@ class Composer:
     def __init__(self, store, *, gt: str | None, size: tuple[int, int] | None, noise: str | None, levels,
                  bayer: str | None, cache_mb: int = 1024) -> None:
         from illumix.engine.context import make_context
+        from illumix.engine.local_library import LocalLibrary
 
         self.ctx = make_context(store, cache_mb=cache_mb)
+        self.ctx.library = LocalLibrary(store)  # sensors and illuminants also given by path
         self.gt, self.size, self.noise, self.levels, self.bayer = gt, size, noise, levels, bayer
 
     def params(self, place: Place, sensor: str, lights: str, exposure: str) -> dict:

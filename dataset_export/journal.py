@@ -9,6 +9,11 @@ appended to ``.export-journal.jsonl`` (one JSON object per line, flushed), with 
 on the first line. A rerun with the same parameters skips every file whose bytes still match the
 journal (a damaged or foreign file is written again); other parameters are refused, so one folder
 never mixes two exports. ``manifest.json`` lists every file with its checksum at the end.
+
+A write the disk refuses (full, read-only, failing) raises :class:`~dataset_export.errors.ExportWriteError`
+naming the file, after removing its temporary: the folder then holds complete files only, and the
+same command resumes once there is space. A journal line cut by a full disk is skipped when read
+(its file is written again) and never glued to the next one.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from illumix.dataset_export.errors import ExportError
+from illumix.dataset_export.errors import ExportError, ExportWriteError, system_error
 
 JOURNAL = ".export-journal.jsonl"
 MANIFEST = "manifest.json"
@@ -55,18 +60,24 @@ class Journal:
         self.parameters = parameters
         self.files: dict[str, dict] = {}
         self.records: dict[str, dict] = {}  # key → JSON-able data a resumed run needs (e.g. a place's meta)
+        self._cut = False  # the journal's last line was cut (a full disk): start the next one on a new line
         path = self.root / JOURNAL
         if path.exists():
             self._load(path)
         else:
-            self.root.mkdir(parents=True, exist_ok=True)
+            try:
+                self.root.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ExportWriteError.of(exc, self.root) from exc
             self._append({"parameters": parameters})
         for path in self.root.rglob(f".*{TEMP_TAG}*"):  # leftovers of an interrupted write
             if is_temp(path):
                 path.unlink(missing_ok=True)
 
     def _load(self, path: Path) -> None:
-        lines = path.read_text().splitlines()
+        text = path.read_text()
+        self._cut = bool(text) and not text.endswith("\n")
+        lines = text.splitlines()
         entries = []
         for line in lines:
             try:
@@ -85,10 +96,16 @@ class Journal:
                 self.records[e["record"]] = e["data"]
 
     def _append(self, entry: dict) -> None:
-        with open(self.root / JOURNAL, "a") as f:
-            f.write(json.dumps(entry, separators=(",", ":")) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+        line = json.dumps(entry, separators=(",", ":")) + "\n"
+        try:
+            with open(self.root / JOURNAL, "a") as f:
+                f.write("\n" + line if self._cut else line)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:
+            self._cut = True  # perhaps part of the line was written
+            raise ExportWriteError.of(exc, self.root / JOURNAL) from exc
+        self._cut = False
 
     def complete(self, rel: str) -> bool:
         """Whether ``rel`` was written by this export and its bytes are unchanged."""
@@ -100,13 +117,19 @@ class Journal:
         """Write ``rel`` atomically: ``writer(tmp_path)`` writes the whole file under a temporary name
         (same extension, so libraries that pick the format by it still do), then it is renamed."""
         dst = self.root / rel
-        dst.parent.mkdir(parents=True, exist_ok=True)
         tmp = temp_path(dst)
         try:
+            dst.parent.mkdir(parents=True, exist_ok=True)
             writer(tmp)
             with open(tmp, "rb+") as f:
                 os.fsync(f.fileno())
             os.replace(tmp, dst)
+        except OSError as exc:
+            raise ExportWriteError.of(exc, dst) from exc
+        except Exception as exc:
+            if (cause := system_error(exc)) is None:  # a library's own error naming a refused write
+                raise
+            raise ExportWriteError.of(cause, dst) from exc
         finally:
             tmp.unlink(missing_ok=True)
         entry = {"file": rel, "sha256": sha256(dst), "bytes": dst.stat().st_size}

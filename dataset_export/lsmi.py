@@ -88,8 +88,13 @@ def write_tiff(path, dn_rgb: np.ndarray) -> None:
     ``cv2.imread(…, IMREAD_UNCHANGED)`` + ``COLOR_BGR2RGB``)."""
     import cv2
 
-    if not cv2.imwrite(str(path), np.ascontiguousarray(dn_rgb[..., ::-1], dtype=np.uint16)):
-        raise OSError(f"OpenCV could not write {path}")
+    # encoded in memory (the bytes cv2.imwrite writes) and written here: a refused write is then an
+    # OSError with its errno (ENOSPC …), where imwrite only answers False
+    ok, buf = cv2.imencode(".tiff", np.ascontiguousarray(dn_rgb[..., ::-1], dtype=np.uint16))
+    if not ok:
+        raise ValueError(f"OpenCV could not encode a {dn_rgb.shape} TIFF for {path}")
+    with open(path, "wb") as f:
+        f.write(buf.tobytes())
 
 
 def write_npy(path, mixture: np.ndarray) -> None:

@@ -102,7 +102,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
     names = sorted({n for p in places for n in p.lighting} | {"D65"})
     spds = {n: lib.illuminant(n, grid) for n in names}
     ccts = {n: _cct(spds[n][0], grid) for n in names}
-    folders = [lsmi.camera_dir(s) for s in o.sensors]
+    # a camera file given by path is named as ILLUMIX_SENSOR_PATH names it (its stem), not by its path
+    folders = [lsmi.camera_dir(sensors[s][0].name if lib.local_file("sensors", s) else s) for s in o.sensors]
     if len(set(folders)) != len(folders):
         raise ExportError(f"sensors {o.sensors} map to the same folder name; export them separately")
     if on_progress:

@@ -8,6 +8,7 @@ is called once with ``label=None`` and the number of items, then once per item d
 from __future__ import annotations
 
 import datetime
+import errno
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -44,7 +45,8 @@ def _check_out(out: Path) -> None:
         probe.write_bytes(b"")
         probe.unlink()
     except OSError as exc:
-        raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); choose a writable folder") from None
+        full = "free space on that disk or " if exc.errno in (errno.ENOSPC, errno.EDQUOT) else ""
+        raise ExportError(f"cannot write into {out} ({exc.strerror or exc}); {full}choose a writable folder") from None
 
 
 #: options a format ignores (set to anything but their default, they are refused), as the CLI names them
@@ -94,10 +96,11 @@ def _open_store(url: str):
 
 
 def _check_names(st, sensors, illuminants, place) -> None:
-    """Unknown or unusable sensor / illuminant names: one line with the close matches, before any work."""
-    from illumix.engine.library import Library
+    """Unknown or unusable sensor / illuminant names (or files given by path): one line with the close
+    matches, before any work."""
+    from illumix.engine.local_library import LocalLibrary
 
-    lib = Library(st)
+    lib = LocalLibrary(st)
     grid = st.cube_meta(place.scene, place.view, place.groups[0]).spectral_grid
     for s in sensors:
         lib.sensor(s, grid)

@@ -1,7 +1,8 @@
 """``illumix`` — entry point. Sub-commands live in ``illumix/cmd_*.py`` and register here.
 
-Every expected failure (bad name, bad file, bad parameter) ends as one line on stderr and exit
-code 2 — never a traceback. A command that finds a problem (``store verify``) exits 1.
+Every expected failure (bad name, bad file, bad parameter, a full, read-only or failing disk) ends
+as one line on stderr and exit code 2 — never a traceback. A command that finds a problem
+(``store verify``) exits 1.
 
 Registering the commands must stay cheap — ``illumix --help`` and ``illumix CMD --help`` import
 typer, rich and the pure-Python option registries only: the ``cmd_*`` modules import numpy,
@@ -15,7 +16,7 @@ import sys
 
 import typer
 
-from illumix.errors import UserError
+from illumix.errors import STORAGE_ERRNOS, UserError, storage_errno
 
 app = typer.Typer(
     name="illumix",
@@ -90,6 +91,9 @@ def main(argv: list[str] | None = None) -> None:
         if store_errors is not None and isinstance(exc, store_errors.StoreError):
             print(f"illumix: error: {exc}", file=sys.stderr)
             sys.exit(2)
+        if isinstance(exc, OSError) and storage_errno(exc) is not None:  # a full, read-only or failing disk
+            print(f"illumix: error: {storage_line(exc)}", file=sys.stderr)
+            sys.exit(2)
         # Usage errors (missing option, unknown command): typer ships its own copy of click, so
         # recognise them by what they can do rather than by class.
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
@@ -107,6 +111,15 @@ def main(argv: list[str] | None = None) -> None:
         print("illumix: interrupted", file=sys.stderr)
     if isinstance(code, int) and code:
         sys.exit(code)
+
+
+def storage_line(exc: OSError) -> str:
+    """What a storage error (:func:`illumix.errors.storage_errno`) no command words itself says: the
+    file, why, and what to do."""
+    n = storage_errno(exc)
+    where = f"{exc.filename}: " if exc.filename else ""
+    return f"{where}{os.strerror(n)}; {STORAGE_ERRNOS[n].format(elsewhere='use another location')}, then run " \
+           "the command again"
 
 
 if __name__ == "__main__":

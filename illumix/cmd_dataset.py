@@ -5,7 +5,9 @@ files) × its views × its light groups into a cube store through the render job
 (:func:`renderer_jobs.jobs.plan` / :func:`~renderer_jobs.execute.execute`, process pool or Ray as the
 config says). Resumable: generated rooms are cached as scene files (:mod:`illumix.scene_corpus`) and
 a rerun renders only the cubes not yet complete. A job that fails is reported and the others go on
-(local executor); the run then exits 1 after its summary.
+(local executor); the run then exits 1 after its summary — but a disk that refuses writes (full,
+read-only, failing) stops the run at once with one line and exit 2 (:mod:`illumix.render_run`): what
+was complete is kept, and the same command resumes once there is space.
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ from pathlib import Path
 import typer
 from rich.console import Console
 
-from illumix.errors import UserError
-from illumix.render_run import refuse_conflicts, run_jobs
+from illumix.errors import UserError, storage_errno, write_failure
+from illumix.render_run import refuse_conflicts, run_jobs, storage_failure
 
 console = Console(stderr=True)
 
@@ -109,7 +111,11 @@ def _scenes_dir(store: str, scenes_dir: Path | None, cfg, dry_run: bool) -> Path
     if not dry_run:
         try:
             CubeStore.open(store, mode="a")
-        except StoreError as exc:
+        except Exception as exc:
+            if storage_errno(exc) is not None:  # a full or read-only disk: one line, like every writer's
+                raise storage_failure(store, exc) from None
+            if not isinstance(exc, StoreError):
+                raise
             raise UserError(f"store {store}: {exc}") from None
     return scenes_dir
 
@@ -130,8 +136,14 @@ def _corpus(cfg, config: Path, scenes_dir: Path | None, limit: int | None, dry_r
         def on_room(name: str, status: str) -> None:
             prog.update(task, advance=1, last=f"{name} {status}")
 
-        corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
-                                    on_room=on_room, on_start=on_start)
+        try:
+            corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,
+                                        on_room=on_room, on_start=on_start)
+        except OSError as exc:  # the rooms' scene files are written atomically: none is left half-written
+            if storage_errno(exc) is None:
+                raise
+            raise UserError(write_failure(exc.filename or scenes_dir, exc, elsewhere="give another --scenes-dir",
+                                          rerun="run the same command again: the rooms written are kept")) from None
     if corpus.generated or corpus.cached:
         console.print(f"rooms: {corpus.generated} generated, {corpus.cached} cached in {scenes_dir or '(memory)'}",
                       highlight=False)
@@ -140,6 +152,7 @@ def _corpus(cfg, config: Path, scenes_dir: Path | None, limit: int | None, dry_r
 
 def _plan(scenes: list, store: str, res, opts: dict, r, overwrite: bool):
     """``(scenes at the config's resolution, RenderSettings, plan)``; every problem one line."""
+    from illumix.cmd_render import plan_jobs
     from illumix.dataset_config import config_flag
     from illumix.render_options import render_settings
     from illumix.renderer_jobs import jobs
@@ -149,7 +162,7 @@ def _plan(scenes: list, store: str, res, opts: dict, r, overwrite: bool):
     try:
         scenes = [jobs.apply_resolution(s, res) for s in scenes]
         settings = render_settings(opts, scenes=scenes, flag=config_flag)
-        p = jobs.plan(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
+        p = plan_jobs(scenes, store, views=r.views, groups=r.groups, overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except StoreError as exc:

@@ -17,7 +17,7 @@ import typer
 from rich.console import Console
 
 from illumix.awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
-from illumix.errors import UserError
+from illumix.errors import UserError, write_failure
 
 console = Console(stderr=True)
 
@@ -60,13 +60,15 @@ def evaluate(
     methods: str = typer.Option(", ".join(DEFAULT_METHODS), "--methods",
                                 help=f"Comma-separated AWB methods (any case; aliases): {', '.join(AWB_METHODS.names)}; "
                                      "or a plug-in module.path:callable (raw (H,W,3) float32 → gain map (H,W,3))."),
-    sensor: str | None = typer.Option(None, "--sensor", help="Store: the camera to compose for (default Nikon 5100 "
-                                                             "(NPL)); 'random': each image its own camera drawn from "
-                                                             "the measured cameras' prior (random:<seed + k>). LSMI: "
-                                                             "the camera folder (default: the only one)."),
+    sensor: str | None = typer.Option(None, "--sensor", help="Store: the camera to compose for, a name or a camera "
+                                                             "file given by path (default Nikon 5100 (NPL)); 'random': "
+                                                             "each image its own camera drawn from the measured "
+                                                             "cameras' prior (random:<seed + k>). LSMI: the camera "
+                                                             "folder (default: the only one)."),
     pairs: str | None = typer.Option(None, "--pairs", help="Store: lightings separated by ';', each 'A,D65' (a pair "
                                                            "for the first two groups) or 'D65' (every group); default "
-                                                           "\"A,D65;FL11,D50\". LSMI: light sets, e.g. \"12;13\" (default all)."),
+                                                           "\"A,D65;FL11,D50\"; an illuminant may be a CSV given by "
+                                                           "path. LSMI: light sets, e.g. \"12;13\" (default all)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Only N views (store) or places (LSMI), drawn with --seed."),
     seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="Seed of the --count draw and of each sample."),
     size: str | None = typer.Option(None, "--size", help="Store: compose at WxH (area resampling), e.g. 320x240."),
@@ -109,14 +111,26 @@ def evaluate(
            "seconds": round(time.perf_counter() - t0, 3)}
     table = markdown(summary, title=f"AWB evaluation: {len(res.images)} images of {data}")
     if out is not None:
-        from illumix.awb_eval.outputs import write_outputs
-
-        written = write_outputs(out, doc, table, res, labels)
+        written = _write(out, doc, table, res, labels)
         console.print(f"wrote {', '.join(written[:4])}{' …' if len(written) > 4 else ''} to {out}", highlight=False)
     _print(doc, table, as_json)
     if res.skipped:
         console.print(f"skipped {len(res.skipped)} image(s): {res.skipped[0]['name']}: {res.skipped[0]['why']}",
                       highlight=False)
+
+
+def _write(out: Path, doc: dict, table: str, res, labels: list[str]) -> list[str]:
+    """The ``--out`` folder (:func:`awb_eval.outputs.write_outputs`); a disk that refuses a file is one
+    line, and the temporary file it was written under is removed (finished files stay whole)."""
+    from illumix.awb_eval.outputs import write_outputs
+
+    try:
+        return write_outputs(out, doc, table, res, labels)
+    except OSError as exc:
+        for tmp in [*out.glob(".*.tmp"), *out.glob("maps/.*.tmp")]:
+            tmp.unlink(missing_ok=True)
+        raise UserError(write_failure(exc.filename or out, exc, elsewhere="give another --out",
+                                      rerun="run the evaluation again")) from None
 
 
 def _methods(methods: str, grid: str, interpolation: str, gt: str | None) -> list:

@@ -5,7 +5,10 @@
 Writes a frozen dataset from a cube store (:mod:`dataset_export`): the LSMI release's layout with TIFF
 (``lsmi``) or Bayer DNG (``dng``) raws, or the store's spectral cubes as OpenEXR (``exr``); splits
 by scene, ``manifest.json`` with every file's SHA-256, a dataset card ``README.md``. Resumable: run
-it again after an interruption and it skips what is complete.
+it again after an interruption and it skips what is complete. A disk that refuses a write (full,
+read-only, failing) stops it with one line naming the file (exit 2); only complete files stay, so
+the same command resumes once there is space. Sensors and illuminants are names or files given by
+path (:class:`engine.local_library.LocalLibrary`).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import typer
 from rich.console import Console
 
 from illumix.dataset_export.formats import EXPORT_FORMATS
-from illumix.errors import UserError
+from illumix.errors import UserError, write_failure
 
 console = Console(stderr=True)
 
@@ -39,11 +42,13 @@ def export(
                                                      "lsmi = LSMI layout with 16-bit TIFF raws, dng = the same with "
                                                      "Bayer DNG raws, exr = the store's spectral cubes as OpenEXR."),
     sensors: str | None = typer.Option(None, "--sensors",
-                                       help="Comma-separated sensor names, one camera folder each (`illumix sensors "
+                                       help="Comma-separated sensor names or camera files given by path (rawtoaces "
+                                            "JSON, CSV wavelength,r,g,b), one camera folder each (`illumix sensors "
                                             "list`; default \"Nikon 5100 (NPL)\")."),
     pairs: str | None = typer.Option(None, "--pairs", help="Illuminant pairs lighting each view's first two light "
                                                            "groups, ';'-separated, e.g. \"A,D65;FL11,D50\" (default A,D65); "
-                                                           "each place draws one with the seed."),
+                                                           "each place draws one with the seed; an illuminant may be a CSV "
+                                                           "wavelength,value given by path."),
     illuminants: str | None = typer.Option(None, "--illuminants", help="Like --pairs with 1-3 illuminants per "
                                                                        "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
     count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
@@ -65,6 +70,7 @@ def export(
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
 ) -> None:
     """Write a frozen dataset (LSMI layout, DNG or spectral EXR) with splits, manifest and card."""
+    from illumix.dataset_export.errors import ExportWriteError
     from illumix.dataset_export.run import export_dataset
     from illumix.progress import progress_bar
 
@@ -81,7 +87,10 @@ def export(
             else:
                 prog.update(task, advance=n, last=label)
 
-        summary = export_dataset(opts, on_progress)
+        try:
+            summary = export_dataset(opts, on_progress)
+        except ExportWriteError as exc:  # a full, read-only or failing disk: complete files are kept
+            raise UserError(write_failure(exc.filename, exc, elsewhere="choose another OUT folder")) from None
     for w in summary["warnings"]:
         print(f"illumix: warning: {w}", file=sys.stderr)
     console.print(f"exported {summary['counts']} into {summary['out']} ({summary['files']} files; "

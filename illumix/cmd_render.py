@@ -15,10 +15,10 @@ from pathlib import Path
 import typer
 from rich.console import Console
 
-from illumix.errors import UserError
+from illumix.errors import UserError, storage_errno
 from illumix.options import choice_option, described, seed_option
 from illumix.render_options import check_executor, render_settings, with_settings_options
-from illumix.render_run import refuse_conflicts, run_jobs
+from illumix.render_run import refuse_conflicts, run_jobs, storage_failure
 from illumix.renderer_jobs.modes import EXECUTORS
 
 console = Console(stderr=True)
@@ -131,13 +131,26 @@ def _plan(config, rules, store, demo, demo_seed, resolution, settings_options, v
         settings = render_settings(settings_options, scenes=scenes)
         if settings.backend != "mitsuba" and not dry_run:
             require_renderer(settings.backend)  # before planning: it may need another environment
-        p = jobs.plan(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
+        p = plan_jobs(scenes, store, views=_split(views, "--views"), groups=_split(groups, "--groups"),
                       overwrite=overwrite)
     except SceneError as exc:
         raise UserError(str(exc)) from None
     except StoreError as exc:
         raise UserError(f"store {store}: {exc}") from None
     return scenes, settings, p
+
+
+def plan_jobs(scenes: list, store: str, **kw):
+    """:func:`renderer_jobs.jobs.plan`, which opens (and creates) the store: a disk that refuses that
+    write is one line (:func:`illumix.render_run.storage_failure`)."""
+    from illumix.renderer_jobs import jobs
+
+    try:
+        return jobs.plan(scenes, store, **kw)
+    except Exception as exc:
+        if storage_errno(exc) is not None:
+            raise storage_failure(store, exc) from None
+        raise
 
 
 def register(app: typer.Typer) -> None:

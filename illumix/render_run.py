@@ -1,12 +1,17 @@
 """Running a render plan from the command line, shared by ``illumix render`` and ``illumix dataset``:
 the plan's conflicts as one line, and the jobs with a progress bar (the Cycles backend's passes as a
-second bar), every failure reported as one line (exit 2 through :class:`UserError`)."""
+second bar), every failure reported as one line (exit 2 through :class:`UserError`).
+
+A write the store's disk refuses (full, read-only, failing: :func:`illumix.errors.storage_errno`)
+stops the run at once, even one that keeps going past failed jobs: every further job would fail
+the same way. The store's writers stage each node and discard it when a write fails, so only
+complete cubes stay, and the next run renders the rest."""
 
 from __future__ import annotations
 
 from rich.console import Console
 
-from illumix.errors import UserError
+from illumix.errors import UserError, storage_errno, write_failure
 
 
 def refuse_conflicts(p, overwrite: bool, hint: str) -> None:
@@ -45,6 +50,8 @@ def run_jobs(console: Console, p, store: str, settings, *, executor: str, worker
                 done.append(result)
                 prog.update(task, advance=1, last=f"{job.label} {result['seconds']:.1f}s")
                 return
+            if storage_errno(exc) is not None:  # no later job could be written either
+                raise storage_failure(store, exc, len(done), job.label)
             prog.update(task, advance=int(keep_going), last=f"[red]{job.label} failed")
             if keep_going:
                 line = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
@@ -54,9 +61,23 @@ def run_jobs(console: Console, p, store: str, settings, *, executor: str, worker
         try:
             execute(p, store, settings, executor=executor, workers=workers, address=address, on_done=on_done,
                     overwrite=overwrite, on_pass=on_pass, keep_going=keep_going)
-        except SceneError as exc:
+        except (SceneError, UserError) as exc:
             raise UserError(str(exc)) from None
-        except jobs.JobError as exc:  # (Ray stops at its first failure even when keeping going)
+        except Exception as exc:
+            if storage_errno(exc) is not None:  # e.g. deleting a view for --overwrite, or an executor's own error
+                raise storage_failure(store, exc, len(done)) from None
+            if not isinstance(exc, jobs.JobError):
+                raise
+            # (Ray stops at its first failure even when keeping going)
             raise UserError(f"render failed: {str(exc).splitlines()[0]} ({len(done)} job(s) finished "
                             "and are kept; run again to resume)") from None
     return done, failed
+
+
+def storage_failure(store: str, exc: BaseException, n_done: int | None = None, label: str | None = None) -> UserError:
+    """One line for a render stopped by a disk that refuses writes (module docstring): job ``label``
+    (or the store itself) could not be written; ``n_done`` jobs finished before."""
+    what = f"{label} into the store {store}" if label else f"the store {store}"
+    rerun = "run the same command again: it resumes" if not n_done else (
+        f"run the same command again: the {n_done} job(s) finished are kept and it renders the rest")
+    return UserError(write_failure(what, exc, elsewhere="render into another --store", rerun=rerun))

@@ -64,7 +64,9 @@ _DESCRIPTIONS = {
     501: "A format whose optional package this service lacks (format=dng|exr); `detail` names the install.",
     503: "The service is busy (retry after `Retry-After` seconds) or its store is damaged or "
          "unreachable (`detail` says to run `illumix store verify`).",
-    507: "The store's disk is full: the upload was not written.",
+    507: "The store's disk is full (`store_full`) or refuses writes: read-only, no permission or an I/O "
+         "error (`store_unwritable`). Nothing was written; deleting uploads needs no space, so it works on "
+         "a full disk.",
 }
 
 
@@ -199,8 +201,8 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(StoreError)
     async def _store(request: Request, exc: StoreError):
-        if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT):
-            return error_response(507, "store_full", f"{exc}")
+        if (refused := _storage_refused(exc)) is not None:
+            return refused
         # Not the client's fault: the store itself is damaged or unreachable.
         log.error("store problem: %s", exc)
         return error_response(503, "store_damaged", f"store problem: {exc}; run `illumix store verify`")
@@ -208,6 +210,13 @@ def install(app: FastAPI) -> None:
     @app.exception_handler(SpectralError)
     async def _bad_input(request: Request, exc: SpectralError):
         return error_response(422, "invalid_parameter", str(exc))
+
+    @app.exception_handler(OSError)
+    async def _os_error(request: Request, exc: OSError):
+        # a write some code path let through unwrapped: the disk, not a bug, when it is full or read-only
+        if (refused := _storage_refused(exc)) is not None:
+            return refused
+        raise exc  # on to the handler of unexpected errors (500, logged), as before
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception):
@@ -231,6 +240,26 @@ def install(app: FastAPI) -> None:
             headers = {**(exc.headers or {}), "Allow": allow}
             detail = f"{request.method} is not allowed on {request.url.path}; allowed: {allow}"
         return error_response(exc.status_code, code, detail, headers=headers)
+
+
+#: a write the store's disk refused (its errno) → the 507 answer's code
+_REFUSED = {errno.ENOSPC: "store_full", errno.EDQUOT: "store_full", errno.EFBIG: "store_full",
+            errno.EROFS: "store_unwritable", errno.EACCES: "store_unwritable", errno.EPERM: "store_unwritable",
+            errno.EIO: "store_unwritable"}
+#: the errnos only a write raises (EACCES or EIO may come from a read)
+_WRITE_ONLY = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+
+
+def _storage_refused(exc: Exception):
+    """The 507 answer of a write the storage refused — the store's ``StoreWriteError`` with one of
+    :data:`_REFUSED`'s errnos, or a bare ``OSError`` with one of :data:`_WRITE_ONLY`'s — else ``None``."""
+    n = getattr(exc, "errno", None)
+    if n not in _REFUSED or (not isinstance(exc, StoreError) and n not in _WRITE_ONLY):
+        return None
+    detail = str(exc) if isinstance(exc, StoreError) else (
+        f"the store's disk refused a write ({exc.strerror or exc}); "
+        + ("free space on it and try again" if _REFUSED[n] == "store_full" else "make it writable and try again"))
+    return error_response(507, _REFUSED[n], detail)
 
 
 def _allowed_methods(request: Request) -> str:
