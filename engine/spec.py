@@ -123,16 +123,44 @@ _EXAMPLES = {"pair": "A,D65", "illuminants": "FL11,D50", "outputs": "raw,gain,me
              "intensities": "1,0.5", "crop": "0,0,256,256", "size": "256x192"}
 
 
-def _text(description: str, example: str, pattern: str | None = None) -> WithJsonSchema:
-    schema: dict[str, Any] = {"type": "string", "description": description, "examples": [example]}
+def _text(description: str, example: str | None = None, pattern: str | None = None) -> WithJsonSchema:
+    """A text parameter's schema. ``example``: only where it suits every store — the OpenAPI examples of
+    a route are sent together, so they must make one valid request on any view of at least 16x16
+    pixels (pair= and intensities= depend on the view's light groups: their examples are in words)."""
+    schema: dict[str, Any] = {"type": "string", "description": description}
+    if example is not None:
+        schema["examples"] = [example]
     if pattern:
         schema["pattern"] = pattern
     return WithJsonSchema(schema)
 
 
+def _nocase(word: str) -> str:
+    return "".join(f"[{c.upper()}{c.lower()}]" for c in word)
+
+
+# The schema's patterns state what the validators accept (ASCII digits and ECMA-262 whitespace; the
+# server's Python parsing also takes other Unicode digits and whitespace, and 1_000): comma-separated
+# items (empty ones dropped) — outputs by name, exactly two illuminants for pair=, numbers for
+# intensities= (their range is in words) —, a size of 1..6 digits per side and not 0, a crop whose
+# width and height are not 0.
+def _listed(item: str, count: str = "*") -> str:
+    return rf"^[\s,]*{item}(?:\s*,[\s,]*{item}){count}[\s,]*$"
+
+
+_ITEM = r"[^\s,](?:[^,]*[^\s,])?"
+_NUMBER = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+_OUTPUTS_PATTERN = _listed("(?:" + "|".join(ALL_OUTPUTS) + ")")
+_SIZE_PATTERN = r"^\s*(?!0+\s*[xX])\d{1,6}\s*[xX]\s*(?!0+\s*$)\d{1,6}\s*$"
+_CROP_PATTERN = r"^\s*\d+\s*,\s*\d+\s*,\s*0*[1-9]\d*\s*,\s*0*[1-9]\d*\s*$"
+#: what ``exposure``'s enforced pattern and its validator accept together: a method (any case) or a
+#: number that is not 0 (the validator's upper bound, 1e12, is left to it)
+_EXPOSURE_PATTERN = (r"^\s*(" + "|".join(_nocase(m) for m in EXPOSURE_METHODS.choices())
+                     + r"|(?![0.]*([eE][+-]?[0-9]+)?\s*$)[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
+
 Outputs = Annotated[list[str], BeforeValidator(_names("outputs")),
                     _text(f"comma-separated subset of {', '.join(ALL_OUTPUTS)} (default: {', '.join(DEFAULT_OUTPUTS)})",
-                          "raw,gain,meta")]
+                          "raw,gain,meta", _OUTPUTS_PATTERN)]
 
 
 class SampleSpec(BaseModel):
@@ -143,18 +171,24 @@ class SampleSpec(BaseModel):
     scene: str | None = Field(None, max_length=MAX_NAME, description="scene name (random when omitted)")
     view: str | None = Field(None, max_length=MAX_NAME, description="view name (random when omitted)")
     seed: Annotated[int | None, BeforeValidator(_seed)] = Field(
-        None, ge=0, le=2**63 - 1, description="seed for the random choices and the noise (random when omitted)")
-    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name; random: a camera drawn with the seed from the prior of the measured cameras (random:<seed> names one)")
+        None, ge=0, le=2**63 - 1, examples=[7],
+        description="seed for the random choices and the noise (random when omitted)")
+    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, examples=["XYZ"],
+                        description="built-in or uploaded sensor name; random: a camera drawn with the seed from "
+                                    "the prior of the measured cameras (random:<seed> names one)")
     pair: Annotated[list[str] | None, BeforeValidator(_names("pair")),
-                    _text("two illuminants for the view's first two light groups", "A,D65")] = None
+                    _text("two illuminants for the view's first two light groups, e.g. A,D65 (a view with one "
+                          "light group refuses it: use illuminants=)", pattern=_listed(_ITEM, "{1}"))] = None
     illuminants: Annotated[list[str] | None, BeforeValidator(_names("illuminants")),
-                           _text("one illuminant per light group", "FL11,D50")] = None
+                           _text("one illuminant per light group, e.g. FL11,D50 for a view with two",
+                                 pattern=_listed(_ITEM))] = None
     intensities: Annotated[list[float] | None, BeforeValidator(_floats),
-                           _text("one intensity per lit group (default 1), 0..1e9", "1,0.5")] = None
+                           _text("one intensity per lit group (default 1), 0..1e9, e.g. 1,0.5 for two",
+                                 pattern=_listed(_NUMBER))] = None
     crop: Annotated[list[int] | None, BeforeValidator(_ints("crop", 4, "0,0,256,256")),
-                    _text("x,y,w,h in pixels", "0,0,256,256", r"^\s*\d+\s*(,\s*\d+\s*){3}$")] = None
+                    _text("x,y,w,h in pixels, inside the view's frame", "0,0,16,16", _CROP_PATTERN)] = None
     size: Annotated[list[int] | None, BeforeValidator(_ints("size", 2, "256x192")),
-                    _text("WxH output size in pixels (area resampling)", "256x192", r"^\s*\d+\s*[xX]\s*\d+\s*$")] = None
+                    _text("WxH output size in pixels (area resampling)", "32x24", _SIZE_PATTERN)] = None
     outputs: Outputs = Field(default_factory=lambda: list(DEFAULT_OUTPUTS))
     gt: Annotated[Literal["physical", "formula"] | None, BeforeValidator(lambda v: v.lower() if isinstance(v, str) else v)] = Field(
         None, description="ground truth: physical (from the illumination cubes, bounce light included; the "
@@ -172,7 +206,8 @@ class SampleSpec(BaseModel):
         "float32", description="float outputs as float32, or as float16 with a power-of-two scale per output "
                                "(value = stored × scale; meta.encoding.scales); npz and arrays only")
     exposure: str | None = Field(None, max_length=32, description="auto, adaptive or a positive gain",
-                                 pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$")
+                                 pattern=r"^\s*([A-Za-z]+|[0-9]*\.?[0-9]+([eE][+-]?[0-9]+)?)\s*$",
+                                 json_schema_extra={"pattern": _EXPOSURE_PATTERN})
     noise: str | None = Field(None, max_length=512, description="low, phone, high, key:value;… "
                                                                 "(full_well, read_noise, black_level, white_level, bit_depth), "
                                                                 "or camera: the sensor's own model, from the DNG it was "

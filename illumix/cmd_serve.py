@@ -84,6 +84,16 @@ def serve(
                               help="Before serving, decode the cubes a default /sample of each view reads "
                                    "into the cache (one line per cube on stderr), until the cache is full, "
                                    "so the first requests are hits."),
+    header_timeout: float = typer.Option(10.0, "--header-timeout", min=0.01,
+                                         help="Seconds a request line and headers may take to arrive whole, from "
+                                              "the connection opening (or the next request's first byte); then "
+                                              "408 and the connection closed."),
+    keep_alive_timeout: float = typer.Option(5.0, "--keep-alive-timeout", min=0.01,
+                                             help="Seconds an idle kept-alive connection stays open."),
+    body_timeout: float = typer.Option(10.0, "--body-timeout", min=0.01,
+                                       help="Longest pause, s, while a request body arrives; then 408."),
+    body_total_timeout: float = typer.Option(60.0, "--body-total-timeout", min=0.01,
+                                             help="Longest time, s, a whole request body may take; then 408."),
 ) -> None:
     """Serve samples over HTTP (OpenAPI docs at /docs)."""
     check_address(host, port)  # refuse before anything starts or is created
@@ -92,17 +102,27 @@ def serve(
                         "or the largest allowed request could never run")
     cube_store = open_store(store, create=create)
     token = resolve_token(token, host, port)
-    import uvicorn
-
     from illumix.allocator import tune_for_service
-    from illumix.service.app import create_app
     from illumix.engine.limits import Limits
 
     tune_for_service()
-    limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb)
+    limits = Limits(max_request_mb=max_request_mb, inflight_mb=inflight_mb, body_timeout_s=body_timeout,
+                    body_total_s=max(body_timeout, body_total_timeout))
+    app = make_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb,
+                   device=device, device_cache_mb=device_cache_mb)
+    if warm:  # before uvicorn binds: once the port answers, the cache is warm
+        from illumix.engine.warm import warm_cache
+
+        warm_cache(app.state.ctx, log=lambda line: print(f"illumix: {line}", file=sys.stderr, flush=True))
+    run_server(app, host, port, header_timeout=header_timeout, keep_alive_timeout=keep_alive_timeout)
+
+
+def make_app(cube_store, *, device: str | None, **options):
+    """The service app (:func:`service.app.create_app`); a --device that cannot be used is one line."""
+    from illumix.service.app import create_app
+
     try:
-        app = create_app(cube_store, token=token, cache_mb=cache_mb, limits=limits, projection_mb=projection_mb,
-                         device=device, device_cache_mb=device_cache_mb)
+        return create_app(cube_store, device=device, **options)
     except ImportError:
         if device is None:
             raise
@@ -111,11 +131,18 @@ def serve(
         if device is None:
             raise
         raise UserError(f"--device {device}: {exc}; leave out --device to compose on the CPU") from None
-    if warm:  # before uvicorn binds: once the port answers, the cache is warm
-        from illumix.engine.warm import warm_cache
 
-        warm_cache(app.state.ctx, log=lambda line: print(f"illumix: {line}", file=sys.stderr, flush=True))
-    uvicorn.run(app, host=host, port=port, log_level="info")
+
+def run_server(app, host: str, port: int, *, header_timeout: float, keep_alive_timeout: float) -> None:
+    """uvicorn (h11) with the timeouts slow clients meet: a request head must arrive whole within
+    ``header_timeout`` s (:mod:`service.http_timeouts`), an idle kept-alive connection is closed after
+    ``keep_alive_timeout`` s; request bodies are bounded by the app (:mod:`service.body_guard`)."""
+    import uvicorn
+
+    from illumix.service.http_timeouts import head_timeout_protocol
+
+    uvicorn.run(app, host=host, port=port, log_level="info", http=head_timeout_protocol(header_timeout),
+                timeout_keep_alive=keep_alive_timeout)
 
 
 def register(app: typer.Typer) -> None:

@@ -20,8 +20,17 @@ CtxDep = Annotated[Context, Depends(get_ctx)]
 
 
 def require_token(request: Request, authorization: Annotated[str | None, Header(
-        description="`Bearer <token>`; needed for writes when the service has a token")] = None) -> None:
-    """Writes need ``Authorization: Bearer <token>`` when the service was started with a token."""
+        description="`Bearer <token>`; needed for writes when the service has a token. Send it once: "
+                    "a write with two or more Authorization headers is refused (400)")] = None) -> None:
+    """Writes need ``Authorization: Bearer <token>`` when the service was started with a token.
+
+    A write carrying more than one ``Authorization`` header is refused (400) whatever their order
+    and whether or not the service has a token: which one counts would otherwise depend on the
+    server (the first) and on any proxy in between (the last, or both joined)."""
+    given_headers = request.headers.getlist("authorization")
+    if len(given_headers) > 1:
+        raise fail(400, f"this request carries {len(given_headers)} Authorization headers; send exactly one: "
+                        "'Authorization: Bearer <token>'", code="duplicate_authorization")
     token: str | None = request.app.state.token
     if token is None:
         return

@@ -1,10 +1,91 @@
-"""Response models of the JSON endpoints (so ``/openapi.json`` says what each returns)."""
+"""Response models of the JSON endpoints (so ``/openapi.json`` says what each returns), and the upload
+forms' ``name`` and ``file`` fields (so it says what each accepts: the name rule as a pattern)."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+import math
+import re
+from typing import Annotated
+
+from fastapi import File, Form, UploadFile
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from illumix.engine.spec import SampleSpec
+from illumix.retarget import illuminants as ill
+from illumix.retarget import sensors as sen
+from illumix.store import StoreError
+from illumix.store.names import MAX_NAME_LEN, check_name
+
+
+# -- upload names ------------------------------------------------------------------------------------
+def _literal(name: str) -> str:
+    """``name`` (letters, digits, ``_ . + -``) as an ECMA-262 pattern: only ``.`` and ``+`` need escapes."""
+    return name.replace(".", "\\.").replace("+", "\\+")
+
+
+def _nocase(word: str) -> str:
+    return "".join(f"[{c.upper()}{c.lower()}]" if c.isalpha() else _literal(c) for c in word)
+
+
+def _not(names) -> str:
+    """An ECMA-262 negative lookahead refusing ``names`` in any case (lookups ignore case, so an
+    upload named ``d65`` would never be served: :func:`engine.library.check_upload_name`)."""
+    return "(?!(?:" + "|".join(_nocase(n) for n in names) + ")$)"
+
+
+#: :func:`store.names.check_name` as an ECMA-262 pattern: letters, digits, ``_ . + -``, starting with
+#: a letter or digit, no ``..``, not ``zarr.json`` nor ``*.partial`` (any case).
+NAME_PATTERN = (f"(?!{_nocase('zarr.json')}$)(?!.*{_nocase('.partial')}$)"
+                r"[A-Za-z0-9](?:\.?[A-Za-z0-9_+\-])*\.?$")
+#: built-in names an upload may not take (the server compares ignoring case, as here; names with other
+#: characters are refused by the pattern anyway). The cameras of ILLUMIX_SENSOR_PATH are read when the
+#: service runs, so the sensor pattern names only XYZ.
+_ILLUMINANT_TAKEN = [n for n in ill.builtin_names() if re.fullmatch(r"[A-Za-z0-9_.+-]+", n)]
+SENSOR_NAME_PATTERN = f"^(?!{_nocase('estimate')}$){_not([sen.XYZ])}{NAME_PATTERN}"
+ILLUMINANT_NAME_PATTERN = f"^{_not(_ILLUMINANT_TAKEN)}{NAME_PATTERN}"
+
+
+def _store_name(kind: str):
+    def check(name: str) -> str:
+        try:
+            return check_name(name, kind)
+        except StoreError as exc:
+            raise ValueError(str(exc)) from None
+    return check
+
+
+def _csv(header: str, row) -> str:
+    return header + "\n" + "\n".join(f"{w}," + ",".join(f"{v:.3f}" for v in row(w)) for w in range(380, 781, 20))
+
+
+def _bell(w: float, centre: float, width: float) -> float:
+    return math.exp(-(((w - centre) / width) ** 2))
+
+
+#: what the upload forms' ``file`` examples hold: a smooth SPD rising to the red, and three bell curves
+ILLUMINANT_CSV_EXAMPLE = _csv("wavelength,value", lambda w: (0.25 + 0.75 * (w - 380) / 400,))
+SENSOR_CSV_EXAMPLE = _csv("wavelength,r,g,b", lambda w: (_bell(w, 600, 40), _bell(w, 540, 40), _bell(w, 460, 30)))
+SensorFile = Annotated[UploadFile, File(
+    description="a rawtoaces camera JSON, or a CSV `wavelength,r,g,b` (nm, non-negative, resampled onto the "
+                "spectral grid); at most the service's upload limit (1 MiB by default)",
+    examples=[SENSOR_CSV_EXAMPLE])]
+IlluminantFile = Annotated[UploadFile, File(
+    description="a CSV `wavelength,value` (nm, non-negative, any scale, resampled onto the spectral grid); at "
+                "most the service's upload limit (1 MiB by default)",
+    examples=[ILLUMINANT_CSV_EXAMPLE])]
+
+_NAME_RULE = (f"1-{MAX_NAME_LEN} letters, digits, _ . + -, starting with a letter or digit, without '..', not "
+              "zarr.json or *.partial")
+SensorName = Annotated[str, Form(
+    min_length=1, max_length=MAX_NAME_LEN, examples=["my-camera"],
+    description=f"the sensor's name: {_NAME_RULE}, not 'estimate' and not a built-in sensor's name (GET "
+                "/sensors lists them; measured cameras of ILLUMIX_SENSOR_PATH included)",
+    json_schema_extra={"pattern": SENSOR_NAME_PATTERN}), AfterValidator(_store_name("sensor"))]
+IlluminantName = Annotated[str, Form(
+    min_length=1, max_length=MAX_NAME_LEN, examples=["my-lamp"],
+    description=f"the illuminant's name: {_NAME_RULE}, and not a built-in illuminant's name (GET /illuminants "
+                "lists them)",
+    json_schema_extra={"pattern": ILLUMINANT_NAME_PATTERN}), AfterValidator(_store_name("illuminant"))]
 
 
 class CacheStats(BaseModel):
@@ -47,14 +128,17 @@ class GroupInfo(BaseModel):
 
 class ViewInfo(BaseModel):
     name: str
-    width: int
-    height: int
+    width: int | None = Field(description="pixels; null for a damaged view")
+    height: int | None = Field(description="pixels; null for a damaged view")
     groups: list[GroupInfo]
+    damaged: str | None = Field(None, description="why the view cannot be served (its metadata or a group's "
+                                                  "is damaged: `illumix store verify` lists it); null when healthy")
 
 
 class SceneInfo(BaseModel):
     name: str
     views: list[ViewInfo]
+    damaged: str | None = Field(None, description="why the scene cannot be listed; null when healthy")
 
 
 class Scenes(BaseModel):
@@ -100,8 +184,12 @@ class BatchRequest(BaseModel):
     """``POST /batch``: the samples, each with the ``GET /sample`` parameters (``format`` npz or arrays,
     the same for every item)."""
 
-    model_config = ConfigDict(extra="forbid")
-    samples: list[SampleSpec] = Field(description="1..max_batch sample specs (the GET /sample parameters)")
+    # the example suits any store whose views are at least 16x16 pixels (no pair=: views differ in groups)
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{"samples": [
+        {"seed": 1, "crop": "0,0,16,16"}, {"seed": 2, "sensor": "XYZ", "outputs": "raw,meta", "size": "32x24"}]}]})
+    samples: list[SampleSpec] = Field(description="1..max_batch sample specs (the GET /sample parameters; "
+                                                  "max_batch is the service's limit, 64 by default)",
+                                      json_schema_extra={"minItems": 1})
 
 
 class LocusPoint(BaseModel):

@@ -13,15 +13,15 @@
 from __future__ import annotations
 
 import time
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import Response
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, WithJsonSchema, field_validator
 
 from illumix.engine.sampling import build, plan, price
-from illumix.engine.spec import MAX_NAME, SampleSpec
+from illumix.engine.spec import DEFAULT_OUTPUTS, MAX_NAME, Outputs, SampleSpec
 from illumix.retarget import global_wb
 from illumix.retarget.grid import DEFAULT_GRID
 from illumix.retarget.groundtruth import white_point
@@ -42,13 +42,30 @@ BASELINE_DEFINITION = ("one white point for the whole frame: the groups' sensor 
                        "the ground-truth rendering's exposure")
 
 
+_FIXED_SCHEMA = {"not": {}, "description": "fixed by /explore/frame: refused here (GET /sample takes it)"}
+
+
+class FrameSpec(SampleSpec):
+    """The ``GET /sample`` parameters; those the frame fixes (:data:`FIXED`) are declared unacceptable
+    in the OpenAPI schema (``not: {}``) and refused by :func:`frame` with a hint, validated as before."""
+
+    outputs: Annotated[Outputs, WithJsonSchema(_FIXED_SCHEMA)] = Field(default_factory=lambda: list(DEFAULT_OUTPUTS))
+    # default_factory: a plain default would be stated in the schema, though no value is acceptable here
+    format: Annotated[Literal["npz", "arrays", "png", "tiff", "dng", "exr"], WithJsonSchema(_FIXED_SCHEMA)] = Field(
+        default_factory=lambda: "npz")
+    dtype: Annotated[Literal["float32", "float16"], WithJsonSchema(_FIXED_SCHEMA)] = Field(
+        default_factory=lambda: "float32")
+    noise: Annotated[str | None, WithJsonSchema(_FIXED_SCHEMA)] = Field(None, max_length=512)
+    bayer: Annotated[str | None, WithJsonSchema(_FIXED_SCHEMA)] = None
+
+
 @router.get("/frame", response_class=Response,
             responses={200: {"content": {arrays_format.MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}}},
                              "description": "arrays container: raw, gain, illum, mixture (float32), mask (bool), "
                                             "srgb and baseline (uint8 sRGB), meta with meta.baseline"},
                        **error_responses(404, 413, 422, 503)})
 @refuses(*FIXED)
-def frame(params: Annotated[SampleSpec, Query()], ctx: CtxDep) -> Response:
+def frame(params: Annotated[FrameSpec, Query()], ctx: CtxDep) -> Response:
     """One update of the web explorer: the sample, its pixel-wise ground-truth sRGB rendering and the
     single-global-white-point baseline. Takes the ``GET /sample`` parameters but outputs, format,
     dtype, bayer and noise (the page needs these fixed; a noisy raw is in digital numbers, which the
@@ -109,8 +126,9 @@ class SpectraQuery(BaseModel):
     """``GET /explore/spectra`` parameters."""
 
     model_config = ConfigDict(extra="forbid")
-    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, description="built-in or uploaded sensor name")
-    illuminants: str = Field("", max_length=16 * MAX_NAME,
+    sensor: str = Field("XYZ", min_length=1, max_length=MAX_NAME, examples=["XYZ"],
+                        description="built-in or uploaded sensor name")
+    illuminants: str = Field("", max_length=16 * MAX_NAME, examples=["A,D65"],
                              description="comma-separated illuminant names (registry, blackbody:K, daylight:K, "
                                          "uploads), e.g. A,D65")
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, File, Form, UploadFile
+from fastapi import APIRouter, Form, UploadFile
 from starlette.convertors import StringConvertor, register_url_convertor
 
 from illumix.engine import catalogue
@@ -20,7 +20,17 @@ from illumix.retarget.errors import SpectralError, unknown_name
 from illumix.retarget.grid import DEFAULT_GRID
 from illumix.service.deps import CtxDep, TokenDep
 from illumix.service.errors import error_responses, fail
-from illumix.service.models import Deleted, IlluminantList, SensorDetail, SensorList, Uploaded
+from illumix.service.models import (
+    Deleted,
+    IlluminantFile,
+    IlluminantList,
+    IlluminantName,
+    SensorDetail,
+    SensorFile,
+    SensorList,
+    SensorName,
+    Uploaded,
+)
 from illumix.store import StoreError
 
 router = APIRouter()
@@ -34,7 +44,7 @@ class _SensorName(StringConvertor):
 
 register_url_convertor("sensor_name", _SensorName())
 _WRITE_ERRORS = error_responses(400, 401, 408, 409, 413, 422, 503, 507)
-_DELETE_ERRORS = error_responses(401, 403, 404, 422, 503)
+_DELETE_ERRORS = error_responses(400, 401, 403, 404, 422, 503, 507)  # 507: a read-only or failing disk
 
 
 # -- sensors ----------------------------------------------------------------------------------------
@@ -54,7 +64,7 @@ def sensor_detail(name: str, ctx: CtxDep) -> SensorDetail:
 
 @router.post("/sensors", status_code=201, response_model=Uploaded, tags=["sensors"], dependencies=[TokenDep],
              responses=_WRITE_ERRORS)
-async def upload_sensor(name: Annotated[str, Form(max_length=128)], file: Annotated[UploadFile, File()],
+async def upload_sensor(name: SensorName, file: SensorFile,
                         ctx: CtxDep, overwrite: Annotated[bool, Form()] = False) -> Uploaded:
     """Register a sensor: a rawtoaces camera JSON or a CSV ``wavelength,r,g,b``."""
     data = await _read(file, ctx.limits.max_upload_bytes)
@@ -84,7 +94,7 @@ def illuminants(ctx: CtxDep) -> IlluminantList:
 
 @router.post("/illuminants", status_code=201, response_model=Uploaded, tags=["illuminants"],
              dependencies=[TokenDep], responses=_WRITE_ERRORS)
-async def upload_illuminant(name: Annotated[str, Form(max_length=128)], file: Annotated[UploadFile, File()],
+async def upload_illuminant(name: IlluminantName, file: IlluminantFile,
                             ctx: CtxDep, overwrite: Annotated[bool, Form()] = False) -> Uploaded:
     """Register an illuminant: a CSV ``wavelength,value`` (any positive scale; normalised photometrically)."""
     data = await _read(file, ctx.limits.max_upload_bytes)
@@ -132,6 +142,8 @@ def _put(ctx, kind: str, name: str, data: bytes, fmt: str, overwrite: bool) -> N
 
 
 def _delete(ctx, kind: str, name: str) -> Deleted:
+    """Delete an upload; it needs no new space (:meth:`store.registry.Registry.delete`), so a full disk
+    can be freed through the API."""
     registry = ctx.store.registry(kind)
     if name not in registry.names():
         raise unknown_name(f"uploaded {kind[:-1]}", name, registry.names())

@@ -18,6 +18,7 @@ from illumix.retarget import sensors as sen
 from illumix.retarget.errors import SpectralError
 from illumix.service.deps import CtxDep, TokenDep
 from illumix.service.errors import error_responses, fail
+from illumix.service.models import SensorName
 
 router = APIRouter(tags=["sensors"])
 #: a DNG's colour matrices sit in its first IFD, but the file comes whole: bounded apart from uploads
@@ -34,9 +35,11 @@ class Estimated(BaseModel):
 
 @router.post("/sensors/estimate", status_code=201, response_model=Estimated, dependencies=[TokenDep],
              responses=error_responses(400, 401, 408, 409, 413, 422, 503, 507))
-async def estimate_sensor(name: Annotated[str, Form(max_length=128)], ctx: CtxDep,
+async def estimate_sensor(name: SensorName, ctx: CtxDep,
                           file: Annotated[UploadFile | None, File(description="a DNG")] = None,
-                          color_matrix: Annotated[str | None, Form()] = None,
+                          color_matrix: Annotated[str | None, Form(
+                              description="nine numbers, XYZ → camera, rows R, G, B (a DNG's ColorMatrix)",
+                              examples=["0.6722,-0.0635,-0.0963,-0.4287,1.2460,0.2028,-0.0908,0.2162,0.5668"])] = None,
                           calibration_illuminant: Annotated[str, Form()] = "D65",
                           color_matrix_2: Annotated[str | None, Form()] = None,
                           calibration_illuminant_2: Annotated[str | None, Form()] = None,
