@@ -17,11 +17,12 @@ def cube_bytes(p: Plan) -> int:
     return p.full[0] * p.full[1] * p.metas[0].n_bands * 4
 
 
-def cube_key(scene: str, view: str, group: str, kind: str, denoise: str, created: str) -> tuple:
+def cube_key(scene: str, view: str, group: str, kind: str, denoise: str, stamp: str) -> tuple:
     """The cube cache's key of a decoded whole cube (public so ``serve --warm`` fills the same entries).
-    ``created`` names the render: a cube re-rendered while the service runs is a new entry, so the
-    transport and illumination cubes of one sample always come from the same render."""
-    return (scene, view, group, kind, denoise, created)
+    ``stamp`` names the stored version (the node's write id, :attr:`engine.plan.Plan.stamps`): a cube
+    replaced while the service runs — by any machine — is a new entry, never served from the old one,
+    and the transport and illumination cubes of one sample always come from the same write."""
+    return (scene, view, group, kind, denoise, stamp)
 
 
 def aov_key(scene: str, view: str, name: str, stamp: tuple) -> tuple:
@@ -31,7 +32,7 @@ def aov_key(scene: str, view: str, name: str, stamp: tuple) -> tuple:
 
 def plan_cube_key(p: Plan, group: str, kind: str) -> tuple:
     """The cube cache's key of a group's ``kind`` cube in plan ``p`` (:func:`cube_key`)."""
-    return cube_key(p.scene, p.view, group, kind, p.denoise, p.metas[p.groups.index(group)].created)
+    return cube_key(p.scene, p.view, group, kind, p.denoise, p.stamps[p.groups.index(group)])
 
 
 def projection_key(p: Plan, group: str, kind: str, skey, ikey) -> tuple:

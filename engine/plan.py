@@ -43,6 +43,7 @@ class Plan:
     sensor: str = ""  # the sensor to project through: sensor=random becomes random:<seed> (a drawn camera)
     noise: object = None  # the NoiseModel of noise= (noise=camera: the sensor's own), or None
     bayer: str | None = None  # the raw's mosaic (bayer=, else the camera's own with noise=camera; DNG: RGGB)
+    stamps: list[str] = field(default_factory=list)  # each group's cube version (its write id): cache keys
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -120,7 +121,8 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     groups = store.groups(scene, view)
     if not groups:
         raise NotFound(f"view {scene}/{view} has no complete light groups yet; finish rendering it")
-    metas = [store.cube_meta(scene, view, g) for g in groups]
+    nodes = [store.complete_node(scene, view, g) for g in groups]
+    metas = [meta for _, _, meta in nodes]
     names, intensities = _lighting(spec, groups, [m.emission_name for m in metas])
     if len([n for n in names if n]) > ctx.limits.max_groups:
         raise SpectralError(f"at most {ctx.limits.max_groups} illuminants per request")
@@ -129,7 +131,7 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     if any(m.spectral_grid != metas[0].spectral_grid for m in metas):
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
-             aovs=list(vmeta.aovs))
+             aovs=list(vmeta.aovs), stamps=[state["write_id"] for _, state, _ in nodes])
     p.sensor = f"random:{seed & 0xFFFFFFFF}" if spec.sensor.lower() == "random" else spec.sensor
     camera = spec.noise is not None and spec.noise.strip().lower() == CAMERA_NOISE
     p.noise, cfa = ctx.library.camera_noise(p.sensor) if camera else (spec.noise_model(), None)

@@ -126,7 +126,7 @@ def _aov_reader(ctx: Context, p: Plan):
     for its validity, and decoding them from the store cost ~10 ms of a 256² crop's ~28 ms. A view
     is re-rendered with its cubes, so the cubes' render stamps name the AOVs' version too.
     """
-    stamp = tuple(m.created for m in p.metas)
+    stamp = tuple(p.stamps)
     x, y, w, h = p.window
 
     def read(name: str) -> np.ndarray | None:

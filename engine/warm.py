@@ -62,7 +62,7 @@ def _entries(ctx: Context, log: Callable[[str], None]) -> tuple[list[_Entry], in
                 log(f"warm: skipping {scene}/{view}: {str(exc).splitlines()[0]}")
                 skipped += 1
                 continue
-            stamp = tuple(m.created for m in p.metas)
+            stamp = tuple(p.stamps)
             for name in VALIDITY_AOVS:
                 if name in p.aovs:
                     out.append(_Entry(aov_key(scene, view, name, stamp), f"{scene}/{view} aov {name}", None,
@@ -71,9 +71,9 @@ def _entries(ctx: Context, log: Callable[[str], None]) -> tuple[list[_Entry], in
             nbytes = w * h * p.metas[0].n_bands * 4  # float32, as sampling prices a decoded cube
             denoised = p.denoise != "none"
             for kind in ("transport", "illumination") if p.illumination else ("transport",):
-                for g, meta, lit in zip(p.groups, p.metas, p.reads()):
+                for g, stamp_g, lit in zip(p.groups, p.stamps, p.reads()):
                     if lit:
-                        out.append(_Entry(cube_key(scene, view, g, kind, p.denoise, meta.created),
+                        out.append(_Entry(cube_key(scene, view, g, kind, p.denoise, stamp_g),
                                           f"{scene}/{view} {g} {kind}" + (f" ({p.denoise})" if denoised else ""),
                                           nbytes, lambda s=scene, v=view, g=g, k=kind, d=denoised:
                                           store.read_cube(s, v, g, kind=k, denoised=d), cube=True))

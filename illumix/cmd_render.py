@@ -104,8 +104,10 @@ def render(
                   f"{len([d for d in done if d['kind'] == 'view'])} view(s) into {store} in {elapsed:.1f} s"
                   + (f"; {len(empty)} group(s) light nothing in their view, recorded as empty" if empty else ""))
     if as_json:
+        nodes = sorted({d["node"] for d in done if d.get("node")})  # the Ray nodes that ran jobs
         print(json.dumps({**summary, "rendered": [d["job"] for d in done], "empty": empty,
-                          "seconds": round(elapsed, 3)}))
+                          "skipped_complete": [d["job"] for d in done if d.get("skipped")],
+                          **({"nodes": nodes} if nodes else {}), "seconds": round(elapsed, 3)}))
 
 
 def _plan(config, rules, store, demo, demo_seed, resolution, settings_options, views, groups, overwrite, dry_run):

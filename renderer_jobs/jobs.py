@@ -229,9 +229,25 @@ def run_job(payload: tuple[dict, str | None], job: Job, store_path: str, setting
     """Render one job with the settings' backend (:mod:`renderer_jobs.backends`) and write it into the
     store: the executors' task. Returns a small summary dict."""
     from illumix.renderer_jobs.backends import get_backend
+    from illumix.store import StoreError
 
+    if not overwrite and job.group is not None and _already_complete(payload, job, store_path):
+        # a retried task (its first attempt's machine was lost after the cube was published), or a
+        # rerun racing another: the cube is in the store once, never rendered into it a second time
+        return {"job": job.label, "kind": "cube", "skipped": "already complete", "seconds": 0.0, "cpu_s": 0.0}
     backend = get_backend(settings_dict.get("backend", "mitsuba"))
-    return backend.run_job(payload, job, store_path, settings_dict, threads, overwrite)
+    try:
+        return backend.run_job(payload, job, store_path, settings_dict, threads, overwrite)
+    except StoreError as exc:
+        if overwrite or job.group is None or "already exists" not in str(exc):
+            raise
+        return {"job": job.label, "kind": "cube", "skipped": "written meanwhile by another task", "seconds": 0.0,
+                "cpu_s": 0.0}
+
+
+def _already_complete(payload, job: Job, store_path: str) -> bool:
+    name = _scene_from_payload(payload).name
+    return _open_store(store_path, mode="r").is_complete(name, job.view, job.group)
 
 
 def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, renderer: dict, stats: dict):

@@ -8,6 +8,9 @@ import socket
 
 from illumix.renderer_jobs.jobs import JobError, Plan, ProgressFn, _scene_payload, run_job
 
+#: times Ray runs a task again after its worker or node died (system failures only)
+MAX_RETRIES = 4
+
 
 def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
     """Fail fast on a ``HOST:PORT`` cluster address nobody listens at: ``ray.init`` would retry it
@@ -20,6 +23,13 @@ def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
     except OSError as exc:
         raise JobError(f"cannot reach the Ray cluster at {address}: {exc.strerror or exc}; start its head "
                        f"(`ray start --head --node-ip-address {host} --port {port}`) or give the right --address")
+
+
+def _run_on_node(*args) -> dict:
+    """:func:`run_job`, its summary naming the node that ran it."""
+    import ray
+
+    return {**run_job(*args), "node": ray.util.get_node_ip_address()}
 
 
 def run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | None,
@@ -36,7 +46,9 @@ def run_ray(plan_: Plan, store_path: str, settings_dict: dict, address: str | No
             where = f"at {address}" if address else "(no --address: a new local instance)"
             raise JobError(f"cannot start or reach the Ray cluster {where}: {type(exc).__name__}: {exc}") from None
     # One CPU per task and a one-thread Dr.Jit pool in it: Ray packs as many tasks as a node has cores.
-    remote = ray.remote(num_cpus=1)(run_job)
+    # A task whose node is lost is run again elsewhere (MAX_RETRIES); run_job skips a cube that its
+    # lost attempt had already published, so no cube is written twice.
+    remote = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=False)(_run_on_node)
     payloads = {n: ray.put(_scene_payload(s)) for n, s in plan_.scenes.items()}
     results: list[dict] = []
     for phase in (plan_.view_jobs, plan_.cube_jobs):

@@ -20,8 +20,9 @@ done
 # The renderer (Mitsuba) is the optional extra "render" of the package (a service-only install,
 # e.g. docker/Dockerfile.service, leaves it out); this script always installs it.
 extras="render"
-# Tests also exercise the Ray executor against a local Ray instance; "bench" adds the benchmarks' plots.
-[ "$test_install" = 1 ] && extras="render,ray,test,bench,export,evaluate"
+# Tests also exercise the Ray executor against a local Ray instance, and a 3-node Ray cluster rendering
+# into an S3 server ("cluster": s3fs + moto's server); "bench" adds the benchmarks' plots.
+[ "$test_install" = 1 ] && extras="render,ray,test,bench,export,evaluate,cluster"
 # "blender": what the main environment needs to read Cycles' multilayer EXRs (OpenEXR).
 [ "$blender" = 1 ] && extras="${extras},blender"
 # Debian's libllvm19 puts libLLVM-19.so under /usr/lib/<triplet>/, LLVM's own packages under /usr/lib/llvm-N/.

@@ -71,9 +71,12 @@ class Backend:
         else:
             import fsspec
 
+            from illumix.store.remote import storage_options as remote_options
+
             self.root = None
             self.url = loc.rstrip("/")
-            self.fs, self.fsroot = fsspec.core.url_to_fs(self.url, **(storage_options or {}))
+            storage_options = remote_options(self.url, storage_options)  # a bounded listing cache
+            self.fs, self.fsroot = fsspec.core.url_to_fs(self.url, **storage_options)
             self.fsroot = self.fsroot.rstrip("/")
             self.zstore = zarr.storage.FsspecStore.from_url(
                 self.url, storage_options=storage_options, read_only=read_only)

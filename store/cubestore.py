@@ -315,7 +315,7 @@ class CubeStore:
         ``(H, W)`` or ``(H, W, C)`` floats. ``H, W`` = ``meta.height, meta.width``. AOVs written
         before and not given again are kept. Returns the stored :class:`ViewMeta`.
         """
-        return writer.write_view(self, scene, view, meta, aovs)
+        return self._retrying(f"view {scene}/{view}", lambda: writer.write_view(self, scene, view, meta, aovs))
 
     def write_cube(self, scene: str, view: str, group: str, cube: np.ndarray,
                    meta: CubeMeta | Mapping[str, Any], *, overwrite: bool = False,
@@ -335,16 +335,22 @@ class CubeStore:
         denoised copies (same shapes; ``meta.denoised`` names the method; published with the rest).
         Returns the stored metadata.
         """
-        return writer.write_cube(self, scene, view, group, cube, meta, overwrite=overwrite,
-                                 policy=dtype_policy or self.dtype_policy, progress=progress,
-                                 illumination=illumination, denoised=denoised)
+        def write() -> CubeMeta:
+            return writer.write_cube(self, scene, view, group, cube, meta, overwrite=overwrite,
+                                     policy=dtype_policy or self.dtype_policy, progress=progress,
+                                     illumination=illumination, denoised=denoised)
+
+        return self._retrying(f"cube {scene}/{view}/{group}", write, lambda: self.cube_meta(scene, view, group))
 
     def mark_empty(self, scene: str, view: str, group: str, meta: CubeMeta | Mapping[str, Any], *,
                    overwrite: bool = False) -> CubeMeta:
         """Record that ``group`` contributes nothing to this view (e.g. its lights are not visible
         from it and light nothing in it): no array data; reads return zeros."""
-        return writer.write_cube(self, scene, view, group, None, meta, overwrite=overwrite,
-                                 policy="float32", progress=None)
+        def write() -> CubeMeta:
+            return writer.write_cube(self, scene, view, group, None, meta, overwrite=overwrite, policy="float32",
+                                     progress=None)
+
+        return self._retrying(f"cube {scene}/{view}/{group}", write, lambda: self.cube_meta(scene, view, group))
 
     def delete(self, scene: str, view: str | None = None, group: str | None = None) -> None:
         """Delete a scene, a view or one group's cube (invisible at once on local directories)."""
@@ -369,6 +375,11 @@ class CubeStore:
         also younger ones whose writer on this host is dead) and replaced nodes in ``_trash``.
         Returns how many entries were removed."""
         return writer.cleanup(self, older_than_s, dead_writers)
+
+    def _retrying(self, what: str, write: Callable[[], Any], done: Callable[[], Any] | None = None) -> Any:
+        from illumix.store.remote import node_write
+
+        return node_write(self._b.local, what, write, done)
 
     def registry(self, kind: str, max_bytes: int | None = None) -> Any:
         """The persistent user registry ``"sensors"`` or ``"illuminants"`` (:class:`store.Registry`)."""

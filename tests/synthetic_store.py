@@ -40,7 +40,7 @@ def falloffs(h: int = H, w: int = W) -> tuple[np.ndarray, np.ndarray]:
 
 
 def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool = False,
-          denoised: bool = False) -> None:
+          denoised: bool = False, storage_options: dict | None = None) -> None:
     """Write the synthetic scenes into a store at ``path`` (``extras``: the solo and thesis views).
 
     ``illumination``: also store the illumination cubes of synth/v0 (a white Lambertian under each
@@ -50,7 +50,7 @@ def build(path, h: int = H, w: int = W, extras: bool = True, illumination: bool 
     their copies denoised with the default method are stored beside them."""
     from illumix.store import CubeMeta, CubeStore, ViewMeta
 
-    st = CubeStore.open(str(path), mode="a")
+    st = CubeStore.open(str(path), mode="a", storage_options=storage_options)
     refl = reflectance_image(h, w)
     fw, fl = falloffs(h, w)
     n = DEFAULT_GRID.n_bands
