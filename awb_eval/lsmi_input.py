@@ -209,7 +209,13 @@ class LsmiCases:
         if not chosen:
             names = sorted({k.split("_")[-1] for k in splits})
             raise SpectralError(f"{self.camera_dir / 'split.json'} has no split {split!r} (splits: {', '.join(names)})")
-        return sorted({p for v in chosen.values() for p in v})
+        places = sorted({p for v in chosen.values() for p in v})
+        if not places and split is not None:  # the real cause, before "no <place>_<lights>.tiff"
+            sizes = ", ".join(f"{k.split('_')[-1]} {len(v)}" for k, v in splits.items())
+            raise SpectralError(f"{self.camera_dir / 'split.json'}: the {split} split is empty (places per split: "
+                                f"{sizes}); choose another --split, or export more scenes (splits are by scene: an "
+                                "export of fewer scenes than splits leaves some empty)")
+        return places
 
     def _files(self, place: str) -> list[Item]:
         folder = self.camera_dir / place

@@ -9,8 +9,9 @@ units of the white level) and clipped at the white level, so directly visible la
 saturate as they would, and the methods' statistics leave saturated pixels out
 (:func:`awb_eval.case.unsaturated`). The ground truth does not depend on the exposure.
 
-Which images: every view with enough light groups × every lighting in ``pairs`` (``"A,D65"`` lights
-the view's first two groups, as ``pair=``; a single name ``"D65"`` lights every group with it),
+Which images: every view with enough light groups × every lighting in ``pairs`` (``"A,D65"`` is ``pair=``:
+by group kind where the view's groups have kinds — the daylight illuminant on the daylight groups —
+else the view's first two groups, :mod:`engine.lighting`; a single name ``"D65"`` lights every group with it),
 optionally only ``count`` views drawn with ``seed``.
 """
 

@@ -17,7 +17,7 @@ from illumix.dataset_export.errors import ExportError, require
 from illumix.dataset_export.formats import EXPORT_FORMATS
 from illumix.dataset_export.journal import MANIFEST, Journal
 from illumix.dataset_export.plan import parse_lightings, plan_places
-from illumix.dataset_export.splits import split_scenes
+from illumix.dataset_export.splits import empty_split_warnings, split_scenes
 
 
 @dataclass
@@ -159,6 +159,7 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
         from illumix.dataset_export.raw_layout import export_frames
 
         export_frames(st, places, journal, o, fmt, summary, by_split, on_progress)
+    summary["warnings"] += empty_split_warnings(summary["splits"], o.split, len({p.scene for p in places}))
     from illumix.dataset_export.card import dataset_card
 
     journal.write_bytes("README.md", dataset_card(summary).encode())

@@ -47,3 +47,20 @@ def split_scenes(scenes: Iterable[str], fractions: Sequence[float], seed: int) -
             out[s] = name
         start += k
     return out
+
+
+def empty_split_warnings(by_split: dict[str, list[str]], fractions: Sequence[float], scenes: int) -> list[str]:
+    """A warning (none or one) naming the splits given a non-zero fraction that hold no place as written
+    (``by_split``: split → places): fewer scenes than the fractions need (splits are by scene, so a
+    one-scene export has only a train split), or their places were all skipped."""
+    empty = [name for name, f in zip(SPLITS, fractions) if f > 0 and not by_split.get(name)]
+    if not empty:
+        return []
+    have = ", ".join(f"{k} {len(by_split.get(k, []))}" for k in SPLITS)
+    keep = [f if name not in empty else 0.0 for name, f in zip(SPLITS, fractions)]
+    first = next((i for i, f in enumerate(keep) if f > 0), 0)
+    keep[first] += sum(fractions) - sum(keep)  # the empty splits' share moved to the first kept one
+    names = " and ".join(empty)
+    return [(f"the {names} split{'s are' if len(empty) > 1 else ' is'} empty (places per split: {have}; {scenes} "
+             f"scene(s) for fractions {','.join(f'{f:g}' for f in fractions)}, split by scene): render more scenes, "
+             f"or give --split with {names} 0 to mean it (e.g. --split {','.join(f'{f:g}' for f in keep)})")]

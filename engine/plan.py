@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from illumix.engine.errors import NotFound, TooLarge
+from illumix.engine.lighting import RULES, group_kinds, illuminant_kind, pair_lighting
 from illumix.engine.limits import Limits
 from illumix.engine.spec import CAMERA_NOISE, SPECTRAL_OUTPUTS, SampleSpec
 from illumix.retarget.compose import GT_OUTPUTS
@@ -44,6 +45,7 @@ class Plan:
     noise: object = None  # the NoiseModel of noise= (noise=camera: the sensor's own), or None
     bayer: str | None = None  # the raw's mosaic (bayer=, else the camera's own with noise=camera; DNG: RGGB)
     stamps: list[str] = field(default_factory=list)  # each group's cube version (its write id): cache keys
+    lighting: dict = field(default_factory=dict)  # the rule that lit the groups and each group's kind (meta)
 
     def reads(self) -> list[bool]:
         """Per group: whether its cube window is read (lit and not recorded empty)."""
@@ -65,38 +67,56 @@ def _pick(kind: str, name: str | None, options: Callable[[], list[str]], exists:
     raise NotFound(str(unknown_name(kind, name, known)))
 
 
-def _lighting(spec: SampleSpec, groups: list[str], rendered_as: list[str]) -> tuple[list[str | None], list[float]]:
-    """Illuminant name per group (``None`` = off) and intensities. Without pair=/illuminants=, each
-    group is lit as it was rendered: D65 for flat-emission cubes, else the cube's own emission."""
+def _lighting(spec: SampleSpec, groups: list[str], metas: list, classify: Callable[[str], str | None]
+              ) -> tuple[list[str | None], list[float], dict]:
+    """Illuminant name per group (``None`` = off), intensities and the rule used (:mod:`engine.lighting`:
+    ``pair=`` by the groups' kinds where known, else in order; ``illuminants=`` as given). Without
+    pair=/illuminants=, each group is lit as it was rendered: D65 for flat-emission cubes, else the
+    cube's own emission."""
     if spec.pair is not None and spec.illuminants is not None:
         raise SpectralError("give either pair= or illuminants=, not both")
+    kinds = group_kinds(groups, metas, classify)
+    which: list[int | None] | None = None
     if spec.pair is not None:
         if len(spec.pair) != 2:
             raise SpectralError(f"pair needs exactly two illuminants, e.g. pair=A,D65; got {spec.pair}")
         if len(groups) < 2:
             raise SpectralError(f"pair= needs a view with two light groups; this view has {groups}; "
                                 "use illuminants= with one entry")
-        names: list[str | None] = [*spec.pair] + [None] * (len(groups) - 2)
+        names, which, rule, why = pair_lighting(list(spec.pair), [k for k, _ in kinds], classify)
     elif spec.illuminants is not None:
         if len(spec.illuminants) != len(groups):
             raise SpectralError(f"illuminants= needs one entry per light group {groups} "
                                 f"({len(groups)}), got {len(spec.illuminants)}")
-        names = list(spec.illuminants)
+        names, rule, why = list(spec.illuminants), "explicit", RULES["explicit"]
     else:
-        names = ["D65" if r == "flat" else r for r in rendered_as]
-    intens = spec.intensities
-    if intens is None:
-        intens = [1.0 if n is not None else 0.0 for n in names]
-    else:
-        lit = [i for i, n in enumerate(names) if n is not None]
-        if len(intens) == len(lit) and len(intens) != len(names):
-            full = [0.0] * len(names)
-            for i, v in zip(lit, intens):
-                full[i] = v
-            intens = full
-        if len(intens) != len(names):
-            raise SpectralError(f"intensities= needs one value per lit group ({len(lit)}), got {len(intens)}")
-    return names, [float(a) for a in intens]
+        names = ["D65" if m.emission_name == "flat" else m.emission_name for m in metas]
+        rule, why = "rendered", RULES["rendered"]
+    intens = _intensities(spec.intensities, names, which)
+    info = {"rule": rule, "why": why,
+            "groups": [{"group": g, "kind": k, "kind_from": src, "illuminant": n}
+                       for g, (k, src), n in zip(groups, kinds, names)]}
+    return names, intens, info
+
+
+def _intensities(given: list[float] | None, names: list[str | None], which: list[int | None] | None) -> list[float]:
+    """Per group: 1 for lit groups by default; else one value per group, per lit group or (with
+    ``pair=``, ``which``: each group's index in the pair) one per illuminant of the pair."""
+    if given is None:
+        return [1.0 if n is not None else 0.0 for n in names]
+    intens = list(given)
+    lit = [i for i, n in enumerate(names) if n is not None]
+    if which is not None and len(intens) == 2:  # one per illuminant of the pair, in the pair's order
+        intens = [0.0 if w is None else intens[w] for w in which]
+    elif len(intens) == len(lit) and len(intens) != len(names):
+        full = [0.0] * len(names)
+        for i, v in zip(lit, intens):
+            full[i] = v
+        intens = full
+    if len(intens) != len(names):
+        also = ", or one per illuminant of the pair (2)" if which is not None else ""
+        raise SpectralError(f"intensities= needs one value per lit group ({len(lit)}){also}, got {len(intens)}")
+    return [float(a) for a in intens]
 
 
 def _window(spec: SampleSpec, width: int, height: int, limits: Limits) -> tuple[tuple[int, int, int, int], tuple[int, int]]:
@@ -123,7 +143,7 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
         raise NotFound(f"view {scene}/{view} has no complete light groups yet; finish rendering it")
     nodes = [store.complete_node(scene, view, g) for g in groups]
     metas = [meta for _, _, meta in nodes]
-    names, intensities = _lighting(spec, groups, [m.emission_name for m in metas])
+    names, intensities, lighting = _lighting(spec, groups, metas, _classifier(ctx, metas[0].spectral_grid))
     if len([n for n in names if n]) > ctx.limits.max_groups:
         raise SpectralError(f"at most {ctx.limits.max_groups} illuminants per request")
     vmeta = store.view_meta(scene, view)
@@ -131,7 +151,7 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     if any(m.spectral_grid != metas[0].spectral_grid for m in metas):
         raise SpectralError(f"view {scene}/{view}: light groups are on different spectral grids; re-render")
     p = Plan(spec, seed, scene, view, groups, metas, names, intensities, window, (vmeta.width, vmeta.height), out_size,
-             aovs=list(vmeta.aovs), stamps=[state["write_id"] for _, state, _ in nodes])
+             aovs=list(vmeta.aovs), stamps=[state["write_id"] for _, state, _ in nodes], lighting=lighting)
     p.sensor = f"random:{seed & 0xFFFFFFFF}" if spec.sensor.lower() == "random" else spec.sensor
     camera = spec.noise is not None and spec.noise.strip().lower() == CAMERA_NOISE
     p.noise, cfa = ctx.library.camera_noise(p.sensor) if camera else (spec.noise_model(), None)
@@ -141,6 +161,17 @@ def plan(spec: SampleSpec, ctx: Context) -> Plan:
     wanted = set(spec.outputs)
     p.illumination = bool(SPECTRAL_OUTPUTS & wanted) or (p.gt == "physical" and bool(PHYSICAL_OUTPUTS & wanted))
     return p
+
+
+def _classifier(ctx: Context, grid) -> Callable[[str], str | None]:
+    """:func:`engine.lighting.illuminant_kind` of a name, through the context's library (uploads too)."""
+    seen: dict[str, str | None] = {}
+
+    def classify(name: str) -> str | None:
+        if name not in seen:
+            seen[name] = illuminant_kind(name, lambda x: ctx.library.illuminant(x, grid)[0], grid)
+        return seen[name]
+    return classify
 
 
 def _mosaic(spec: SampleSpec, camera_cfa: str | None) -> str | None:

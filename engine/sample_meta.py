@@ -26,6 +26,7 @@ def sample_meta(p, sensor, white_points, ccms, quality, mask, valid, reasons, ex
             for g, n, a, wp, c, q in zip(p.groups, p.names, p.intensities, white_points,
                                          ccms if ccms is not None else [None] * len(p.groups), quality)
         ],
+        "lighting_rule": p.lighting,
         "conditioning_limits": CONDITIONING_LIMITS,
         "ground_truth": {"method": p.gt, "why": p.gt_why, "equations": GT_EQUATIONS[p.gt]},
         "denoise": _denoise_meta(p),

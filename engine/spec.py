@@ -177,13 +177,21 @@ class SampleSpec(BaseModel):
                         description="built-in or uploaded sensor name; random: a camera drawn with the seed from "
                                     "the prior of the measured cameras (random:<seed> names one)")
     pair: Annotated[list[str] | None, BeforeValidator(_names("pair")),
-                    _text("two illuminants for the view's first two light groups, e.g. A,D65 (a view with one "
-                          "light group refuses it: use illuminants=)", pattern=_listed(_ITEM, "{1}"))] = None
+                    _text("two illuminants, e.g. A,D65. Where the view's groups have kinds (declared, from the "
+                          "emission they were rendered with, or a daylight name such as daylight, sun, sky) and "
+                          "exactly one of the two is daylight (D-series, daylight:<K>, or CCT above 4500 K), it "
+                          "lights every daylight group and the other every artificial group, in either order; "
+                          "otherwise the first lights the view's first group, the second its second, others "
+                          "off. meta.lighting_rule says which rule applied and each group's kind and "
+                          "illuminant (a view with one light group refuses pair=: use illuminants=)",
+                          pattern=_listed(_ITEM, "{1}"))] = None
     illuminants: Annotated[list[str] | None, BeforeValidator(_names("illuminants")),
-                           _text("one illuminant per light group, e.g. FL11,D50 for a view with two",
+                           _text("one illuminant per light group, in the view's group order, e.g. FL11,D50 "
+                                 "for a view with two (never reordered by kind)",
                                  pattern=_listed(_ITEM))] = None
     intensities: Annotated[list[float] | None, BeforeValidator(_floats),
-                           _text("one intensity per lit group (default 1), 0..1e9, e.g. 1,0.5 for two",
+                           _text("one intensity per lit group (default 1), 0..1e9, e.g. 1,0.5 for two; with "
+                                 "pair=, two values go with the pair's illuminants in its order",
                                  pattern=_listed(_NUMBER))] = None
     crop: Annotated[list[int] | None, BeforeValidator(_ints("crop", 4, "0,0,256,256")),
                     _text("x,y,w,h in pixels, inside the view's frame", "0,0,16,16", _CROP_PATTERN)] = None

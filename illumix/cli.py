@@ -55,6 +55,29 @@ def _register() -> None:
     for module in (cmd_spectra, cmd_store, cmd_render, cmd_import, cmd_validate, cmd_serve, cmd_demo, cmd_scenes,
                    cmd_dataset, cmd_export, cmd_evaluate):
         module.register(app)
+    _whole_summaries(app)
+
+
+def _whole_summaries(typer_app: typer.Typer) -> None:
+    """Each command's and group's line in its parent's ``--help``: :func:`summary`, not click's cut."""
+    for info in typer_app.registered_commands:
+        if info.short_help is None:
+            info.short_help = summary(info.help or info.callback.__doc__ or "")
+    for group in typer_app.registered_groups:
+        if isinstance(group.typer_instance.info.help, str):
+            group.short_help = summary(group.typer_instance.info.help)
+        _whole_summaries(group.typer_instance)
+
+
+def summary(doc: str) -> str:
+    """A command's line in ``illumix --help``: its docstring's first sentence, whole. Click's default
+    cuts it at 45 characters or at the first ``.`` (``(thesis eq.``); an explicit short help is wrapped
+    instead. A sentence ends at ``. `` before a capital letter, or at the paragraph's end."""
+    text = " ".join(doc.strip().split("\n\n")[0].split())
+    for i in range(len(text) - 2):
+        if text[i] == "." and text[i + 1] == " " and text[i + 2].isupper():
+            return text[:i + 1]
+    return text
 
 
 def main(argv: list[str] | None = None) -> None:

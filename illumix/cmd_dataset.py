@@ -17,12 +17,12 @@ import time
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.errors import UserError, storage_errno, write_failure
-from illumix.render_run import refuse_conflicts, run_jobs, storage_failure
+from illumix.render_run import plan_estimate, print_estimate, refuse_conflicts, run_jobs, storage_failure
 
-console = Console(stderr=True)
+console = make_console(stderr=True)  # full-width tables off a terminal
 
 
 def dataset(
@@ -51,14 +51,17 @@ def dataset(
     scenes, settings, p = _plan(corpus.scenes, store, res, opts, r, overwrite)
     n_views = len(p.view_jobs) + sum(j.group is None for j in p.skipped)
     summary = _summary(cfg, store, scenes_dir, corpus, scenes, p, n_views, executor, settings)
+    est = plan_estimate(p, settings, r.workers, executor)
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")
         console.print(f"dry run: {len(scenes)} scene(s), {n_views} view(s), {len(p.cube_jobs)} cube(s) to render, "
                       f"{summary['cubes_skipped']} already complete")
+        print_estimate(console, est, summary)
         if as_json:
             print(json.dumps({**summary, "dry_run": True, "jobs": [j.label for j in p.jobs]}))
         return
+    print_estimate(console, est, summary, show=not quiet and bool(p.jobs))
     done: list[dict] = []
     failed: list[dict] = []
     t_render = time.perf_counter()

@@ -13,14 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.errors import UserError
 
 if TYPE_CHECKING:  # numpy is imported where it is used: `--help` must not wait for it
     import numpy as np
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 PAIRS = (("A", "D65"), ("FL11", "daylight:5500"))
 DEMO_SENSOR = "Nikon 5100 (NPL)"
 
@@ -84,7 +84,7 @@ def _save_samples(url: str, out: Path) -> list[str]:
                 raise UserError(f"the service answered {r.status_code}: {r.json().get('detail')}")
             z = np.load(io.BytesIO(r.content))
             meta = json.loads(str(z["meta"]))
-            stem = f"{scene['name']}_{view['name']}_{a}+{b}".replace(":", "")
+            stem = f"{scene['name']}_{view['name']}_{_lit_label(meta)}"
             raw = z["raw"]
             _write_png(out / f"{stem}_raw.png", preview(raw, 0.5 / max(float(np.percentile(raw, 99)), 1e-12)))
             gain = z["gain"]
@@ -92,11 +92,37 @@ def _save_samples(url: str, out: Path) -> list[str]:
             _write_png(out / f"{stem}_srgb.png", z["srgb"])
             (out / f"{stem}_meta.json").write_text(json.dumps(meta, indent=1))
             written += [f"{stem}_{k}.png" for k in ("raw", "gain", "srgb")]
-            console.print(f"  {view['name']} {a}+{b}: white points "
-                          + ", ".join(f"{i['illuminant']} R/G {i['white_point_rgb'][0]:.3f} "
-                                      f"B/G {i['white_point_rgb'][2]:.3f}"
-                                      for i in meta["illuminants"] if i["illuminant"]))
+            console.print(f"  {view['name']} pair={a},{b}: {_legend(meta)}  → {stem}_*.png",
+                          soft_wrap=True, markup=False)
+            console.print("    white points " + ", ".join(f"{i['illuminant']} R/G {i['white_point_rgb'][0]:.3f} "
+                                                          f"B/G {i['white_point_rgb'][2]:.3f}"
+                                                          for i in _lit(meta)), soft_wrap=True, markup=False)
     return written
+
+
+def _lit(meta: dict) -> list[dict]:
+    """``meta["illuminants"]`` entries of the groups that are lit (an illuminant, intensity > 0)."""
+    return [i for i in meta["illuminants"] if i["illuminant"] and i["intensity"] > 0]
+
+
+def _lit_label(meta: dict) -> str:
+    """File-name part naming each lit group's illuminant: ``daylight-D65_ceiling-A_desk-A``."""
+    def safe(text: str) -> str:
+        return "".join(c if c.isalnum() or c in ".+-" else "" for c in text.replace(" ", "-"))
+    return "_".join(f"{safe(i['group'])}-{safe(i['illuminant'])}" for i in _lit(meta)) or "unlit"
+
+
+def _legend(meta: dict) -> str:
+    """Which group got which light, and by what rule: ``daylight (daylight) ← D65, ceiling (artificial)
+    ← A, desk (artificial) ← A [rule: kind]``."""
+    rule = meta.get("lighting_rule") or {}
+    kinds = {g["group"]: g["kind"] for g in rule.get("groups", [])}
+    parts = []
+    for i in meta["illuminants"]:
+        kind = f" ({kinds[i['group']]})" if kinds.get(i["group"]) else ""
+        light = i["illuminant"] if i["illuminant"] and i["intensity"] > 0 else "off"
+        parts.append(f"{i['group']}{kind} ← {light}")
+    return ", ".join(parts) + f" [rule: {rule.get('rule', 'order')}]"
 
 
 def demo(

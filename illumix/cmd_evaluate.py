@@ -14,12 +14,12 @@ import time
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.awb_eval.method_names import AWB_METHODS, DEFAULT_METHODS
 from illumix.errors import UserError, write_failure
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 
 
 def _grid(text: str) -> tuple[int, int]:
@@ -163,7 +163,7 @@ def _print(doc: dict, table: str, as_json: bool) -> None:
     """The results on stdout: JSON, the table rendered on a terminal, or its markdown when piped."""
     if as_json:
         print(json.dumps(doc))
-    elif (stdout := Console()).is_terminal:
+    elif (stdout := make_console()).is_terminal:
         from rich.markdown import Markdown
 
         stdout.print(Markdown(table))

@@ -18,12 +18,12 @@ import re
 import sys
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.dataset_export.formats import EXPORT_FORMATS
 from illumix.errors import UserError, write_failure
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 
 
 def _size(text: str | None) -> tuple[int, int] | None:

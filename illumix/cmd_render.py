@@ -13,15 +13,15 @@ import time
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.errors import UserError, storage_errno
 from illumix.options import choice_option, described, seed_option
 from illumix.render_options import check_executor, render_settings, with_settings_options
-from illumix.render_run import refuse_conflicts, run_jobs, storage_failure
+from illumix.render_run import plan_estimate, print_estimate, refuse_conflicts, run_jobs, storage_failure
 from illumix.renderer_jobs.modes import EXECUTORS
 
-console = Console(stderr=True)
+console = make_console(stderr=True)  # full-width tables off a terminal
 
 
 
@@ -82,12 +82,16 @@ def render(
     summary = {"store": store, "scenes": list(p.scenes), "cubes_to_render": len(p.cube_jobs),
                "views_to_write": len(p.view_jobs), "already_complete": len([j for j in p.skipped if j.group]),
                "executor": executor, **{k: getattr(settings, k) for k in settings.cli_fields()}}
+    quiet = as_json and not console.is_terminal
+    est = plan_estimate(p, settings, workers, executor)
     if dry_run:
         for j in p.jobs:
             console.print(f"would render {j.label}")
+        print_estimate(console, est, summary)
         if as_json:
             print(json.dumps({**summary, "jobs": [j.label for j in p.jobs]}))
         return
+    print_estimate(console, est, summary, show=not quiet and bool(p.jobs))
     if not p.jobs:
         console.print(f"nothing to do: all {summary['already_complete']} cube(s) are complete in {store}")
         if as_json:
@@ -97,7 +101,7 @@ def render(
         require_renderer(settings.backend)  # ray: the workers render (their image has it); the driver needs none
     t0 = time.perf_counter()
     done, _ = run_jobs(console, p, store, settings, executor=executor, workers=workers, address=address,
-                       overwrite=overwrite, quiet=as_json and not console.is_terminal)
+                       overwrite=overwrite, quiet=quiet)
     elapsed = time.perf_counter() - t0
     empty = [d["job"] for d in done if d.get("empty")]
     console.print(f"rendered {len([d for d in done if d['kind'] == 'cube'])} cube(s) and "

@@ -7,11 +7,11 @@ import json
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.errors import UserError
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 scenes_app = typer.Typer(help="Generate procedural rooms; preview scenes before rendering them.",
                          no_args_is_help=True)
 

@@ -8,11 +8,11 @@ import os
 from pathlib import Path
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.errors import UserError
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 
 
 def estimate(

@@ -5,14 +5,14 @@ from __future__ import annotations
 import json
 
 import typer
-from rich.console import Console
 
+from illumix.consoles import make_console
 from illumix.options import choice_option
 from illumix.retarget.ccm_methods import CCM_METHODS, DEFAULT_TRAINING_SET
 
 # The spectral libraries (colour-science, numpy) are imported inside the commands: `--help` must not
 # wait for them.
-console = Console()
+console = make_console()
 illuminants_app = typer.Typer(help="The illuminant library.", no_args_is_help=True)
 sensors_app = typer.Typer(help="The sensor library.", no_args_is_help=True)
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
+from illumix.consoles import make_console
 from illumix.errors import UserError
 
-console = Console()
+console = make_console()
 store_app = typer.Typer(help="Inspect and check a cube store.", no_args_is_help=True)
 
 PATH_HELP = "Store directory or fsspec URL (e.g. ./illumix-store, s3://bucket/store)."

@@ -6,14 +6,14 @@ import json
 from pathlib import Path
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
+from illumix.consoles import make_console
 from illumix.errors import UserError
 from illumix.options import choice_option, described, seed_option, wavelengths_option
 from illumix.renderer_jobs.modes import BACKENDS
 
-console = Console(stderr=True)
+console = make_console(stderr=True)
 
 
 def validate(
@@ -65,7 +65,7 @@ def validate(
     for s in result.summary:
         table.add_row(s["illuminant"], f"{s['mean_delta_e00']:.4f}", f"{s['max_delta_e00']:.4f}",
                       f"{s['mean_relative_rg_bg_pct']:.4f}", f"{s['mean_angular_deg']:.4f}")
-    console.print(table)
+    make_console().print(table)  # the result, on stdout (`illumix validate … > table.txt`)
     console.print(f"wrote {path}")
 
 

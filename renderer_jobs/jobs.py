@@ -256,7 +256,7 @@ def cube_meta(scene: Scene, job: Job, settings, emission, emission_name: str, re
 
     return CubeMeta(grid=scene.spectral_grid.to_dict(), emission=list(emission), emission_name=emission_name,
                     renderer=renderer, spp=settings.spp, seed=settings.seed, scene_hash=scene.scene_hash,
-                    view_hash=scene.view_hash(job.view), render_stats=stats,
+                    view_hash=scene.view_hash(job.view), render_stats=stats, group_kind=scene.group_kind(job.group),
                     units="radiance per unit emission (band averages)",
                     **({"generator": dict(scene.generator)} if scene.generator else {}))
 

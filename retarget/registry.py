@@ -13,12 +13,11 @@ starts, so importing this module must stay cheap (no colour-science, no numpy).
 
 from __future__ import annotations
 
-import difflib
 import re
 from collections.abc import Iterator, Mapping
 from typing import Generic, TypeVar
 
-from illumix.retarget.errors import UnknownName
+from illumix.retarget.errors import UnknownName, close_matches
 
 T = TypeVar("T")
 _FOLD = re.compile(r"[\s_\-]+")
@@ -74,9 +73,8 @@ class MethodRegistry(Mapping[str, T], Generic[T]):
     def unknown(self, name: object) -> UnknownName:
         """The error for a name not in the family: the valid names and the close matches."""
         spellings = self.choices()
-        close = difflib.get_close_matches(fold(str(name)), [fold(s) for s in spellings], n=3, cutoff=0.6)
-        by_key = {fold(s): s for s in spellings}
-        hint = f"; did you mean {', '.join(repr(by_key[c]) for c in close)}?" if close else ""
+        close = close_matches(str(name), spellings, cutoff=0.6, key=fold)
+        hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
         return UnknownName(f"unknown {self.kind} {name!r}{hint} (valid: {', '.join(self.choices())})")
 
     def __getitem__(self, name: str) -> T:

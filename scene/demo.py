@@ -143,9 +143,9 @@ def demo_room_dict(seed: int = 0, resolution: tuple[int, int] = (320, 240), name
         "shapes": shapes,
         "lights": lights,
         "light_groups": [
-            {"name": "daylight", "description": "sun through the window + sky"},
-            {"name": "ceiling", "description": "ceiling panel"},
-            {"name": "desk", "description": "spot lamp on the table"},
+            {"name": "daylight", "kind": "daylight", "description": "sun through the window + sky"},
+            {"name": "ceiling", "kind": "artificial", "description": "ceiling panel"},
+            {"name": "desk", "kind": "artificial", "description": "spot lamp on the table"},
         ],
         "views": views,
         "max_depth": 8,

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
-from illumix.scene.schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSpectrum, Dielectric, EnvMapSky,
-                                        FileSpectrum, Light, LightGroup, LibrarySpectrum, Material, MeshFile,
-                                        Name, RoughConductor, SceneError, Shape, SpectrumSpec, StrictModel,
-                                        TableSpectrum, View)
+from illumix.scene.schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSky, ConstantSpectrum, Dielectric,
+                                        DirectionalLight, EnvMapSky, FileSpectrum, Light, LightGroup,
+                                        LibrarySpectrum, Material, MeshFile, Name, RoughConductor, SceneError,
+                                        Shape, SpectrumSpec, StrictModel, TableSpectrum, View)
 from illumix.scene.textures import BitmapTexture, PatternTexture
 from illumix.retarget.errors import SpectralError
 from illumix.retarget.grid import SpectralGrid
@@ -233,6 +233,18 @@ class Scene(StrictModel):
         return spd_from_samples(np.asarray(g.emission.wavelengths), np.asarray(g.emission.values),
                                 grid, what=what)
 
+    def group_kind(self, group: str) -> str | None:
+        """``daylight`` or ``artificial``: the group's declared ``kind``, else what its emitters are —
+        daylight when every one is sky or sun (portals, directional lights, constant or map skies),
+        artificial when every one is a lamp (other area emitters, point and spot lights); ``None``
+        when they are mixed or there are none."""
+        declared = self.group(group).kind
+        if declared is not None:
+            return declared
+        sky = {isinstance(e, (DirectionalLight, ConstantSky, EnvMapSky)) or self.is_portal(e)
+               for e in self.emitters_of(group)}
+        return None if len(sky) != 1 else ("daylight" if sky == {True} else "artificial")
+
     def emission_name(self, group: str) -> str:
         e = self.group(group).emission
         return e if isinstance(e, str) else ("table" if isinstance(e, TableSpectrum) else e.file)
@@ -242,7 +254,8 @@ class Scene(StrictModel):
     def content_hash(self) -> str:
         """sha256 over everything that changes the transport cubes except the views: geometry,
         materials, lights, groups, grid, max depth — and the bytes of every referenced file."""
-        doc = self.model_dump(mode="json", exclude={"views", "description"})
+        doc = self.model_dump(mode="json", exclude={"views": True, "description": True,
+                                                    "light_groups": {"__all__": {"kind"}}})
         files: dict[str, str] = {}
         for p in self.referenced_files():
             path = self.resolve_path(p)

@@ -293,11 +293,16 @@ Light = Annotated[Union[PointLight, SpotLight, DirectionalLight, ConstantSky, En
 
 class LightGroup(StrictModel):
     """A set of emitters that share one illuminant. ``emission`` is the spectrum ``E_g`` the cube is
-    rendered with: ``"flat"`` (unit, the default), an illuminant name, or a spectrum."""
+    rendered with: ``"flat"`` (unit, the default), an illuminant name, or a spectrum. ``kind``:
+    ``daylight`` (sun, sky, windows) or ``artificial`` (lamps); when omitted the scene infers it from
+    the group's emitters (:meth:`scene.model.Scene.group_kind`). ``pair=`` lights daylight groups
+    with the pair's daylight illuminant and artificial ones with the other. It does not change the
+    cubes (not part of the scene hash)."""
 
     name: Name
     emission: str | TableSpectrum | FileSpectrum = "flat"
     description: str = ""
+    kind: Literal["daylight", "artificial"] | None = None
 
 
 # ---------------------------------------------------------------------------------------------

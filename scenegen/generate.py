@@ -8,7 +8,8 @@ metadata by the render jobs). ``layout_hash(doc)`` — sha256 of the geometry, m
 two rooms are distinct when their hashes differ.
 
 Light groups: ``daylight`` when the room has windows (sun + sky portals, :mod:`scenegen.windows`),
-plus 1–3 artificial groups of distinct kinds (:mod:`scenegen.fixtures`), 2–4 groups in all. Each
+plus 1–3 artificial groups of distinct kinds (:mod:`scenegen.fixtures`), 2–4 groups in all, each
+declaring its ``kind`` (``daylight`` / ``artificial``: what ``pair=`` maps its illuminants by). Each
 group's total emitted power is drawn around a common level (log-normal, σ = 0.5) scaled with the
 floor area, so that no group routinely drowns the others — mixing is the point of the data.
 """
@@ -143,7 +144,8 @@ def _light_groups(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]
                     got = placer.free_standing(item, item.kind, clearance=0.1)
                 shapes += got or []
         if any(s.get("emitter", {}).get("group") == g for s in shapes[before:]):
-            groups.append({"name": g, "description": f"{kind.replace('_', ' ')}; typical: {fx.TYPICAL[kind]}"})
+            groups.append({"name": g, "kind": "artificial",
+                           "description": f"{kind.replace('_', ' ')}; typical: {fx.TYPICAL[kind]}"})
     return groups
 
 

@@ -66,6 +66,6 @@ def daylight(rng: np.random.Generator, plan: Plan, windows: list[tuple[int, Open
     direction = [round(math.cos(elev) * hx, 6), round(-math.sin(elev), 6), round(math.cos(elev) * hz, 6)]
     sun = {"name": "sun", "type": "directional", "group": group, "direction": direction,
            "strength": round(float(rng.uniform(3.0, 8.0)), 3)}
-    grp = {"name": group, "emission": f"daylight:{cct}",
+    grp = {"name": group, "emission": f"daylight:{cct}", "kind": "daylight",
            "description": f"sun + sky through {len(windows)} window(s), CIE daylight {cct} K"}
     return shapes, [sun], grp

@@ -161,7 +161,14 @@ class LocalCluster:
         return n
 
     def down(self) -> None:
-        subprocess.run(["ray", "stop", "--force"], env=self.env, capture_output=True, timeout=120)
+        """Stop this cluster's processes only (``ray stop`` would stop every Ray on the machine)."""
+        marks = (f"{HEAD_IP}:{self.ray_port}", f"gcs_server_port={self.ray_port}")  # this cluster's GCS
+        for pid, cmd in _processes():
+            if pid != os.getpid() and ("ray" in cmd or "raylet" in cmd) and any(m in cmd for m in marks):
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
         if self.moto is not None:
             os.killpg(self.moto.pid, signal.SIGKILL)
             self.moto.wait(timeout=30)

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable
+
+from illumix.retarget.errors import close_matches
 
 
 class StoreError(ValueError):
@@ -34,7 +35,7 @@ class StoreKeyError(StoreError, KeyError):
         if detail:
             super().__init__(detail)
             return
-        close = difflib.get_close_matches(name, self.known, n=3, cutoff=0.5)
+        close = close_matches(name, self.known)
         hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
         have = f" (known: {', '.join(self.known[:10])}{', …' if len(self.known) > 10 else ''})" \
             if self.known and not close else ""

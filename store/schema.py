@@ -153,6 +153,9 @@ class CubeMeta(BaseModel):
     ``illumination``: :class:`IlluminationInfo` when the node also holds the illumination cube
     (``None`` in stores rendered before it existed: the service then serves the formula ground truth).
     ``denoised``: :class:`DenoisedInfo` when the node also holds denoised copies of its cubes.
+    ``group_kind``: ``"daylight"`` or ``"artificial"`` when the scene declares (or its emitters show)
+    what kind of light the group is; ``None`` (stores rendered before it existed, or unknown): the
+    service infers it where it can (:mod:`engine.lighting`).
     """
 
     model_config = ConfigDict(extra="allow")
@@ -170,6 +173,7 @@ class CubeMeta(BaseModel):
     empty: bool = False
     illumination: IlluminationInfo | None = None
     denoised: DenoisedInfo | None = None
+    group_kind: Literal["daylight", "artificial"] | None = None
 
     _v = field_validator("schema_version")(_check_version)
 

@@ -7,7 +7,8 @@
 ((32, 32, 3), (32, 32, 3), 'A')
 
 Needs only numpy and httpx. ``IllumixDataset`` (PyTorch) is imported on first use and needs
-``pip install illumix-client[torch]``.
+``pip install "clients/python[torch]"`` (the CPU-only torch: README); without torch it raises a
+``ModuleNotFoundError`` that says so.
 """
 
 from __future__ import annotations

@@ -61,7 +61,10 @@ from itertools import islice
 from typing import Any
 
 import numpy as np
-import torch
+
+from illumix_client._requires import import_torch, torch_threads
+
+torch = import_torch()  # without it: one error naming the extra to install (and the CPU-only build)
 from torch.utils.data import IterableDataset, get_worker_info
 
 from illumix_client._protocol import RetryPolicy
@@ -137,6 +140,10 @@ class IllumixDataset(IterableDataset):
         Makes the stream reproducible; ``None`` draws one at construction (shared by all workers).
     rank, world_size
         Distributed sharding; by default from ``torch.distributed`` when it is initialised.
+    threads
+        torch's intra-op threads while the dataset is iterated (restored after; ``None``: leave torch's
+        setting), default 1: at ``num_workers=0`` the batches are stacked in the main process, where
+        torch's thread per core cost ~10× the CPU per sample (client README, "Threads").
 
     The constructor asks the service for its scenes, sensors and illuminants once, so a typo fails
     here rather than in a worker.
@@ -155,7 +162,7 @@ class IllumixDataset(IterableDataset):
                  seed: int | None = None, min_groups: int = 1, distinct_illuminants: bool = True,
                  cct_step: float = 50.0, rank: int | None = None, world_size: int | None = None,
                  gt: str | None = None, denoise: str | None = None, dtype: str | None = None,
-                 auto_epoch: bool = False) -> None:
+                 auto_epoch: bool = False, threads: int | None = 1) -> None:
         super().__init__()
         if raw_norm not in RAW_NORMS:
             raise ValueError(f"raw_norm must be one of {', '.join(RAW_NORMS)}, got {raw_norm!r}")
@@ -173,6 +180,9 @@ class IllumixDataset(IterableDataset):
         self.seed = int(seed) if seed is not None else int.from_bytes(os.urandom(4), "little")
         self.epoch, self._begun = 0, 0  # _begun: iterations since set_epoch (see __iter__)
         self.auto_epoch = bool(auto_epoch)
+        if threads is not None and int(threads) < 1:
+            raise ValueError(f"threads must be >= 1 or None, got {threads}")
+        self.threads = None if threads is None else int(threads)
         if world_size is None or rank is None:
             dist = torch.distributed
             on = dist.is_available() and dist.is_initialized()
@@ -234,6 +244,10 @@ class IllumixDataset(IterableDataset):
         return self.__dict__ | {"_local": None}
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
+        with torch_threads(self.threads):  # `threads` while iterating (the class docstring)
+            yield from self._iterate()
+
+    def _iterate(self) -> Iterator[dict[str, Any]]:
         info = get_worker_info()
         wid, nw = (info.id, info.num_workers) if info is not None else (0, 1)
         chunks = self.worker_chunks(wid, nw)
