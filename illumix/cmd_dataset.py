@@ -129,15 +129,20 @@ def _corpus(cfg, config: Path, scenes_dir: Path | None, limit: int | None, dry_r
     from illumix.progress import progress_bar
 
     with progress_bar(console, disable=quiet, transient=True) as prog:  # an error after it stays one line
-        task = None
+        task, count = None, [0, 0]
+        lines = not (quiet or dry_run or console.is_terminal)  # logs, CI: a line per room (rooms take seconds)
 
         def on_start(n: int) -> None:
             nonlocal task
+            count[1] = n
             if n:
                 task = prog.add_task("scenes", total=n, last="")
 
         def on_room(name: str, status: str) -> None:
+            count[0] += 1
             prog.update(task, advance=1, last=f"{name} {status}")
+            if lines:
+                console.print(f"[{count[0]}/{count[1]}] scene {name}: {status}", markup=False, highlight=False)
 
         try:
             corpus = scene_corpus.build(cfg, config.parent, scenes_dir, limit=limit, write=not dry_run,

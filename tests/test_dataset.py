@@ -192,3 +192,25 @@ def test_keep_going_reports_failures_and_runs_the_rest(tmp_path, monkeypatch):
                                                  "demo-room-0/corner/daylight"]
     with pytest.raises(jobs.JobError, match="boom"):  # the default stops at the first failure
         execute(p, str(tmp_path / "st"), RenderSettings())
+
+
+def test_room_generation_prints_a_line_per_room_off_a_terminal(tmp_path, monkeypatch):
+    """Logs and CI see the rooms being generated (issue 38: "rooms: 1 generated" for 25 minutes and
+    nothing before): one plain line per room when stderr is not a terminal; none in a dry run."""
+    import io
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from illumix import cmd_dataset
+    from illumix.dataset_config import load_config
+
+    cfg_path = Path(write_config(tmp_path, {"name": "tiny", "generated": {"count": 2, "seed": 3, "generator": dict(GEN)}}))
+    out = io.StringIO()
+    monkeypatch.setattr(cmd_dataset, "console", Console(file=out, force_terminal=False, width=200))
+    cmd_dataset._corpus(load_config(cfg_path), cfg_path, tmp_path / "rooms", None, dry_run=False, quiet=False)
+    lines = [ln for ln in out.getvalue().splitlines() if ln.startswith("[")]
+    assert lines == ["[1/2] scene room-000003: generated", "[2/2] scene room-000004: generated"], out.getvalue()
+    out.truncate(0)
+    cmd_dataset._corpus(load_config(cfg_path), cfg_path, tmp_path / "rooms2", None, dry_run=True, quiet=False)
+    assert not [ln for ln in out.getvalue().splitlines() if ln.startswith("[")]
