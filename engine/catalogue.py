@@ -5,10 +5,13 @@ them as they are."""
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 from illumix.engine.context import Context
 from illumix.retarget import illuminants as ill
 from illumix.retarget import sensors as sen
-from illumix.retarget.grid import DEFAULT_GRID
+from illumix.retarget.errors import SpectralError
+from illumix.retarget.grid import DEFAULT_GRID, SpectralGrid
 from illumix.store import StoreError
 
 
@@ -55,11 +58,28 @@ def sensors(ctx: Context) -> dict:
 
 
 def illuminants(ctx: Context) -> dict:
-    """``{"builtin", "parametric": {kind: {"min_kelvin", "max_kelvin"}}, "uploaded"}``
-    (parametric names read ``<kind>:<kelvin>``, e.g. ``blackbody:3200``)."""
-    return {"builtin": ill.builtin_names(),
+    """``{"builtin": usable on the default grid, "unavailable": {name: why}, "parametric": {kind:
+    {"min_kelvin", "max_kelvin"}}, "uploaded"}`` (parametric names read ``<kind>:<kelvin>``, e.g.
+    ``blackbody:3200``). As for sensors: a tabulated illuminant whose data stop short of the grid (the
+    ISO 7589 tables end at 690 nm) is listed under ``unavailable`` with the reason, not as usable."""
+    usable, unusable = illuminant_availability(DEFAULT_GRID)
+    return {"builtin": list(usable), "unavailable": dict(unusable),
             "parametric": {k: {"min_kelvin": lo, "max_kelvin": hi} for k, (lo, hi) in ill.PARAMETRIC.items()},
             "uploaded": ctx.library.uploaded_illuminants()}
 
 
-__all__ = ["illuminants", "scenes", "sensors"]
+@lru_cache(maxsize=8)
+def illuminant_availability(grid: SpectralGrid) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
+    """``(usable names, ((unusable name, why), …))`` of the built-in illuminants on ``grid``
+    (remembered: the tables are fixed for the process)."""
+    usable, unusable = [], []
+    for name in ill.builtin_names():
+        try:
+            ill.illuminant_spd(name, grid)
+            usable.append(name)
+        except SpectralError as exc:
+            unusable.append((name, str(exc)))
+    return tuple(usable), tuple(unusable)
+
+
+__all__ = ["illuminant_availability", "illuminants", "scenes", "sensors"]

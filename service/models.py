@@ -165,7 +165,10 @@ class KelvinRange(BaseModel):
 
 
 class IlluminantList(BaseModel):
-    builtin: list[str]
+    builtin: list[str] = Field(description="built-in (tabulated) illuminants usable on the store's spectral grid")
+    unavailable: dict[str, str] = Field(
+        default_factory=dict, description="built-in illuminants that cannot be used (their tables stop short of the "
+                                          "grid, e.g. ISO 7589), with the reason")
     parametric: dict[str, KelvinRange] = Field(description="'<kind>:<kelvin>' names, e.g. blackbody:3200")
     uploaded: list[str]
 

@@ -79,8 +79,9 @@ class Client:
         return self._run(P.sensor(name))
 
     def illuminants(self) -> dict:
-        """``{"builtin": [names], "parametric": {"blackbody": {"min_kelvin", "max_kelvin"}, ...},
-        "uploaded": [names]}``."""
+        """``{"builtin": [usable names], "unavailable": {name: why}, "parametric": {"blackbody":
+        {"min_kelvin", "max_kelvin"}, ...}, "uploaded": [names]}`` (``unavailable``: built-ins whose
+        tables do not cover the service's spectral grid)."""
         return self._run(P.illuminants())
 
     def sample(self, scene: str | None = None, view: str | None = None, *, seed: int | None = None,

@@ -11,6 +11,8 @@ export const INTENSITY = [0, 4, 0.05]; // min, max, step of a group's intensity 
 export const EV = [-4, 4, 0.25]; // of the raw exposure slider
 const GT = ["physical", "formula"]; // or "": the service's default
 const GAIN = ["br", "r", "g", "b"];
+const DENOISE = ["none"]; // or "": the stored denoised copies where the view has them
+export const AOVS = ["albedo", "normal", "depth"]; // or "": no geometry panel
 
 const quote = (v) => `'${v.length > 40 ? `${v.slice(0, 40)}…` : v}'`;
 const same = (names, v) => names.find((n) => n.toLowerCase() === v.toLowerCase()); // names are case-insensitive
@@ -30,10 +32,11 @@ function number(text, [lo, hi], fallback) {
 }
 
 /** One illuminant of the link: a listed name (any case) or blackbody:K / daylight:K in the slider's range. */
-function illuminant(text, k, names) {
+function illuminant(text, k, names, unavailable = {}) {
   const fallback = DEFAULT_LIGHTS[k % DEFAULT_LIGHTS.length];
   const listed = same(names, text);
   if (listed) return [listed, null];
+  if (same(Object.keys(unavailable), text)) return [fallback, `illuminant ${quote(text)} unavailable here → ${fallback}`];
   const [kind, kelvin, ...rest] = text.split(":");
   const cct = same(Object.keys(CCT), kind);
   if (!cct || rest.length) return [fallback, `illuminant ${quote(text)} unknown → ${fallback}`];
@@ -70,7 +73,7 @@ export function stateFromLink(q, lib) {
     Object.hasOwn(lib.sensors.unavailable || {}, get("sensor")) ? "unavailable here" : "unknown");
   const illNames = [...lib.illuminants.uploaded, ...lib.illuminants.builtin];
   const illuminants = get("illuminants").split(",").map((t, k) => {
-    const [v, note] = t.trim() ? illuminant(t.trim(), k, illNames) : ["", null];
+    const [v, note] = t.trim() ? illuminant(t.trim(), k, illNames, lib.illuminants.unavailable) : ["", null];
     if (note) notes.push(note);
     return v;
   });
@@ -83,12 +86,14 @@ export function stateFromLink(q, lib) {
   const gt = pick("gt", get("gt"), GT, "", `not ${GT.join(" or ")}`);
   const ev = get("ev") ? num("ev", get("ev"), EV, 0) : 0;
   const gain = pick("gain", get("gain"), GAIN, "br", `not ${GAIN.join(", ")}`);
+  const denoise = pick("denoise", get("denoise"), DENOISE, "", "not none");
+  const aov = pick("aov", get("aov"), AOVS, "", `not ${AOVS.join(", ")}`);
   const npz = q.has("npz") ? get("npz").split(",").filter((x) => x) : DEFAULT_NPZ;
   const unknown = npz.filter((x) => !NPZ_OUTPUTS.includes(x));
   if (unknown.length) notes.push(`npz ${unknown.map(quote).join(", ")} unknown, dropped`);
   return {
     state: {
-      scene, view: view.name, sensor, illuminants, intensities, size: sizeOk ? size : "", gt, ev, gain,
+      scene, view: view.name, sensor, illuminants, intensities, size: sizeOk ? size : "", gt, denoise, aov, ev, gain,
       npz: npz.filter((x) => NPZ_OUTPUTS.includes(x)),
     },
     notes,

@@ -11,6 +11,11 @@ const $ = (id) => document.getElementById(id);
 const lib = { scenes: [], sensors: null, illuminants: null };
 const state = {};
 let frame = null, spectra = null, spectraKey = "", inflight = null, timer = null;
+//: the state the images show: a failed update puts the controls back to it (js/main.js restore)
+let rendered = null;
+//: what the frame depends on (ev, gain and npz are applied to the drawn frame or the links alone)
+const FRAME_KEYS = ["scene", "view", "sensor", "illuminants", "intensities", "size", "gt", "denoise"];
+let aov = null, aovKey = "";
 
 // -- state ↔ URL (read once the lists are in: js/linkcheck.js checks every value) ----------------
 /** The link values that were replaced: one line above the images (a click shows it all; × clears it). */
@@ -26,6 +31,7 @@ function sampleParams() {
     intensities: state.intensities.join(",") };
   if (state.size) p.size = state.size; // WxH, as /sample takes it; none: the view's own size
   if (state.gt) p.gt = state.gt;
+  if (state.denoise) p.denoise = state.denoise; // none: the cubes as rendered; unset: the stored copies
   return p;
 }
 
@@ -34,6 +40,7 @@ function writeURL() {
   if (state.ev) q.set("ev", state.ev);
   if (state.gain !== "br") q.set("gain", state.gain);
   if (String(state.npz) !== String(DEFAULT_NPZ)) q.set("npz", state.npz.join(","));
+  if (state.aov) q.set("aov", state.aov);
   history.replaceState(null, "", `?${q}`);
 }
 
@@ -41,13 +48,18 @@ const currentScene = () => lib.scenes.find((s) => s.name === state.scene);
 const currentView = () => currentScene().views.find((v) => v.name === state.view);
 
 // -- controls ----------------------------------------------------------------------------------
+/** `groups`: [[label, [[value, text, why?], …]], …]; an item with `why` is shown disabled, `why` its tooltip. */
 function options(select, groups, selected) {
   select.innerHTML = "";
   for (const [label, items] of groups) {
     if (!items.length) continue;
     const og = document.createElement("optgroup");
     og.label = label;
-    for (const [value, text] of items) og.append(new Option(text, value, false, value === selected));
+    for (const [value, text, why] of items) {
+      const o = new Option(text, value, false, value === selected && !why);
+      if (why) Object.assign(o, { disabled: true, title: why });
+      og.append(o);
+    }
     select.append(og);
   }
 }
@@ -91,6 +103,9 @@ function chooseView() {
     wireGroup(div, k);
   });
   sizeOptions(v);
+  const denoised = v.groups.filter((g) => g.denoised).map((g) => `${g.name}: ${g.denoised}`);
+  $("denoise-note").textContent = denoised.length ? `stored copies: ${denoised.join(", ")}` : "this view has no denoised copies";
+  $("denoise").value = state.denoise;
   downloads();
 }
 
@@ -109,7 +124,15 @@ function illuminantOptions(select, name) {
     ["colour temperature (slider)", [["blackbody", "blackbody (Planck)"], ["daylight", "CIE daylight"]]],
     ["uploaded", lib.illuminants.uploaded.map((x) => [x, x])],
     ["CIE and measured", lib.illuminants.builtin.map((x) => [x, x])],
+    ["not usable on this service's spectral grid", Object.entries(lib.illuminants.unavailable || {})
+      .map(([x, why]) => [x, `${x} (${shortWhy(why)})`, why])],
   ], kind);
+}
+
+/** An unusable illuminant's reason in a few words: "covers 350-690 nm only" where the reason says so. */
+function shortWhy(why) {
+  const m = /cover (\d+(?:\.\d+)?-\d+(?:\.\d+)?) nm/.exec(why);
+  return m ? `data cover ${m[1]} nm only` : "not usable here";
 }
 
 function wireGroup(div, k) {
@@ -182,13 +205,88 @@ async function update() {
     if (mine !== inflight) return;
     const t1 = performance.now();
     frame = prepare(f);
+    rendered = snapshot();
     drawAll(s);
+    $("views").classList.remove("stale");
     const [h, w] = f.arrays.raw.shape;
+    const dn = f.meta.denoise ? ` · denoise: ${f.meta.denoise.method}` : "";
     status(`${w}×${h} · server ${Math.round(f.timing.total)} ms, request ${Math.round(t1 - t0)} ms, `
-      + `draw ${Math.round(performance.now() - t1)} ms · ground truth: ${f.meta.ground_truth.method}`);
+      + `draw ${Math.round(performance.now() - t1)} ms · ground truth: ${f.meta.ground_truth.method}${dn}`);
     document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1); // for tests
+    loadAov();
   } catch (e) {
-    if (e.name !== "AbortError") status(e.message, true);
+    if (e.name === "AbortError" || mine !== inflight) return; // a newer update decides
+    await restore(e);
+  }
+}
+
+/** The frame-defining part of the state, deep-copied. */
+function snapshot() {
+  return JSON.parse(JSON.stringify(Object.fromEntries(FRAME_KEYS.map((k) => [k, state[k]]))));
+}
+
+/**
+ * A failed update (any 4xx/5xx, or no answer): the lists are re-read (an upload may have been
+ * deleted meanwhile) and the controls, URL and downloads go back to the frame on screen; with no
+ * frame drawn yet, the images are marked stale instead. Never new controls over old images.
+ */
+async function restore(e) {
+  await refreshLists().catch(() => {});
+  if (!rendered) {
+    $("views").classList.add("stale");
+    status(`${e.message} · nothing drawn yet`, true);
+    document.body.dataset.failed = String(Number(document.body.dataset.failed || 0) + 1); // for tests
+    return;
+  }
+  Object.assign(state, JSON.parse(JSON.stringify(rendered)));
+  sensorOptions();
+  chooseScene();
+  chooseView();
+  $("gt").value = state.gt;
+  writeURL();
+  status(`${e.message} · not applied: the controls are back at the frame shown`, true);
+  document.body.dataset.failed = String(Number(document.body.dataset.failed || 0) + 1); // for tests
+}
+
+// -- geometry AOVs (GET /sample outputs albedo, normal, depth): they do not depend on the lights ----
+async function loadAov() {
+  const legend = $("aov-legend"), canvas = $("c-aov");
+  canvas.closest(".panel").hidden = !state.aov;
+  if (!state.aov || !rendered) return;
+  const p = { scene: rendered.scene, view: rendered.view, outputs: state.aov, format: "arrays" };
+  if (rendered.size) p.size = rendered.size;
+  const key = new URLSearchParams(p).toString();
+  if (key === aovKey) return;
+  try {
+    const got = await getArrays(`/sample?${key}`);
+    if (p.outputs !== state.aov) return; // chosen again meanwhile
+    aov = { name: state.aov, arr: got.arrays[state.aov] };
+    aovKey = key;
+    drawAov(legend, canvas);
+  } catch (e) {
+    aov = null; aovKey = "";
+    canvas.width = canvas.height = 0;
+    legend.className = "legend error";
+    legend.textContent = e.message;
+  }
+}
+
+function drawAov(legend, canvas) {
+  const { name, arr } = aov;
+  const [h, w] = arr.shape, d = arr.data;
+  legend.className = "legend";
+  if (name === "albedo") {
+    drawRaw(canvas, arr, 1, 0);
+    legend.textContent = "albedo: linear reflectance in the view's R, G, B, sRGB curve for display";
+  } else if (name === "normal") {
+    const rgb = new Uint8Array(w * h * 3);
+    for (let i = 0; i < rgb.length; i++) rgb[i] = Math.round(127.5 * (d[i] + 1));
+    drawRGB8(canvas, { data: rgb, shape: [h, w, 3] });
+    legend.textContent = "normal: world-space unit vector, (x, y, z) → (R, G, B) = (n + 1) / 2";
+  } else {
+    const hit = { data: Uint8Array.from(d, (v) => (Number.isFinite(v) && v > 0 ? 1 : 0)) };
+    const [lo, hi] = drawScalar(canvas, d, hit, w, h);
+    scalarLegend(legend, lo, hi, false, "depth: distance along the camera ray (scene units)");
   }
 }
 
@@ -245,13 +343,19 @@ function hover(ev) {
     <tr><td>raw <span class="muted">(relative)</span></td>${raw.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
     <tr><td>gain</td>${gain.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
     <tr><td>white point <span class="muted">(R/G, 1, B/G)</span></td>${wp.map((v) => `<td>${f3(v)}</td>`).join("")}</tr></table>
-    <div>mixture: ${mix.join(" · ")}</div>`;
+    <div>mixture: ${mix.join(" · ")}</div>${aovReadout(i)}`;
   for (const c of document.querySelectorAll(".cross")) {
     c.hidden = false;
     c.style.left = `${(100 * (x + 0.5)) / frame.w}%`;
     c.style.top = `${(100 * (y + 0.5)) / frame.h}%`;
   }
   chromaHover(valid ? [wp[0], wp[2]] : null);
+}
+
+function aovReadout(i) {
+  if (!aov || aov.arr.shape[0] !== frame.h || aov.arr.shape[1] !== frame.w) return "";
+  const d = aov.arr.data, v = aov.name === "depth" ? [d[i]] : [0, 1, 2].map((c) => d[3 * i + c]);
+  return `<div>${aov.name}: ${v.map(f3).join(", ")}</div>`;
 }
 
 // -- start -------------------------------------------------------------------------------------
@@ -277,6 +381,7 @@ async function start() {
   chooseScene();
   chooseView();
   $("gt").value = state.gt;
+  $("aov").value = state.aov;
   $("gainch").value = state.gain;
   Object.assign($("ev"), { min: EV[0], max: EV[1], step: EV[2] });
   $("ev").value = state.ev;
@@ -294,6 +399,9 @@ async function start() {
   };
   $("sensor").onchange = () => { state.sensor = $("sensor").value; update(); };
   $("gt").onchange = () => { state.gt = $("gt").value; update(); };
+  $("denoise").onchange = () => { state.denoise = $("denoise").value; update(); };
+  $("aov").onchange = () => { state.aov = $("aov").value; writeURL(); loadAov(); };
+  $("c-aov").closest(".panel").hidden = !state.aov;
   $("size").onchange = () => { state.size = $("size").value; update(); };
   $("ev").oninput = () => {
     state.ev = Number($("ev").value);
