@@ -28,6 +28,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -169,6 +170,14 @@ class LocalCluster:
                     os.kill(pid, signal.SIGKILL)
                 except ProcessLookupError:
                     pass
+        # `ray start --head` names this cluster the machine's current one (ray.init() with no address
+        # would join it); without `ray stop`, forget it here
+        current = Path(tempfile.gettempdir()) / "ray" / "ray_current_cluster"
+        try:
+            if current.read_text().strip() == self.address:
+                current.unlink()
+        except OSError:
+            pass
         if self.moto is not None:
             os.killpg(self.moto.pid, signal.SIGKILL)
             self.moto.wait(timeout=30)
