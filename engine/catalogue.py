@@ -25,7 +25,7 @@ def scenes(ctx: Context) -> list[dict]:
     for s in store.scenes():
         views = []
         try:
-            names, broken = store.views(s), store.damaged_views(s)
+            names, broken = store.view_health(s)
         except StoreError as exc:  # the scene's own group document
             out.append({"name": s, "views": [], "damaged": str(exc)})
             continue

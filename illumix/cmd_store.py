@@ -91,8 +91,8 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
            repair: bool = typer.Option(False, "--repair", help="First remove what interrupted writes left: "
                                        "orphaned .partial files, staged writes of dead writers, replaced "
                                        "nodes in _trash (printed). Damaged data is only reported, never removed."),
-           min_age: float = typer.Option(600.0, "--min-age", min=0, help="--repair: also remove leftovers of "
-                                         "unknown writers older than this many seconds.")) -> None:
+           min_age: float | None = typer.Option(None, "--min-age", min=0, help="--repair: also remove leftovers of "
+                                                "unknown writers older than this many seconds (default 600).")) -> None:
     """Check every byte: each file against its node's checksums (SHA-256 manifests, CRC-32C per
     chunk), every array and all metadata (schema, shapes, chunks, finiteness, statistics).
 
@@ -100,6 +100,8 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
     from illumix.store import StoreError
     from illumix.store.report import verify as store_verify
 
+    if min_age is not None and not repair:
+        raise UserError("--min-age goes with --repair (it says which leftovers --repair may remove)")
     try:
         st = _open(path, writable=repair)
     except UserError as exc:
@@ -109,7 +111,7 @@ def verify(path: str = typer.Argument(..., help=PATH_HELP),
         console.print(f"[red]PROBLEM[/] zarr.json: {exc}", soft_wrap=True, highlight=False)
         raise typer.Exit(1) from None
     try:
-        rep = store_verify(st, repair=repair, min_age_s=min_age)
+        rep = store_verify(st, repair=repair, min_age_s=600.0 if min_age is None else min_age)
     except StoreError as exc:
         raise UserError(str(exc)) from None
     if as_json:

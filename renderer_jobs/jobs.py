@@ -121,10 +121,10 @@ def _stored_view(st, scene: str, view: str):
     from illumix.store import StoreError
 
     try:
-        damaged = st.damaged_views(scene)
+        healthy, damaged = st.view_health(scene)
         if view in damaged:  # views() leaves a damaged view out: here it must not read as "missing"
             raise StoreError(f"view {scene}/{view} is damaged: {damaged[view]}")
-        if view not in st.views(scene):
+        if view not in healthy:
             return None
         return st.view_meta(scene, view)
     except StoreKeyError:  # a scene that does not exist yet has no views

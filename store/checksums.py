@@ -22,7 +22,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 import time
+from collections import OrderedDict
 from typing import TYPE_CHECKING
 
 from illumix.store.backend import EMPTY_GROUP_BYTES
@@ -102,17 +104,40 @@ def read_manifest(b: Backend, node: str) -> dict[str, str] | None:
 
 def check_document(b: Backend, node: str, rel: str, raw: bytes) -> None:
     """Refuse ``raw`` (the bytes of ``node/rel`` just read) unless the node's manifest has no entry
-    for it or agrees; re-read both a few times first (module docstring: :data:`RECHECKS`)."""
+    for it or agrees; re-read both a few times first (module docstring: :data:`RECHECKS`). Bytes
+    this process has already found in agreement with their manifest are accepted without reading
+    it again (object stores read a cube's document on every request: one GET, not two)."""
+    key = (b.url, node, rel)
+    digest = sha256(raw)
+    if _VERIFIED.get(key) == digest:
+        return
     for attempt in range(RECHECKS + 1):
         entries = read_manifest(b, node)
         want = None if entries is None else entries.get(rel)
-        if want is None or want == sha256(raw):
+        if want is None:
+            return
+        if want == digest:
+            _remember(key, digest)
             return
         if attempt < RECHECKS:
             time.sleep(RECHECK_S)
-            raw = b.read_bytes(f"{node}/{rel}" if node else rel) or b""
+            digest = sha256(b.read_bytes(f"{node}/{rel}" if node else rel) or b"")
     raise StoreError(f"{node}/{rel} in {b.url} fails its checksum (its SHA-256 differs from the node's "
                      "manifest): the file was altered or damaged; rewrite this node and run `illumix store verify`")
+
+
+#: ``(store, node, file) → SHA-256`` of documents found in agreement with their manifest (bounded)
+_VERIFIED: OrderedDict[tuple[str, str, str], str] = OrderedDict()
+_VERIFIED_MAX = 8192
+_VERIFIED_LOCK = threading.Lock()
+
+
+def _remember(key: tuple[str, str, str], digest: str) -> None:
+    with _VERIFIED_LOCK:
+        _VERIFIED[key] = digest
+        _VERIFIED.move_to_end(key)
+        while len(_VERIFIED) > _VERIFIED_MAX:
+            _VERIFIED.popitem(last=False)
 
 
 def check_node(b: Backend, node: str, bad, note, own: list[str] | None = None) -> int:

@@ -157,15 +157,13 @@ class CubeStore:
 
     def views(self, scene: str) -> list[str]:
         """Names of the scene's views that have metadata (written by :meth:`write_view`), sorted. A view
-        whose metadata is damaged is not among them: :meth:`damaged_views` names it, with why."""
-        return self._view_health(scene)[0]
+        whose metadata is damaged is not among them: :meth:`view_health` names it, with why."""
+        return self.view_health(scene)[0]
 
-    def damaged_views(self, scene: str) -> dict[str, str]:
-        """``{view: why}`` for the scene's views whose metadata cannot be read (damaged, or failing its
-        checksum): one damaged view never hides the healthy ones (:meth:`views`)."""
-        return self._view_health(scene)[1]
-
-    def _view_health(self, scene: str) -> tuple[list[str], dict[str, str]]:
+    def view_health(self, scene: str) -> tuple[list[str], dict[str, str]]:
+        """``(healthy views, {damaged view: why})`` from one read of the scene's view documents: views
+        whose metadata cannot be read (damaged, or failing its checksum) are named, never left out
+        silently, and one damaged view never hides the healthy ones."""
         self._check_scene(scene)
         out, damaged = [], {}
         for v in self._b.list_dirs(f"scenes/{scene}"):

@@ -34,6 +34,7 @@ RETRY_DELAYS_S = (1.0, 2.0, 4.0, 8.0, 16.0)
 CACHING_PROTOCOLS = ("s3", "s3a", "gs", "gcs", "abfs", "az", "adl", "oss")
 
 T = TypeVar("T")
+_sleep = time.sleep  # the backoff's pause (a test replaces it, not the process's time.sleep)
 
 
 def storage_options(url: str, given: dict[str, Any] | None) -> dict[str, Any]:
@@ -73,7 +74,7 @@ def with_retries(what: str, fn: Callable[[], T], delays: tuple[float, ...] | Non
                                  "credentials and quota, then run the same command again: it resumes") from None
             log.warning("object store refused %s (%s: %s); retrying in %.1f s", what, type(exc).__name__, exc,
                         delays[attempt])
-            time.sleep(delays[attempt])
+            _sleep(delays[attempt])
     raise AssertionError("unreachable")
 
 

@@ -234,8 +234,10 @@ def _partials(st: CubeStore, rep: _Report, repair: bool, min_age_s: float) -> li
     removed = []
     for key, pid, age in checksums.partial_files(st.backend):
         if repair and checksums.orphaned(pid, age, min_age_s):
-            b = st.backend
-            b.discard(key) if b.list_files(key) else b.discard_file(key)  # a staged folder, or a file
+            if st.backend.list_files(key):  # a staged folder (a registry entry's)
+                st.backend.discard(key)
+            else:
+                st.backend.discard_file(key)
             removed.append(key)
         else:
             rep.note(key, f"temporary file of an interrupted write (writer pid {pid}, {age:.0f} s old); "

@@ -121,7 +121,7 @@ def test_refused_writes_are_retried_with_backoff_then_one_line(cluster, monkeypa
     add_view(st)
     waits: list[float] = []
     monkeypatch.setattr(remote, "RETRY_DELAYS_S", (0.01, 0.02, 0.04))
-    monkeypatch.setattr(remote.time, "sleep", lambda s: waits.append(s))
+    monkeypatch.setattr(remote, "_sleep", lambda s: waits.append(s))
     real = st.backend.fs.pipe_file
     refusals = {"left": 2}
 

@@ -162,3 +162,31 @@ def test_every_random_byte_flip_is_found_and_none_is_served(store_path, tmp_path
         for k, v in got.items():
             assert v is None or _same(v, clean[k]), f"flip in {rel}: {k} served altered"
         shutil.rmtree(root)
+
+
+def test_a_document_once_verified_is_not_checked_against_its_manifest_again(monkeypatch):
+    """Object stores re-read a cube's document on every request: its manifest is read once, not with
+    every read of the same bytes; altered bytes are checked (and refused) again."""
+    from illumix.store import checksums
+
+    st = new_store("memory://checksum-cache/st")
+    add_view(st)
+    st.write_cube("s", "v", "g", cube(), meta(emission_name="flat"))
+    reads = []
+    real = checksums.read_manifest
+    monkeypatch.setattr(checksums, "read_manifest", lambda b, node: reads.append(node) or real(b, node))
+    for _ in range(3):
+        st.cube_meta("s", "v", "g")
+    assert reads.count(CUBE) == 1
+    raw = st.backend.read_bytes(f"{CUBE}/zarr.json")
+    st.backend.write_bytes(f"{CUBE}/zarr.json", raw.replace(b'"dtype":"float16"', b'"dtype":"float32"', 1))
+    monkeypatch.setattr(checksums, "RECHECK_S", 0.0)
+    with pytest.raises(StoreError, match="fails its checksum"):
+        st.cube_meta("s", "v", "g")
+
+
+def test_min_age_goes_with_repair(store_path, capsys):
+    from cli_testutil import run_cli
+
+    code, out, err = run_cli(capsys, "store", "verify", str(store_path), "--min-age", "5")
+    assert code == 2 and out == "" and err.strip().count("\n") == 0 and "--min-age goes with --repair" in err
