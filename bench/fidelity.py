@@ -49,12 +49,12 @@ def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def measure_scene(entry: fc.Entry, cache: Path, reuse: bool) -> dict:
+def measure_scene(entry: fc.Entry, cache: Path, reuse: bool, redenoise: bool = False) -> dict:
     from illumix_client.local import LocalClient
 
     t0 = time.perf_counter()
     log(f"{entry.name}: {entry.what} ({entry.resolution[0]}x{entry.resolution[1]})")
-    b = fc.build(entry, cache, log, reuse=reuse)
+    b = fc.build(entry, cache, log, reuse=reuse, redenoise=redenoise)
     scene, view = b["scene"], fc.view_of(b["scene"])
     groups = list(b["prod_paths"])
     clients = {"P1": LocalClient(str(b["prod"][0])), "P2": LocalClient(str(b["prod"][1])), "R": LocalClient(str(b["ref"])),
@@ -178,6 +178,8 @@ def parse(argv):
     ap.add_argument("--cache", default=str(Path.home() / ".cache" / "illumix" / "fidelity"),
                     help="where the stores are kept (the references are reused between runs)")
     ap.add_argument("--reuse", action="store_true", help="reuse complete production stores too (same code only)")
+    ap.add_argument("--redenoise", action="store_true", help="with --reuse: denoise the reused production renders "
+                    "again with today's denoiser (from their saved guides), to measure a change to it")
     ap.add_argument("--figures", default=None, help="write one PNG of error maps per scene into this folder")
     return ap.parse_args(argv)
 
@@ -188,7 +190,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.scenes:
         entries = tuple(fc.entry_named(n.strip(), entries) for n in args.scenes.split(","))
     cache = Path(args.cache) / ("quick" if args.quick else "tuning" if args.tuning else "corpus")
-    scenes = [measure_scene(e, cache, args.reuse) for e in entries]
+    scenes = [measure_scene(e, cache, args.reuse, args.redenoise) for e in entries]
     if args.figures:
         for s in scenes:
             figure(s, Path(args.figures) / f"fidelity_{s['name']}.png")

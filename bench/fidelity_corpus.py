@@ -206,13 +206,19 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene, groups: lis
     """A copy of the reference store whose denoised copies are the production's operator (its saved
     guides, the cube noise included) applied to the reference's own cubes: served by default it
     gives the default's expectation, nearly noise-free — the bias alone."""
+    shutil.rmtree(out, ignore_errors=True)
+    shutil.copytree(ref, out)
+    return denoise_again(out, guides, scene, groups)
+
+
+def denoise_again(store: Path, guides: Path, scene, groups: list[str]) -> Path:
+    """``store``'s denoised copies made again, in place, by today's default denoiser from the saved
+    ``guides`` (``--redenoise``: a change to the denoiser measured on the same renders)."""
     from illumix.retarget.denoise import DEFAULT_METHOD, Guides, denoise, describe
     from illumix.store import CubeStore
     from illumix.store.schema import DenoisedInfo
 
-    shutil.rmtree(out, ignore_errors=True)
-    shutil.copytree(ref, out)
-    st, view = CubeStore.open(str(out), mode="a"), view_of(scene)
+    st, view = CubeStore.open(str(store), mode="a"), view_of(scene)
     for g in groups:  # the lit ones: each was denoised, so its guides must be there
         if not (guides / f"{view}-{g}-transport.npz").exists():
             raise SystemExit(f"fidelity: no saved guides of {view}/{g} in {guides}; render the production stores "
@@ -227,7 +233,7 @@ def operator_on_reference(ref: Path, guides: Path, out: Path, scene, groups: lis
         meta.denoised = DenoisedInfo(**describe(DEFAULT_METHOD))
         st.write_cube(scene.name, view, g, cubes["transport"], meta, overwrite=True, illumination=cubes["illumination"],
                       denoised=den)
-    return out
+    return store
 
 
 def production_paths(store: Path, scene, group: str) -> float:
@@ -240,7 +246,7 @@ def production_paths(store: Path, scene, group: str) -> float:
     return float(meta.spp + extra)
 
 
-def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = False) -> dict:
+def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = False, redenoise: bool = False) -> dict:
     """Render (or reuse) the three stores of ``entry``; returns ``{"scene", "prod": [paths],
     "ref": path, "ref_spp": {group: spp}, "prod_paths": {group: paths}, "cpu_s"}``."""
     from denoise_lib import exact_spp_bracket  # the spp the sampler renders exactly (no rounding up)
@@ -249,6 +255,7 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
     scene = load(entry, cache)
     res = entry.resolution
     base = cache / entry.name
+    _forget_if_changed(base, scene)
     prods = [base / f"prod-{s}" for s in PROD_SEEDS]
     cpu = 0.0
     for seed, p in zip(PROD_SEEDS, prods):
@@ -256,6 +263,8 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
             shutil.rmtree(p, ignore_errors=True)
             shutil.rmtree(base / f"guides-{seed}", ignore_errors=True)
             cpu += render(scene, p, RenderSettings(seed=seed, resolution=res), log, keep_guides=base / f"guides-{seed}")
+        elif redenoise:
+            denoise_again(p, base / f"guides-{seed}", scene, [g for g in scene.group_names if _lit(p, scene, g)])
     paths = {g: max(production_paths(p, scene, g) for p in prods) for g in scene.group_names
              if _lit(prods[0], scene, g)}
     ref = base / "ref"
@@ -273,6 +282,22 @@ def build(entry: Entry, cache: Path, log: Callable[[str], None], reuse: bool = F
     ref_op = operator_on_reference(ref, base / f"guides-{PROD_SEEDS[0]}", base / "ref-op", scene, list(paths))
     return {"scene": scene, "prod": prods, "ref": ref, "ref_op": ref_op, "ref_spp": ref_spp, "prod_paths": paths,
             "cpu_s": cpu}
+
+
+def _forget_if_changed(base: Path, scene) -> None:
+    """Remove ``base``'s stores when the scene they were rendered from is not ``scene`` any more (a
+    generated room after a change to the generator, an import after a change to the importer):
+    reused, they would measure another scene than the one named."""
+    import hashlib
+
+    digest = hashlib.sha256(scene.model_dump_json(exclude_defaults=True).encode()).hexdigest()
+    stamp = base / "scene.sha256"
+    if stamp.is_file() and stamp.read_text().strip() == digest:
+        return
+    for name in [*(f"{k}-{s}" for s in PROD_SEEDS for k in ("prod", "guides")), "ref", "ref-op"]:
+        shutil.rmtree(base / name, ignore_errors=True)
+    base.mkdir(parents=True, exist_ok=True)
+    stamp.write_text(digest + "\n")
 
 
 def _lit(store: Path, scene, group: str) -> bool:

@@ -86,7 +86,29 @@ def _dt_irradiance(cube: np.ndarray, guides: Guides, *, kind: str, sigma_spatial
     mod = shading(guides, kind)
     if kind == "transport":
         mod = mod * np.maximum(guides.albedo_bands, np.float32(albedo_floor))
-    return dt_filter(cube / mod, joint, sigma_spatial, iterations) * mod
+    out = dt_filter(cube / mod, joint, sigma_spatial, iterations) * mod
+    return keep_frame_sum(cube, out, mod, joint[..., 0] < 3.5 * _FAR)
+
+
+def keep_frame_sum(cube: np.ndarray, out: np.ndarray, mod: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``out`` (the filtered ``cube``, both ``(H, W, C)``) with each channel's frame sum restored,
+    in place: the deficit ``Σ cube − Σ out`` over the filtered pixels ``free (H, W)`` is added back
+    to them in proportion to ``mod`` (what was divided out before filtering, ``(H, W, 1 or C)``).
+
+    A normalised filter ``F`` is row-stochastic (a flat image stays flat) but its columns do not sum
+    to 1 where it stops (a border, a class edge, a pixel left as rendered), so it moves light between
+    pixels of different ``mod`` and changes the frame's sum (room-4242's floor lamp +0.42 %:
+    bench/FIDELITY.md). With ``y = cube / mod`` the corrected operator is ``G y = F y + a rᵀ y``,
+    ``rᵀ y = Σ mod·y − Σ mod·F y`` the deficit and ``a = mod·free / Σ free·mod``: a fixed matrix
+    set by the guides alone, so the result stays linear in the cube (relighting and composition
+    exact), keeps a flat ``y`` flat (``rᵀ 1 = 0``) and keeps the frame sum exactly (``Σ mod·a = 1``).
+    Pixels left as rendered are untouched."""
+    weight = mod * free[..., None]
+    norm = weight.sum(axis=(0, 1), dtype=np.float64)
+    deficit = (cube - out).sum(axis=(0, 1), where=free[..., None], dtype=np.float64)
+    share = np.divide(deficit, norm, out=np.zeros_like(deficit), where=norm > 0)
+    out += weight * share.astype(np.float32)
+    return out
 
 
 def dt_filter(cube: np.ndarray, joint: np.ndarray, sigma_spatial: float, iterations: int = 3) -> np.ndarray:
