@@ -17,6 +17,12 @@ round with values not asked before (so a new illuminant or sensor is never a cac
 Server side is the ``Server-Timing`` ``total`` of ``/explore/frame`` (request parsed → body encoded,
 before sending); ``request`` is the client's wall time of the whole frame read to the last byte.
 
+The research tools (issue 38), client wall time per request: ``pixel_cold`` — ``GET /explore/pixel``
+(the hovered pixel's spectra) before any frame decoded the cubes (only the pixel's chunks are read),
+``pixel_warm`` — after (sliced from the cached cubes); ``noise_preview`` — the ``GET /sample``
+``noise=phone`` raw the page asks; ``gallery_thumbnail`` — one 96-pixel-wide ``GET /sample`` tile
+of the dataset gallery (srgb, gain, mixture, mask, meta), 16 of them with random lights.
+
 Usage: python bench/web.py [--repeats N] [--store PATH --scene S --view V]; JSON printed last.
 """
 
@@ -120,6 +126,8 @@ def run(client, args) -> dict:
             assert s.status_code == 200, s.text
         return server_ms(r), wall, spec_ms
 
+    tools = {"pixel_cold": [_timed(client, "/explore/pixel", {**state, "x": (97 * i) % w, "y": (61 * i) % h})
+                            for i in range(args.repeats)]}
     first = update({}, True)
     log(f"first frame (cubes decoded from the store): server {first[0]:.0f} ms")
     update({}, False)  # the page's second look at the same lights: its projections are kept from here on
@@ -137,6 +145,8 @@ def run(client, args) -> dict:
             changes, spectra = make(i)
             times[name].append(update(changes, spectra))
         log(f"round {i + 1}/{args.repeats}: " + ", ".join(f"{k} {v[-1][0]:.0f}" for k, v in times.items()))
+    tools |= tool_times(client, state, w, h, args.repeats)
+    log("tools (ms, median): " + ", ".join(f"{k} {statistics.median(v):.0f}" for k, v in tools.items()))
     updates = {}
     for name, rows in times.items():
         srv, wall, spec = zip(*rows)
@@ -149,7 +159,34 @@ def run(client, args) -> dict:
             "updates": updates, "worst_update_server_ms_median": worst,
             "worst_update_server_ms_max": max(u["server_ms_max"] for u in updates.values()),
             "within_budget": worst <= BUDGET_MS, "budget_ms": BUDGET_MS,
+            "tools_request_ms_median": {k: round(statistics.median(v), 1) for k, v in tools.items()},
             "load_average": os.getloadavg()[0]}
+
+
+def _timed(client, path: str, params: dict) -> float:
+    """Client wall time (ms) of one GET, which must answer 200."""
+    t0 = time.perf_counter()
+    r = client.get(path, params=params)
+    if r.status_code != 200:
+        raise SystemExit(f"{path} {params}: {r.status_code} {r.text[:300]}")
+    return 1e3 * (time.perf_counter() - t0)
+
+
+def tool_times(client, state: dict, w: int, h: int, repeats: int) -> dict[str, list[float]]:
+    """The explorer's hover spectrum (cubes cached), noise preview and gallery tiles (module docstring)."""
+    import random
+
+    rng = random.Random(0)
+    pixel = [_timed(client, "/explore/pixel", {**state, "x": rng.randrange(w), "y": rng.randrange(h)})
+             for _ in range(max(10, repeats))]
+    noise = [_timed(client, "/sample", {**state, "outputs": "raw,meta", "format": "arrays", "noise": "phone",
+                                        "exposure": f"{4 + i}", "seed": "1"}) for i in range(repeats)]
+    tile = f"96x{max(1, round(96 * h / w))}"
+    pool = ["A", "D65", "FL11", *ILLUMINANTS[:6]]
+    gallery = [_timed(client, "/sample", {**state, "illuminants": ",".join(rng.sample(pool, len(state["illuminants"].split(",")))),
+                                          "outputs": "srgb,gain,mixture,mask,meta", "format": "arrays", "size": tile,
+                                          "seed": str(i)}) for i in range(16)]
+    return {"pixel_warm": pixel, "noise_preview": noise, "gallery_thumbnail": gallery}
 
 
 if __name__ == "__main__":

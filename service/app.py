@@ -9,7 +9,8 @@ inf (pixels with no light are flagged in ``mask``). Memory is bounded per reques
 Routers (one per resource): :mod:`service.routes.samples` (``/sample``, ``/batch``),
 :mod:`service.routes.registries` (``/sensors``, ``/illuminants``), :mod:`service.routes.status`
 (``/health``, ``/scenes``), :mod:`service.routes.metrics` (``/metrics``, Prometheus; collected by
-:mod:`service.metrics`), :mod:`service.routes.explore` (``/explore/*``) and :mod:`service.routes.web`
+:mod:`service.metrics`), :mod:`service.routes.explore` (``/explore/frame``, ``/explore/spectra``),
+:mod:`service.routes.pixel` (``/explore/pixel``) and :mod:`service.routes.web`
 (``/``, the web explorer page, and its static files under ``/web/``).
 """
 
@@ -24,7 +25,16 @@ from illumix.engine.limits import Limits
 from illumix.service import errors
 from illumix.service.body_guard import BodyGuard
 from illumix.service.metrics import Metrics, RequestMetrics
-from illumix.service.routes import explore, metrics, registries, samples, sensor_estimate, status, web
+from illumix.service.routes import (
+    explore,
+    metrics,
+    pixel,
+    registries,
+    samples,
+    sensor_estimate,
+    status,
+    web,
+)
 
 log = logging.getLogger("illumix.service")
 _MULTIPART_OVERHEAD = 64 * 1024  # form fields and part headers around an uploaded file
@@ -55,7 +65,8 @@ def create_app(store, *, token: str | None = None, cache_mb: int = 1024, limits:
     app.state.token = token
     errors.install(app)
     app.state.metrics = Metrics(app.state.ctx)
-    routers = (samples.router, sensor_estimate.router, registries.router, status.router, metrics.router, explore.router, web.router)
+    routers = (samples.router, sensor_estimate.router, registries.router, status.router, metrics.router, explore.router,
+               pixel.router, web.router)
     for router in routers:
         app.include_router(router)
     web.mount_static(app)

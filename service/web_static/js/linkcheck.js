@@ -13,6 +13,7 @@ const GT = ["physical", "formula"]; // or "": the service's default
 const GAIN = ["br", "r", "g", "b"];
 const DENOISE = ["none"]; // or "": the stored denoised copies where the view has them
 export const AOVS = ["albedo", "normal", "depth"]; // or "": no geometry panel
+export const NOISES = ["low", "phone", "high", "camera"]; // or "": no noise preview (js/noise.js)
 
 const quote = (v) => `'${v.length > 40 ? `${v.slice(0, 40)}…` : v}'`;
 const same = (names, v) => names.find((n) => n.toLowerCase() === v.toLowerCase()); // names are case-insensitive
@@ -88,12 +89,13 @@ export function stateFromLink(q, lib) {
   const gain = pick("gain", get("gain"), GAIN, "br", `not ${GAIN.join(", ")}`);
   const denoise = pick("denoise", get("denoise"), DENOISE, "", "not none");
   const aov = pick("aov", get("aov"), AOVS, "", `not ${AOVS.join(", ")}`);
+  const noise = pick("noise", get("noise"), NOISES, "", `not ${NOISES.join(", ")}`);
   const npz = q.has("npz") ? get("npz").split(",").filter((x) => x) : DEFAULT_NPZ;
   const unknown = npz.filter((x) => !NPZ_OUTPUTS.includes(x));
   if (unknown.length) notes.push(`npz ${unknown.map(quote).join(", ")} unknown, dropped`);
   return {
     state: {
-      scene, view: view.name, sensor, illuminants, intensities, size: sizeOk ? size : "", gt, denoise, aov, ev, gain,
+      scene, view: view.name, sensor, illuminants, intensities, size: sizeOk ? size : "", gt, denoise, aov, noise, ev, gain,
       npz: npz.filter((x) => NPZ_OUTPUTS.includes(x)),
     },
     notes,

@@ -4,8 +4,12 @@ import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js
 import {
   GROUP_COLOURS, drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
 } from "./images.js";
+import { DEFAULT_POOL, drawGallery } from "./gallery.js";
 import { CCT, DEFAULT_LIGHTS, EV, INTENSITY, stateFromLink } from "./linkcheck.js";
+import { loadNoise, noisyAt } from "./noise.js";
+import { hoverSpectrum, wireSpectrum } from "./pixel.js";
 import { chromaHover, plotChroma, plotSensor, plotSpectra, resizePlots } from "./plots.js";
+import { onZoom, panelFraction, toImage, toPanel, wireZoom } from "./zoom.js";
 
 const $ = (id) => document.getElementById(id);
 const lib = { scenes: [], sensors: null, illuminants: null };
@@ -16,6 +20,7 @@ let rendered = null;
 //: what the frame depends on (ev, gain and npz are applied to the drawn frame or the links alone)
 const FRAME_KEYS = ["scene", "view", "sensor", "illuminants", "intensities", "size", "gt", "denoise"];
 let aov = null, aovKey = "";
+let hovered = null; //: [x, y] of the frame pixel under the cursor (the marker follows zoom and pan)
 
 // -- state ↔ URL (read once the lists are in: js/linkcheck.js checks every value) ----------------
 /** The link values that were replaced: one line above the images (a click shows it all; × clears it). */
@@ -25,13 +30,19 @@ function notice(notes) {
   $("notice-text").title = "click to show it all";
 }
 
-/** The /sample parameters of the current view (shared by the frame request and the downloads). */
-function sampleParams() {
-  const p = { scene: state.scene, view: state.view, sensor: state.sensor, illuminants: state.illuminants.join(","),
-    intensities: state.intensities.join(",") };
-  if (state.size) p.size = state.size; // WxH, as /sample takes it; none: the view's own size
-  if (state.gt) p.gt = state.gt;
-  if (state.denoise) p.denoise = state.denoise; // none: the cubes as rendered; unset: the stored copies
+/** The /sample parameters of the current view (shared by the frame request and the downloads), or of `st`. */
+function sampleParams(st = state) {
+  const p = { scene: st.scene, view: st.view, sensor: st.sensor, illuminants: st.illuminants.join(","),
+    intensities: st.intensities.join(",") };
+  if (st.size) p.size = st.size; // WxH, as /sample takes it; none: the view's own size
+  if (st.gt) p.gt = st.gt;
+  if (st.denoise) p.denoise = st.denoise; // none: the cubes as rendered; unset: the stored copies
+  return p;
+}
+
+/** The parameters of the frame on screen without gt (its spectra and noisy raw do not depend on it). */
+function shownParams() {
+  const { gt, ...p } = sampleParams(rendered);
   return p;
 }
 
@@ -41,6 +52,7 @@ function writeURL() {
   if (state.gain !== "br") q.set("gain", state.gain);
   if (String(state.npz) !== String(DEFAULT_NPZ)) q.set("npz", state.npz.join(","));
   if (state.aov) q.set("aov", state.aov);
+  if (state.noise) q.set("noise", state.noise);
   history.replaceState(null, "", `?${q}`);
 }
 
@@ -214,6 +226,9 @@ async function update() {
       + `draw ${Math.round(performance.now() - t1)} ms · ground truth: ${f.meta.ground_truth.method}${dn}`);
     document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1); // for tests
     loadAov();
+    noise();
+    // the chart follows the new lights at the pixel last hovered (when the new frame still has it)
+    if (hovered && hovered[0] < frame.w && hovered[1] < frame.h) hoverSpectrum(shownParams(), ...hovered);
   } catch (e) {
     if (e.name === "AbortError" || mine !== inflight) return; // a newer update decides
     await restore(e);
@@ -328,9 +343,10 @@ const f3 = (v) => (Math.abs(v) >= 1000 || (Math.abs(v) < 0.001 && v !== 0) ? v.t
 
 function hover(ev) {
   if (!frame) return;
-  const r = ev.currentTarget.getBoundingClientRect();
-  const x = Math.floor(((ev.clientX - r.left) / r.width) * frame.w), y = Math.floor(((ev.clientY - r.top) / r.height) * frame.h);
+  const [u, v] = toImage(...panelFraction(ev.currentTarget, ev)); // through the zoom and pan
+  const x = Math.floor(u * frame.w), y = Math.floor(v * frame.h);
   if (x < 0 || y < 0 || x >= frame.w || y >= frame.h) return;
+  hovered = [x, y];
   const i = y * frame.w + x, a = frame.arrays, g = a.mixture.shape[2];
   const rgb = (arr) => [0, 1, 2].map((c) => arr.data[3 * i + c]);
   const [raw, gain, wp] = [rgb(a.raw), rgb(a.gain), rgb(a.illum)];
@@ -343,13 +359,31 @@ function hover(ev) {
     <tr><td>raw <span class="muted">(relative)</span></td>${raw.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
     <tr><td>gain</td>${gain.map((v) => `<td>${f3(v)}</td>`).join("")}</tr>
     <tr><td>white point <span class="muted">(R/G, 1, B/G)</span></td>${wp.map((v) => `<td>${f3(v)}</td>`).join("")}</tr></table>
-    <div>mixture: ${mix.join(" · ")}</div>${aovReadout(i)}`;
-  for (const c of document.querySelectorAll(".cross")) {
-    c.hidden = false;
-    c.style.left = `${(100 * (x + 0.5)) / frame.w}%`;
-    c.style.top = `${(100 * (y + 0.5)) / frame.h}%`;
-  }
+    <div>mixture: ${mix.join(" · ")}</div>${aovReadout(i)}${noisyReadout(i)}`;
+  placeCross();
   chromaHover(valid ? [wp[0], wp[2]] : null);
+  hoverSpectrum(shownParams(), x, y);
+}
+
+/** The hovered pixel's marker on every panel, where zoom and pan show it (hidden when out of view). */
+function placeCross() {
+  if (!hovered || !frame) return;
+  const [mx, my] = toPanel((hovered[0] + 0.5) / frame.w, (hovered[1] + 0.5) / frame.h);
+  for (const c of document.querySelectorAll(".cross")) {
+    c.hidden = mx < 0 || my < 0 || mx > 1 || my > 1;
+    c.style.left = `${100 * mx}%`;
+    c.style.top = `${100 * my}%`;
+  }
+}
+
+function noisyReadout(i) {
+  const dn = noisyAt(i, frame.w, frame.h);
+  return dn ? `<div>noisy raw (${esc(state.noise)}): ${dn.join(", ")} DN</div>` : "";
+}
+
+/** The noise preview of the frame on screen (hidden when the control is off). */
+function noise() {
+  if (frame && rendered) loadNoise(shownParams(), state.noise, frame.scale, state.ev);
 }
 
 function aovReadout(i) {
@@ -392,6 +426,12 @@ async function start() {
     fr.append(c);
     fr.addEventListener("mousemove", hover);
   }
+  wireZoom();
+  onZoom(placeCross);
+  wireSpectrum();
+  $("noise").value = state.noise;
+  $("noise").onchange = () => { state.noise = $("noise").value; writeURL(); noise(); };
+  wireGallery();
   $("scene").onchange = () => {
     state.scene = $("scene").value;
     Object.assign(state, { view: currentScene().views[0].name, size: "" });
@@ -408,6 +448,8 @@ async function start() {
     $("ev-out").textContent = `${state.ev >= 0 ? "+" : ""}${state.ev} EV`;
     writeURL();
     if (frame) drawRaw($("c-raw"), frame.arrays.raw, frame.scale, state.ev);
+    clearTimeout(evTimer);
+    evTimer = setTimeout(noise, 150); // the noisy raw is exposed anew: one request when the slider rests
   };
   $("gainch").onchange = () => { state.gain = $("gainch").value; writeURL(); if (frame) drawGain(); };
   outputChecks(state.npz, (list) => { state.npz = list; writeURL(); downloads(); });
@@ -420,6 +462,20 @@ async function start() {
   });
   window.addEventListener("resize", resizePlots);
   await update();
+}
+
+let evTimer = null;
+
+/** The gallery's controls: the dataset's default pool, the page's sensor; drawn on demand (or by ?gallery=SEED). */
+function wireGallery() {
+  const box = $("gallery"), q = new URLSearchParams(location.search);
+  $("gal-pool").value = DEFAULT_POOL;
+  $("gal-sensors").value = state.sensor;
+  $("gal-draw").onclick = () => drawGallery(lib, box);
+  if (/^\d{1,9}$/.test(q.get("gallery") || "")) {
+    $("gal-seed").value = q.get("gallery");
+    drawGallery(lib, box);
+  }
 }
 
 start().catch((e) => status(`could not start: ${e.message}`, true));
