@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from illumix.dataset_export.errors import ExportError
+from illumix.dataset_export.lsmi_target import fit_mixture, light_mixture
 from illumix.dataset_export.plan import Place, derive_seed
 from illumix.imagefiles.dng import as_shot_neutral
 
@@ -58,9 +59,10 @@ class Frame:
 @dataclass
 class Capture:
     """A place's frames plus ``chroma`` (camera-RGB white point, G = 1, per light), the ``exposure``
-    gain they share and ``lsmi_error_deg``: mean and max angle between LSMI's illumination model
-    ``Σ mixture_i Light_i`` and the sample's ``illum`` over lit pixels of the all-lit frame (0 for
-    ``gt=formula``; the bounce light's tint for ``gt=physical``)."""
+    gain they share, ``lsmi_error_deg``: mean and max angle between LSMI's illumination model
+    ``Σ mixture_i Light_i`` (the mixture written) and the sample's ``illum`` over lit pixels of the
+    all-lit frame (0 for ``gt=formula``; the bounce light's tint with the default mixture target; what
+    LSMI's model cannot express of it with ``gt=physical``), and ``groups``: per light the groups it lights."""
 
     place: Place
     sensor: str
@@ -68,12 +70,15 @@ class Capture:
     chroma: list[list[float]]
     exposure: float
     lsmi_error_deg: dict
+    groups: list[list[str]] = field(default_factory=list)  # per light, the groups it lights
 
 
 class Composer:
     """Composes places' frames from a store (module docstring).
 
-    gt : ``physical`` / ``formula`` / ``None`` (the service's default); size : ``(W, H)`` or ``None``;
+    gt : LSMI's target (:data:`dataset_export.lsmi_target.TARGETS`): ``mixture``/``None`` (the service's
+    default ground truth and its mixture), ``physical`` (the physical ground truth; mixtures fitted to
+    it), ``formula``; size : ``(W, H)`` or ``None``;
     noise : the service's ``noise=`` text or ``None``; levels : the :class:`NoiseModel` whose black and
     white level quantise noise-free frames; bayer : CFA pattern (``None``: RGB frames).
     """
@@ -88,17 +93,22 @@ class Composer:
         self.gt, self.size, self.noise, self.levels, self.bayer = gt, size, noise, levels, bayer
 
     def params(self, place: Place, sensor: str, lights: str, exposure: str) -> dict:
-        """The ``/sample`` parameters of one frame (JSON-able, in the wire's list form)."""
+        """The ``/sample`` parameters of one frame (JSON-able, in the wire's list form): ``pair=`` with
+        one intensity per illuminant of the pair for a pair place (the service assigns its groups),
+        else one illuminant per group (light ``i`` on group ``i``, the rest off)."""
         k = len(place.lighting)
         lit = {int(c) - 1 for c in lights}
         p = {"scene": place.scene, "view": place.view, "sensor": sensor,
-             "seed": derive_seed(place.seed, sensor, lights),
-             "illuminants": [place.lighting[g] if g < k else "E" for g in range(len(place.groups))],
-             "intensities": [1.0 if g in lit else 0.0 for g in range(len(place.groups))],
-             "exposure": exposure, "outputs": OUTPUTS}
+             "seed": derive_seed(place.seed, sensor, lights)}
+        if place.pair:
+            p |= {"pair": list(place.lighting), "intensities": [1.0 if j in lit else 0.0 for j in range(k)]}
+        else:
+            p |= {"illuminants": [place.lighting[g] if g < k else "E" for g in range(len(place.groups))],
+                  "intensities": [1.0 if g in lit else 0.0 for g in range(len(place.groups))]}
+        p |= {"exposure": exposure, "outputs": OUTPUTS}
         if self.size:
             p["size"] = list(self.size)
-        if self.gt:
+        if self.gt in ("physical", "formula"):  # mixture: the service's default ground truth
             p["gt"] = self.gt
         if self.noise:
             p["noise"] = self.noise
@@ -129,11 +139,10 @@ class Composer:
         full = sets[-1]
         arrays, meta = self.compose(self.params(place, sensor, full, "auto"))
         gain = float(meta["exposure_gain"])
-        chroma = [[float(v) for v in meta["illuminants"][g]["white_point_rgb"]] for g in range(k)]
-        lit = arrays["mask"]
-        model = np.einsum("hwk,kc->hwc", arrays["mixture"][..., :k], np.float32(chroma))
-        err = angular_error(model[lit], arrays["illum"][lit]) if lit.any() else np.zeros(1)
-        frames = []
+        which = lights_of_groups(place, meta)
+        first = [which.index(j) for j in range(k)]  # a group each light is on (all of its groups share it)
+        chroma = [[float(v) for v in meta["illuminants"][g]["white_point_rgb"]] for g in first]
+        frames, err = [], np.zeros(1)
         for lights in sets:
             params = self.params(place, sensor, lights, "auto" if lights == full else repr(gain))
             a, m = (arrays, meta) if lights == full else self.compose(params)
@@ -141,12 +150,37 @@ class Composer:
             idx = [int(c) - 1 for c in lights]
             mix = None
             if len(idx) > 1:
-                mix = np.where(a["mask"][..., None], a["mixture"][..., idx], np.float32(ZERO_MASK)).astype(np.float32)
+                mix = self._target(a, which, k, idx, np.float32(chroma)[idx])
+                if lights == full and a["mask"].any():  # LSMI's model Σ mixture·Light against illumix's illum
+                    model = np.einsum("hwk,kc->hwc", mix, np.float32(chroma)[idx])
+                    err = angular_error(model[a["mask"]], a["illum"][a["mask"]])
+                mix = np.where(a["mask"][..., None], mix, np.float32(ZERO_MASK)).astype(np.float32)
             gt_illum = np.where(a["mask"][..., None], a["illum"], np.float32(ZERO_MASK)).astype(np.float32)
             frames.append(Frame(lights, params, raw.astype(np.uint16), mix, _neutral(mix, [chroma[i] for i in idx]), m,
                                 gt_illum))
+        groups = [[g for g, j in zip(place.groups, which) if j == i] for i in range(k)]
         return Capture(place, sensor, frames, chroma, gain,
-                       {"mean": float(np.mean(err)), "max": float(np.max(err))})
+                       {"mean": float(np.mean(err)), "max": float(np.max(err))}, groups)
+
+    def _target(self, a: dict, which: list[int | None], k: int, idx: list[int], chroma: np.ndarray) -> np.ndarray:
+        """The frame's mixture ``(H, W, len(idx))`` for LSMI's files (:mod:`dataset_export.lsmi_target`):
+        fitted to the physical ``illum`` for ``gt=physical``, else each light's share of the served mixture."""
+        if self.gt == "physical":
+            return fit_mixture(a["illum"], chroma, a["mask"])
+        return light_mixture(a["mixture"], which, k)[..., idx]
+
+
+def lights_of_groups(place: Place, meta: dict) -> list[int | None]:
+    """Per group of the view, the light (index into ``place.lighting``) that lights it, or ``None``: a
+    pair place as the service assigned it (``meta.lighting_rule``: by kind, or in order), else light
+    ``i`` on group ``i``."""
+    k = len(place.lighting)
+    if not place.pair:
+        return [g if g < k else None for g in range(len(place.groups))]
+    rule = meta["lighting_rule"]
+    if rule["rule"] == "kind":  # exactly one illuminant of the pair is daylight, so the two names differ
+        return [None if e["illuminant"] is None else place.lighting.index(e["illuminant"]) for e in rule["groups"]]
+    return [g if g < k else None for g in range(len(place.groups))]
 
 
 def _neutral(mixture: np.ndarray | None, chroma: list[list[float]]) -> list[float]:

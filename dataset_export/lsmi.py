@@ -17,10 +17,16 @@ unchanged::
 - ``Light<i>``: light ``i``'s white point in camera RGB normalised to G = 1 (LSMI's "green"
   normalisation), the ground truth's ``white_point_rgb``; LSMI's illumination map is
   ``Σ_i mixture_i · Light_i`` and its white balance ``raw / map``.
-- Mixture: channel ``j`` is light ``lights[j]``'s share of the pixel's green (illumix's ``mixture``
-  output, physical or formula ground truth), summing to 1; ``-1`` (LSMI's ``ZERO_MASK``) where no
+- Mixture: channel ``j`` belongs to light ``lights[j]``, the channels sum to 1; what it carries is
+  ``--gt`` (:mod:`dataset_export.lsmi_target`): ``mixture`` (default) the light's share of the
+  pixel's green (illumix's ``mixture`` output), ``physical`` the coefficients fitted so that LSMI's
+  model ``Σ mixture·Light`` is illumix's physical ground truth (exactly where it is a mix of the
+  lights), ``formula`` eq. 3.3's weights; ``-1`` (LSMI's ``ZERO_MASK``) where no
   light reaches the pixel or it has no surface (the sample's ``mask``) — never NaN, never another
   negative value (LSMI issues #9, #27).
+- Lights of a ``--pairs`` place (and the default ``A,D65``) are assigned as ``/sample?pair=`` assigns
+  them (:mod:`engine.lighting`): light 1 is the pair's first illuminant on every group it lights
+  (the daylight illuminant on the view's daylight groups, where groups have kinds), light 2 the second.
 - Ground truth (beyond LSMI): ``<place>_<lights>_gt_illum.npy``, every frame, is the sample's
   ``illum`` — the white point per pixel in camera RGB with G = 1, physical (bounce light included)
   unless ``--gt formula`` — and ``-1`` (``ZERO_MASK``) in all three channels where it is undefined
@@ -35,10 +41,10 @@ unchanged::
   split and fills each polygon in its mask, and ``(-2, -2) / 2`` lies outside the image, so an
   absent chart masks nothing. ``MCCCount`` says how many are real.
 - Extra keys LSMI's code ignores: ``Illuminants`` (per light: ``name``, ``cct_K`` (K, a number, or
-  null where the SPD has no CCT), ``duv``, light ``group``), ``Scene``,
-  ``View``, ``ExposureGain``, ``GroundTruth``, ``LSMIModelErrorDeg`` (the angle between LSMI's
-  illumination model and illumix's ``illum``: 0 for formula ground truth, the bounce light's tint
-  for physical).
+  null where the SPD has no CCT), ``duv``, the light's ``groups`` and its first ``group``), ``Scene``,
+  ``View``, ``ExposureGain``, ``GroundTruth``, ``MixtureTarget`` (``--gt``), ``LSMIModelErrorDeg`` (the
+  angle between LSMI's illumination model and illumix's ``illum``: 0 for formula ground truth, the
+  bounce light's tint for the mixture target, what LSMI's model cannot express of it for physical).
 - Place names hold no ``_`` (LSMI splits ``<place>_<lights>`` on it).
 """
 
@@ -69,17 +75,19 @@ def mcc_coords(corners: np.ndarray | None) -> tuple[dict, int]:
     return coords, 1
 
 
-def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, dict]) -> dict:
+def place_entry(cap: Capture, corners: np.ndarray | None, gt: str, cct: dict[str, dict], target: str = "mixture") -> dict:
     """The place's ``meta.json`` entry (module docstring); ``cct``: illuminant name → ``{"cct_K": K or
-    None, "duv": Duv}``."""
+    None, "duv": Duv}``; ``target``: what the mixture files carry (:data:`lsmi_target.TARGETS`)."""
     k = len(cap.chroma)
     coords, n_charts = mcc_coords(corners)
+    groups = cap.groups or [[g] for g in cap.place.groups[:k]]
     entry: dict = {f"Light{i + 1}": [round(v, 8) for v in c] for i, c in enumerate(cap.chroma)}
     entry |= {"NumOfLights": k, "MCCCoord": coords, "MCCCount": n_charts,
-              "Illuminants": [{"light": i + 1, "name": n, **cct[n], "group": g}
-                              for i, (n, g) in enumerate(zip(cap.place.lighting, cap.place.groups))],
+              "Illuminants": [{"light": i + 1, "name": n, **cct[n], "group": gs[0] if gs else None, "groups": gs}
+                              for i, (n, gs) in enumerate(zip(cap.place.lighting, groups))],
               "Scene": cap.place.scene, "View": cap.place.view, "ExposureGain": cap.exposure,
-              "GroundTruth": gt, "LSMIModelErrorDeg": {k2: round(v, 6) for k2, v in cap.lsmi_error_deg.items()}}
+              "GroundTruth": gt, "MixtureTarget": target,
+              "LSMIModelErrorDeg": {k2: round(v, 6) for k2, v in cap.lsmi_error_deg.items()}}
     return entry
 
 

@@ -27,8 +27,11 @@ MAX_LIGHTS = 3  # LSMI's Light1..Light3
 @dataclass(frozen=True)
 class Place:
     """One place: ``name`` (no ``_``: LSMI splits file names ``<place>_<lights>`` on it), its
-    ``scene``/``view``, the view's light ``groups`` (all, in order), ``lighting`` (illuminant per lit
-    group, the first ``len(lighting)`` groups) and a ``seed`` for its frames."""
+    ``scene``/``view``, the view's light ``groups`` (all, in order), ``lighting`` (the illuminants of
+    its lights, LSMI's ``Light1..``) and a ``seed`` for its frames. ``pair``: the lighting is a
+    ``--pairs`` entry, lit as ``/sample?pair=`` lights it (:mod:`engine.lighting`: the pair's daylight
+    illuminant on the view's daylight groups, the other on its artificial ones where the groups have
+    kinds, else the first two groups in order); otherwise light ``i`` is the view's group ``i``."""
 
     name: str
     scene: str
@@ -36,6 +39,7 @@ class Place:
     groups: tuple[str, ...]
     lighting: tuple[str, ...]
     seed: int
+    pair: bool = False
 
 
 def parse_lightings(pairs: str | None, illuminants: str | None) -> list[tuple[str, ...]]:
@@ -72,7 +76,7 @@ def derive_seed(*parts: object) -> int:
 
 
 def plan_places(views: list[tuple[str, str, tuple[str, ...]]], lightings: list[tuple[str, ...]], *,
-                count: int | None, seed: int) -> tuple[list[Place], list[dict]]:
+                count: int | None, seed: int, pair: bool = False) -> tuple[list[Place], list[dict]]:
     """``(places, skipped)`` from the store's ``(scene, view, groups)`` (module docstring)."""
     need = min(len(lt) for lt in lightings)
     usable = sorted(v for v in views if len(v[2]) >= need)
@@ -102,6 +106,6 @@ def plan_places(views: list[tuple[str, str, tuple[str, ...]]], lightings: list[t
             while name in names:  # two views whose names differ only in characters a file name cannot hold
                 name += "x"
             names.add(name)
-            places.append(Place(name, scene, view, tuple(groups), queue[rep], derive_seed(seed, name)))
+            places.append(Place(name, scene, view, tuple(groups), queue[rep], derive_seed(seed, name), pair))
         rep += 1
     return places, skipped

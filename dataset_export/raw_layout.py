@@ -8,6 +8,8 @@ atomically and journal the place's ``meta.json`` entry with them; then, per came
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 
 from illumix.dataset_export import lsmi
@@ -33,12 +35,10 @@ def _cct(spd: np.ndarray, grid) -> dict[str, float | None]:
 def _levels(noise: str | None):
     """The sensor model of the raw frames; its black and white levels must be whole digital numbers
     (a TIFF's DN and a DNG's ``BlackLevel``/``WhiteLevel``; :func:`imagefiles.dng.dng_levels`)."""
-    from illumix.engine.spec import parse_noise
+    from illumix.engine.spec import CAMERA_NOISE, parse_noise
     from illumix.imagefiles.dng import dng_levels
     from illumix.retarget.errors import SpectralError
     from illumix.retarget.sensor_model import NoiseModel
-
-    from illumix.engine.spec import CAMERA_NOISE
 
     if noise and noise.strip().lower() == CAMERA_NOISE:  # parse_noise leaves it to the plan: it would be ignored here
         raise ExportError("--noise camera is /sample's (one estimated sensor's own model); an export states one set of "
@@ -134,7 +134,8 @@ def export_frames(st, places, journal, o, fmt, summary: dict, by_split: dict, on
         raise ExportError("nothing exported: " + "; ".join(summary["skipped"][:3]))
     summary["splits"] = {name: sorted({p for p in ps if any(f"{c}/{p}" not in tally["skipped"] for c in folders)})
                          for name, ps in by_split.items()}
-    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "noise": o.noise, "bayer": bayer,
+    summary |= {"counts": counts, "gt": summary["samples"][0]["gt"], "target": o.gt or "mixture",
+                "noise": o.noise, "noise_model": asdict(levels) if o.noise else None, "bayer": bayer,
                 "levels": {"black": int(levels.black_level), "white": int(levels.white)},
                 "lsmi_error_deg": {"mean": float(np.mean([e["mean"] for e in tally["errors"]])),
                                    "max": float(np.max([e["max"] for e in tally["errors"]]))},
@@ -165,7 +166,8 @@ def _export_places(st, places, journal, composer, o, fmt, cam: str, sensor_name:
                 continue
             corners = _corners(st, place, o.size, tally["corners"])
             rec = _write_place(journal, cam, cap, fmt, dng_kw)
-            rec["entry"] = lsmi.place_entry(cap, corners, cap.frames[-1].meta["ground_truth"]["method"], ccts)
+            rec["entry"] = lsmi.place_entry(cap, corners, cap.frames[-1].meta["ground_truth"]["method"], ccts,
+                                            o.gt or "mixture")
             journal.record(key, rec)
         entries[place.name] = rec["entry"]
         tally["errors"].append(rec["entry"]["LSMIModelErrorDeg"])
@@ -213,7 +215,8 @@ LAYOUT = {
             "channels where undefined); LSMI's scripts never read it. "
             "Lights: `_1`, `_12` (two lights), `_1`, `_12`, `_13`, `_123` (three), as LSMI captured them, all at the "
             "exposure of the all-lit frame. Extra: `<camera>/illuminants.json` (names, CCTs, SPDs) and per place "
-            "`Illuminants`, `Scene`, `View`, `ExposureGain`, `GroundTruth` in meta.json.",
+            "`Illuminants` (with the groups each light lights), `Scene`, `View`, `ExposureGain`, `GroundTruth`, "
+            "`MixtureTarget` (what the mixture files hold: `--gt`) in meta.json.",
     "dng": "The LSMI layout with DNG raws (`<place>_<lights>.dng`: 16-bit Bayer CFA, or LinearRaw RGB with "
            "`--bayer none`; BlackLevel/WhiteLevel, ColorMatrix1 fitted to the sensor under D65, AsShotNeutral = "
            "the ground-truth white point) where the LSMI release has TIFFs; mixture `.npy` files are per pixel "

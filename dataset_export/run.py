@@ -10,7 +10,7 @@ from __future__ import annotations
 import datetime
 import errno
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from illumix.dataset_export.errors import ExportError, require
@@ -18,6 +18,11 @@ from illumix.dataset_export.formats import EXPORT_FORMATS
 from illumix.dataset_export.journal import MANIFEST, Journal
 from illumix.dataset_export.plan import parse_lightings, plan_places
 from illumix.dataset_export.splits import empty_split_warnings, split_scenes
+
+#: The sensor model raw frames get unless ``--noise`` says otherwise: a typical phone sensor's shot and
+#: read noise (:data:`retarget.sensor_model.NOISE_PRESETS`), so that a model trained on the export meets
+#: noise as it will in photographs; ``None`` (``--noise none``): noise-free frames.
+DEFAULT_NOISE = "phone"
 
 
 @dataclass
@@ -31,9 +36,9 @@ class ExportOptions:
     count: int | None = None
     size: tuple[int, int] | None = None
     seed: int = 0
-    gt: str | None = None
+    gt: str | None = None  # LSMI's target: None (= "mixture"), "physical" or "formula" (dataset_export.lsmi_target)
     split: tuple[float, float, float] = (0.7, 0.15, 0.15)
-    noise: str | None = None
+    noise: str | None = DEFAULT_NOISE
     bayer: str | None = "RGGB"  # None: --format dng writes LinearRaw RGB
     exr_dtype: str = "float32"
 
@@ -108,13 +113,65 @@ def _check_names(st, sensors, illuminants, place) -> None:
         lib.illuminant(n, grid)
 
 
+def drawn_sampling(pairs: str | None) -> str | None:
+    """``planckian``/``extended`` for ``--pairs draw:<sampling>`` (:mod:`dataset_export.illuminant_draws`), else None."""
+    from illumix.dataset_export.illuminant_draws import SAMPLINGS
+
+    if not pairs or not pairs.strip().lower().startswith("draw"):
+        return None
+    kind = pairs.strip().lower().partition(":")[2].strip() or "planckian"
+    if kind not in SAMPLINGS:
+        raise ExportError(f"--pairs {pairs!r}: draw:<sampling> takes {' or '.join(SAMPLINGS)}, e.g. draw:extended")
+    return kind
+
+
+def _draw(st, places, sampling: str, out: Path) -> dict[str, tuple[tuple[str, str], dict[str, bytes]]]:
+    """Per place, ``((daylight, artificial) names, {file path: CSV bytes})``: a pair drawn with the place's
+    seed; a drawn SPD that is no built-in name becomes ``OUT/illuminants/<name>.csv``, named by its path."""
+    from illumix.dataset_export.illuminant_draws import draw_pair
+
+    grid = st.cube_meta(places[0].scene, places[0].view, places[0].groups[0]).spectral_grid
+    out_abs = out.resolve()
+    result = {}
+    for p in places:
+        names, files = [], {}
+        for d in draw_pair(p.seed, sampling, grid):
+            if d.builtin:
+                names.append(d.name)
+                continue
+            path = str(out_abs / "illuminants" / f"{d.name}.csv")
+            names.append(path)
+            files[path] = d.csv()
+        result[p.name] = (tuple(names), files)
+    return result
+
+
 def _views(st) -> list[tuple[str, str, tuple[str, ...]]]:
     return [(s, v, tuple(st.groups(s, v))) for s in st.scenes() for v in st.views(s) if st.groups(s, v)]
+
+
+def _places(st, views, o: ExportOptions, fmt, sampling: str | None, out: Path):
+    """``(places, skipped, drawn)``: the plan (:mod:`dataset_export.plan`) with each place's lighting —
+    given, or drawn per place (:func:`_draw`) for ``--pairs draw:<sampling>``."""
+    if sampling and o.illuminants:
+        raise ExportError("give either --pairs or --illuminants, not both")
+    lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext and not sampling else [()]
+    if sampling:  # one draw per place: as many distinct "lightings" per view as places asked for
+        lightings = [(f"draw{i}", sampling) for i in range(o.count or 1)]
+    # --pairs (and the default pair A,D65) light groups as /sample?pair= does; --illuminants in group order
+    places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed,
+                                  pair=bool(fmt.raw_ext) and not o.illuminants)
+    drawn = _draw(st, places, sampling, out) if sampling else {}
+    return [replace(p, lighting=drawn[p.name][0]) for p in places] if sampling else places, skipped, drawn
 
 
 def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], None] | None = None) -> dict:
     """Write the dataset ``o`` describes into ``o.out``; returns the summary (also in the card)."""
     fmt = EXPORT_FORMATS[o.format]
+    if o.gt not in (None, "mixture", "physical", "formula"):
+        raise ExportError(f"--gt {o.gt!r}: choose mixture (default), physical or formula")
+    if o.gt == "mixture":  # the default, recorded as before (a resumed export keeps its options)
+        o = replace(o, gt=None)
     for module in fmt.modules:
         require(module, f"--format {fmt.name}")
     _check_size(o.size)
@@ -124,8 +181,8 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     if not views:
         raise ExportError(f"store {o.store} has no complete view; render some with `illumix render`")
     _check_flags(o, fmt)
-    lightings = parse_lightings(o.pairs, o.illuminants) if fmt.raw_ext else [()]
-    places, skipped = plan_places(views, lightings, count=o.count, seed=o.seed)
+    sampling = drawn_sampling(o.pairs) if fmt.raw_ext else None
+    places, skipped, drawn = _places(st, views, o, fmt, sampling, out)
     warnings = []
     if o.count is not None and len(places) < o.count:
         more = "give more --illuminants/--pairs or render more views" if fmt.raw_ext else "render more views"
@@ -136,7 +193,8 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     if fmt.raw_ext:
         from illumix.dataset_export.raw_layout import check_frames
 
-        _check_names(st, o.sensors, {n for p in places for n in p.lighting}, places[0])
+        _check_names(st, o.sensors, {n for p in places for n in p.lighting if n not in drawn.get(p.name, ((), {}))[1]},
+                     places[0])
         check_frames(st, places, o, fmt)
     _check_out(out)
     params = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(o).items() if k != "out"}
@@ -144,11 +202,14 @@ def export_dataset(o: ExportOptions, on_progress: Callable[[int, str | None], No
     if fmt.raw_ext is None:
         params |= {"sensors": [], "noise": None, "bayer": None, "gt": None}
     journal = Journal(out, params)
+    for _, files in drawn.values():  # drawn SPDs that are no built-in name: files given by path
+        for path, data in files.items():
+            journal.write_bytes(str(Path(path).relative_to(out.resolve())), data)
     summary = {"format": fmt.name, "store": o.store, "seed": o.seed, "split": ",".join(map(str, o.split)),
                "size": f"{o.size[0]}x{o.size[1]}" if o.size else None,
                "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                "skipped": [f"{s['scene']}/{s['view']}: {s['why']}" for s in skipped], "samples": [],
-               "warnings": warnings}
+               "warnings": warnings, "sampling": sampling}
     by_split = {name: [p.name for p in places if splits[p.scene] == name] for name in ("train", "val", "test")}
     summary["splits"] = by_split
     if fmt.raw_ext is None:

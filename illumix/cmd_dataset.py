@@ -186,7 +186,14 @@ def _summary(cfg, store, scenes_dir, corpus, scenes, p, n_views, executor, setti
             "generator_version": GENERATOR_VERSION, "scenes": len(scenes), "rooms_generated": corpus.generated,
             "rooms_cached": corpus.cached, "scene_files": corpus.files, "views": n_views,
             "cubes_planned": len(p.cube_jobs), "cubes_skipped": len([j for j in p.skipped if j.group]),
-            "executor": executor, "workers": cfg.render.workers, "settings": settings.to_dict()}
+            "executor": executor, "workers": cfg.render.workers, "settings": settings.to_dict(),
+            "views_dropped": views_dropped(scenes)}
+
+
+def views_dropped(scenes) -> int:
+    """Candidate views the generator dropped for too little mixed light (scenegen.views.MixedLightRule),
+    as generated rooms record it (``generator.views_dropped``; 0 where not recorded)."""
+    return sum(int((getattr(s, "generator", None) or {}).get("views_dropped", 0) or 0) for s in scenes)
 
 
 def _report(summary, cfg, store, corpus, scenes, p, n_views, done, failed, wall, render_wall, as_json) -> None:
@@ -210,7 +217,9 @@ def _report(summary, cfg, store, corpus, scenes, p, n_views, done, failed, wall,
             f"{corpus.files} file(s)), {n_views} view(s); cubes: {summary['cubes_rendered']} rendered, "
             f"{summary['cubes_empty']} empty, {summary['cubes_skipped']} already complete, {len(failed)} failed; "
             f"{wall:.1f} s wall" + (f", {summary['cpu_s']:.1f} s CPU" if summary["cpu_s"] is not None else "")
-            + (f", {summary['cube_mean_s']:.2f} s per cube" if summary["cube_mean_s"] is not None else ""),
+            + (f", {summary['cube_mean_s']:.2f} s per cube" if summary["cube_mean_s"] is not None else "")
+            + (f"; {summary['views_dropped']} candidate view(s) dropped for too little mixed light"
+               if summary["views_dropped"] else ""),
             highlight=False)
     if as_json:
         print(json.dumps(summary))

@@ -1,5 +1,5 @@
 """``illumix export STORE OUT --format lsmi|dng|exr [--sensors …] [--pairs A,D65;… | --illuminants …]
-[--count N] [--size WxH] [--seed S] [--gt physical|formula] [--split 0.7,0.15,0.15] [--noise …]
+[--count N] [--size WxH] [--seed S] [--gt mixture|physical|formula] [--split 0.7,0.15,0.15] [--noise …]
 [--bayer RGGB|none] [--exr-dtype float32|float16] [--json]``.
 
 Writes a frozen dataset from a cube store (:mod:`dataset_export`): the LSMI release's layout with TIFF
@@ -35,6 +35,17 @@ def _size(text: str | None) -> tuple[int, int] | None:
     return int(m[1]), int(m[2])
 
 
+PAIRS_HELP = ("Illuminant pairs, ';'-separated, e.g. \"A,D65;FL11,D50\" (default A,D65), lighting each view as "
+              "/sample?pair= does: where its groups have kinds, the pair's daylight illuminant lights the daylight "
+              "groups and the other the artificial ones, else the first two groups in order; each place draws one "
+              "with the seed; an illuminant may be a CSV wavelength,value given by path. draw:planckian or "
+              "draw:extended draws a daylight + artificial pair per place (extended: measured LEDs, fluorescents, "
+              "gels, sky/sun daylight).")
+GT_HELP = ("What LSMI's mixture files (the target its trainers read) hold: mixture (default: each light's share of "
+           "the pixel's green), physical (fitted so that LSMI's model Σ mixture·Light is illumix's physical ground "
+           "truth, bounce light included) or formula (thesis eq. 3.3 ground truth).")
+
+
 def export(
     store: str = typer.Argument(..., help="Cube store directory or fsspec URL."),
     out: str = typer.Argument(..., help="Folder to write the dataset into (created; a rerun resumes)."),
@@ -45,10 +56,7 @@ def export(
                                        help="Comma-separated sensor names or camera files given by path (rawtoaces "
                                             "JSON, CSV wavelength,r,g,b), one camera folder each (`illumix sensors "
                                             "list`; default \"Nikon 5100 (NPL)\")."),
-    pairs: str | None = typer.Option(None, "--pairs", help="Illuminant pairs lighting each view's first two light "
-                                                           "groups, ';'-separated, e.g. \"A,D65;FL11,D50\" (default A,D65); "
-                                                           "each place draws one with the seed; an illuminant may be a CSV "
-                                                           "wavelength,value given by path."),
+    pairs: str | None = typer.Option(None, "--pairs", help=PAIRS_HELP),
     illuminants: str | None = typer.Option(None, "--illuminants", help="Like --pairs with 1-3 illuminants per "
                                                                        "entry (one per lit group), e.g. \"A,D65,FL11;D50\"."),
     count: int | None = typer.Option(None, "--count", min=1, help="Places to write (default: every usable view once; "
@@ -57,11 +65,11 @@ def export(
     size: str | None = typer.Option(None, "--size", help="Frame size WxH (area resampling; default as rendered; "
                                                    "at most the service's 4096 a side)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of places, lightings, splits and noise."),
-    gt: str | None = typer.Option(None, "--gt", help="Ground truth: physical (default where the store has "
-                                                     "illumination cubes) or formula."),
+    gt: str | None = typer.Option(None, "--gt", help=GT_HELP),
     split: str = typer.Option("0.7,0.15,0.15", "--split", help="Train,val,test fractions of the scenes."),
-    noise: str | None = typer.Option(None, "--noise", help="Sensor model: none (default: noise-free, black level 64, "
-                                                           "white level 4095), low, phone, high or key:value;… as /sample's noise="),
+    noise: str | None = typer.Option(None, "--noise", help="Camera noise model of the raw frames: phone (default: shot "
+                                                           "and read noise, black level 64, white level 4095), low, high, "
+                                                           "key:value;… as /sample's noise=, or none (noise-free)."),
     bayer: str | None = typer.Option(None, "--bayer", help="CFA pattern of --format dng: RGGB (default), BGGR, "
                                                              "GRBG or GBRG; none: LinearRaw DNGs (RGB per pixel, no "
                                                              "mosaic)."),
@@ -106,12 +114,14 @@ def _options(store, out, fmt, sensors, pairs, illuminants, count, size, seed, gt
     from illumix.engine.spec import parse_noise
     from illumix.retarget.sensor_model import BAYER_PATTERNS
 
+    from illumix.dataset_export.run import DEFAULT_NOISE
+
     name = EXPORT_FORMATS.canonical(fmt)
-    if gt is not None and gt.lower() not in ("physical", "formula"):
-        raise UserError(f"--gt {gt!r}: choose physical or formula")
+    if gt is not None and gt.lower() not in ("mixture", "physical", "formula"):
+        raise UserError(f"--gt {gt!r}: choose mixture (default), physical or formula")
     if exr_dtype not in ("float32", "float16"):
         raise UserError(f"--exr-dtype {exr_dtype!r}: choose float32 or float16")
-    noise = None if noise is None or noise.strip().lower() == "none" else noise
+    noise = DEFAULT_NOISE if noise is None else None if noise.strip().lower() == "none" else noise
     if noise is not None:
         parse_noise(noise)
     given = {}  # the rest keep ExportOptions' defaults (export_dataset refuses what a format ignores)
@@ -121,8 +131,9 @@ def _options(store, out, fmt, sensors, pairs, illuminants, count, size, seed, gt
             raise UserError("--sensors: give at least one sensor name, e.g. --sensors \"Nikon 5100 (NPL)\"")
     if bayer is not None:
         given["bayer"] = None if bayer.strip().lower() == "none" else BAYER_PATTERNS.canonical(bayer)
+    gt = None if gt is None or gt.lower() == "mixture" else gt.lower()
     return ExportOptions(store=store, out=out, format=name, pairs=pairs, illuminants=illuminants,
-                         count=count, size=_size(size), seed=seed, gt=gt.lower() if gt else None,
+                         count=count, size=_size(size), seed=seed, gt=gt,
                          split=parse_fractions(split), noise=noise, exr_dtype=exr_dtype, **given)
 
 

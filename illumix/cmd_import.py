@@ -1,9 +1,10 @@
-"""``illumix import FILE --out SCENE.yaml [--rules RULES.yaml]``: convert a glTF (``.gltf``/``.glb``), OBJ + MTL
-or Mitsuba 3 XML scene into an illumix scene file (:mod:`scene_import`).
+"""``illumix import FILE --out SCENE.yaml [--rules RULES.yaml] [--sky]``: convert a glTF (``.gltf``/``.glb``),
+OBJ + MTL or Mitsuba XML scene into an illumix scene file (:mod:`scene_import`).
 
 Meshes and images go to ``<SCENE stem>_assets/`` beside ``SCENE.yaml``. Everything is written into a
 temporary folder first, validated against the schema, then renamed into place: a failed import
-leaves nothing behind and an earlier output intact. Warnings (what could not be represented) go to
+leaves nothing behind and an earlier output intact. An import with nothing renderable (no shape, or
+no emitter without ``--sky``) is refused: one line, exit 2. Warnings (what could not be represented) go to
 stderr, one line each; the summary line goes to stdout (``--json``: a JSON object instead).
 """
 
@@ -22,12 +23,17 @@ from illumix.errors import UserError
 
 
 def import_cmd(
-    file: Path = typer.Argument(..., help="Scene to import: .gltf, .glb, .obj (with its .mtl) or Mitsuba 3 .xml."),
+    file: Path = typer.Argument(..., help="Scene to import: .gltf, .glb, .obj (with its .mtl) or Mitsuba .xml "
+                                           "(3; legacy 0.5/2.x upgraded)."),
     out: Path = typer.Option(..., "--out", help="Scene file to write (.yaml, .yml or .json); meshes and images "
                                                 "go to <stem>_assets/ beside it."),
     rules: Path | None = typer.Option(None, "--rules", help="Light-group rule file (YAML: groups with fnmatch "
-                                                            "patterns, optional illuminant; default_group)."),
+                                                            "patterns, optional illuminant; default_group; "
+                                                            "grouping: kind|each). Default: daylight / warm / "
+                                                            "cool groups by light kind and colour temperature."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary (with the warnings) on stdout."),
+    sky: bool = typer.Option(False, "--sky", help="Light a file that has no lights with a constant D65 sky "
+                                                  "(without it such a file is refused, exit 2)."),
 ) -> None:
     """Convert a glTF / OBJ / Mitsuba XML scene into an illumix scene file."""
     from illumix.scene_files import write_yaml
@@ -48,8 +54,10 @@ def import_cmd(
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=parent))
     try:
         try:
-            doc, warns = import_scene(file, tmp, rules, assets=assets)
+            doc, warns = import_scene(file, tmp, rules, assets=assets, sky=sky)
             scene = scene_from_dict(doc, source=str(file), base=tmp)
+            if not scene.shapes or not scene.group_names:  # the importers refuse these; a last guard
+                raise SceneError(f"{file}: nothing to render: {'no shapes' if not scene.shapes else 'no emitters'}")
         except SceneError as exc:
             raise UserError(str(exc)) from None
         write_yaml(doc, tmp / out.name)

@@ -187,5 +187,21 @@ def preview(
                   f"{sheet.shape[1]}x{sheet.shape[0]} px", highlight=False)
 
 
+@scenes_app.command("schema")
+def schema(out: Path | None = typer.Option(None, "--out", help="Write it to this file instead of stdout.")) -> None:
+    """Print the scene format's JSON Schema (docs/scene.schema.json; format version and migration: docs/scene-format.md)."""
+    from illumix.scene.json_schema import schema_text
+
+    text = schema_text()
+    if out is None:
+        print(text, end="")
+        return
+    try:
+        out.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise UserError(f"--out {out}: cannot write ({exc.strerror or exc}); choose a writable path") from None
+    console.print(f"wrote {out}", highlight=False)
+
+
 def register(app: typer.Typer) -> None:
     app.add_typer(scenes_app, name="scenes")

@@ -26,11 +26,32 @@ def _key(path: Path, rules: Path | None) -> str:
     from illumix import scene_import
 
     h = hashlib.sha256(path.read_bytes())
+    for f in _companions(path):  # an edited include, MTL, mesh or texture beside it is a new import too
+        st = f.stat()
+        h.update(f"{f.relative_to(path.parent)}:{st.st_size}:{st.st_mtime_ns}".encode())
     if rules is not None:
         h.update(b"rules" + Path(rules).read_bytes())
     for src in sorted(Path(scene_import.__file__).parent.glob("*.py")):
         h.update(src.read_bytes())
     return h.hexdigest()[:16]
+
+
+#: At most this many files under a scene file's folder take part in its import's cache key.
+COMPANION_LIMIT = 2000
+
+
+def _companions(path: Path) -> list[Path]:
+    """The files under ``path``'s folder an import may read (includes, MTLs, meshes, textures): all
+    of them but the import caches, sorted; none when there are more than :data:`COMPANION_LIMIT`
+    (a scene file in a large folder, e.g. a home directory: then only the file itself counts)."""
+    out = []
+    for f in path.parent.rglob("*"):
+        if ".illumix-import" in f.parts or not f.is_file() or f == path:
+            continue
+        out.append(f)
+        if len(out) > COMPANION_LIMIT:
+            return []
+    return sorted(out)
 
 
 def _cache_dir(path: Path, key: str) -> Path:

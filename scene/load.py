@@ -1,6 +1,8 @@
 """Scene description, part 3: files ↔ :class:`~scene.model.Scene`.
 
-A YAML or JSON file holds one scene, or ``{scenes: [...]}`` several. Loading validates everything —
+A YAML or JSON file holds one scene, or ``{scenes: [...]}`` several, in a format version
+(``schema_version``) this illumix reads: older ones are migrated (:mod:`scene.migrate`), newer ones
+refused. The format is published as a JSON Schema (:mod:`scene.json_schema`). Loading validates everything —
 names that must resolve (materials, light groups, library spectra, files) included — and reports
 every problem as ``<file>: <object path> (<name>): <field>: <what is wrong>`` on one line
 (:class:`~scene.schema.SceneError`).
@@ -9,12 +11,14 @@ every problem as ``<file>: <object path> (<name>): <field>: <what is wrong>`` on
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
 import yaml
 from pydantic import ValidationError
 
+from illumix.scene.migrate import migrate
 from illumix.scene.model import Scene
 from illumix.scene.schema import SceneError
 
@@ -62,9 +66,18 @@ def _format_errors(doc: Any, exc: ValidationError, source: str) -> str:
 
 def scene_from_dict(doc: Any, *, source: str = "scene", base: Path | None = None,
                     check: bool = True) -> Scene:
-    """Validate a parsed document (one scene) into a :class:`Scene`; :class:`SceneError` if bad."""
+    """Validate a parsed document (one scene) into a :class:`Scene`; :class:`SceneError` if bad.
+
+    An older format version is migrated first (:func:`scene.migrate.migrate`; each change a warning), a
+    newer one refused with one line naming the versions this illumix reads."""
     if not isinstance(doc, dict):
         raise SceneError(f"{source}: a scene must be a mapping, got {type(doc).__name__}")
+    try:
+        doc, notes = migrate(doc, source)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    for note in notes:
+        warnings.warn(note, stacklevel=2)
     try:
         scene = Scene.model_validate(doc)
     except ValidationError as exc:

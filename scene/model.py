@@ -16,11 +16,13 @@ import hashlib
 import json
 from functools import cached_property
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
-from illumix.scene.schema import (CONDUCTORS, SCHEMA_VERSION, ConstantSky, ConstantSpectrum, Dielectric,
+from illumix.scene.migrate import CURRENT
+from illumix.scene.schema import (CONDUCTORS, ConstantSky, ConstantSpectrum, Dielectric,
                                         DirectionalLight, EnvMapSky, FileSpectrum, Light, LightGroup,
                                         LibrarySpectrum, Material, MeshFile, Name, RoughConductor, SceneError,
                                         Shape, SpectrumSpec, StrictModel, TableSpectrum, View)
@@ -31,7 +33,24 @@ from illumix.retarget.illuminants import illuminant_spd as _library_spd
 from illumix.retarget.illuminants import spd_from_samples
 
 
+#: Fields added to the format after scenes were first hashed, with the value that means "as before":
+#: left out of :meth:`Scene.content_hash` at that value, so adding a field re-renders nothing.
+ADDED_DEFAULTS = {"materials": {"normal_map": None}}
+
+
+def _drop_added_defaults(doc: dict) -> None:
+    """Remove :data:`ADDED_DEFAULTS` fields at their default from a scene dump (in place)."""
+    for name, fields in ADDED_DEFAULTS.items():
+        items = doc.get(name) or {}
+        for item in (items.values() if isinstance(items, dict) else items):
+            for field, default in fields.items():
+                if isinstance(item, dict) and field in item and item[field] == default:
+                    del item[field]
+
+
 class GridSpec(StrictModel):
+    """The spectral grid the scene is rendered on: band edges from ``start`` to ``end`` nm in ``step`` nm."""
+
     start: float = 395.0
     end: float = 705.0
     step: float = 5.0
@@ -40,19 +59,26 @@ class GridSpec(StrictModel):
 class Scene(StrictModel):
     """A complete scene: see the module docstring."""
 
-    name: Name
-    schema_version: int = SCHEMA_VERSION
+    name: Name = Field(description="the scene's name in the cube store (letters, digits, _ . + -)")
+    schema_version: Literal[CURRENT] = Field(
+        CURRENT, description=f"the scene format's version, {CURRENT}; files written in an older version are "
+                             "migrated when loaded (scene.migrate), a document without it is read as version 1")
     description: str = ""
-    grid: GridSpec = GridSpec()
-    materials: dict[Name, Material] = Field(default_factory=dict)
-    shapes: list[Shape] = Field(default_factory=list)
-    lights: list[Light] = Field(default_factory=list)
-    light_groups: list[LightGroup] = Field(default_factory=list)
-    views: list[View] = Field(min_length=1)
-    max_depth: int = Field(default=8, ge=1, le=64)
+    grid: GridSpec = Field(GridSpec(), description="the spectral grid (nm) spectra are averaged onto")
+    materials: dict[Name, Material] = Field(default_factory=dict, description="materials by name, each "
+                                            "with measured or given reflectance spectra")
+    shapes: list[Shape] = Field(default_factory=list, description="geometry: primitives and meshes, each "
+                                "with a material and/or an area emitter")
+    lights: list[Light] = Field(default_factory=list, description="point, spot, directional (sun), constant "
+                                "and environment-map lights, each in a light group")
+    light_groups: list[LightGroup] = Field(default_factory=list, description="the groups that share one "
+                                           "illuminant (one transport cube each); omitted: in order of first use")
+    views: list[View] = Field(min_length=1, description="cameras: one cube per view and light group")
+    max_depth: int = Field(default=8, ge=1, le=64, description="longest light path (bounces)")
     # Where the scene came from, e.g. {"name": "illumix.scenegen", "version": "1", "seed": 7} or an
     # importer's {"name": "illumix.import", "format": "gltf", "file": ...}; copied into every cube's metadata.
-    generator: dict[str, str | int | float] | None = None
+    generator: dict[str, str | int | float] | None = Field(None, description="where the scene came from "
+                                                           "(generator or importer); copied into cube metadata")
 
     _base: Path | None = PrivateAttr(default=None)
 
@@ -256,6 +282,10 @@ class Scene(StrictModel):
         materials, lights, groups, grid, max depth — and the bytes of every referenced file."""
         doc = self.model_dump(mode="json", exclude={"views": True, "description": True,
                                                     "light_groups": {"__all__": {"kind"}}})
+        # the format's version is not content: pinned to 1 (what every hash held before version 2)
+        # so that cubes rendered before the format changed keep their hash (scene.migrate)
+        doc["schema_version"] = 1
+        _drop_added_defaults(doc)
         files: dict[str, str] = {}
         for p in self.referenced_files():
             path = self.resolve_path(p)
@@ -282,6 +312,8 @@ class Scene(StrictModel):
             if isinstance(light, EnvMapSky):
                 out.append(light.filename)
         for m in self.materials.values():
+            if getattr(m, "normal_map", None) is not None:
+                out.append(m.normal_map.file)
             for spec in (getattr(m, "reflectance", None), getattr(m, "specular_reflectance", None)):
                 if isinstance(spec, FileSpectrum):
                     out.append(spec.file)

@@ -34,7 +34,7 @@ from pydantic import Field, field_validator, model_validator
 from illumix.scene.spectra import (NAME_PATTERN, SCHEMA_VERSION, ConstantSpectrum, FileSpectrum,  # noqa: F401
                                          LibrarySpectrum, Name, SceneError, SpectrumSpec, StrictModel,
                                          TableSpectrum, Vec3)
-from illumix.scene.textures import BitmapTexture, PatternTexture, Reflectance  # noqa: F401
+from illumix.scene.textures import BitmapTexture, NormalMap, PatternTexture, Reflectance  # noqa: F401
 
 
 # ---------------------------------------------------------------------------------------------
@@ -43,6 +43,7 @@ from illumix.scene.textures import BitmapTexture, PatternTexture, Reflectance  #
 
 class _Material(StrictModel):
     two_sided: bool = True
+    normal_map: NormalMap | None = None  # bends the shading normal (textures.NormalMap); needs the shape's UVs
 
 
 class Diffuse(_Material):
@@ -167,11 +168,21 @@ class AreaEmission(StrictModel):
     portal: bool = False
 
 
+def _renderer_key(v: str) -> str:
+    # shape and light names become Mitsuba object keys, where '.' separates an object path
+    if "." in v:
+        raise ValueError(f"name {v!r} contains '.', which the renderer reserves (Mitsuba object paths); "
+                         f"use e.g. {v.replace('.', '_')!r}")
+    return v
+
+
 class _Shape(StrictModel):
     name: Name
     material: Name | None = None
     transform: Transform | None = None
     emitter: AreaEmission | None = None
+
+    _key = field_validator("name")(_renderer_key)
 
     @model_validator(mode="after")
     def _needs_material_or_emitter(self) -> _Shape:
@@ -236,6 +247,8 @@ class _Light(StrictModel):
     name: Name
     group: Name
     strength: float = Field(gt=0)
+
+    _key = field_validator("name")(_renderer_key)
 
 
 class PointLight(_Light):

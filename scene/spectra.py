@@ -8,8 +8,9 @@ from typing import Annotated, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
+from illumix.scene.migrate import CURRENT as SCHEMA_VERSION  # noqa: F401 - re-exported: the format's version
+
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"  # the cube store's name rules (no "..", see below)
-SCHEMA_VERSION = 1
 
 
 class SceneError(ValueError):

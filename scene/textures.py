@@ -89,6 +89,25 @@ class BitmapTexture(StrictModel):
         return self
 
 
+class NormalMap(StrictModel):
+    """A tangent-space normal map (a material's ``normal_map``): an 8-bit RGB PNG whose texels
+    ``c ∈ [0, 1]³`` are the unit normal ``2c − 1`` in the frame (∂p/∂u, n × ∂p/∂u, n) of the shape's
+    UVs and shading normal — glTF's and Blender's convention (green = +v of an image with v up), read
+    raw (no sRGB decoding). ``scale``: repeats per UV unit, as for :class:`BitmapTexture`. It bends
+    shading normals only (Mitsuba's ``normalmap``); albedo and emission are unchanged."""
+
+    file: str
+    scale: tuple[float, float] = (1.0, 1.0)
+
+    @model_validator(mode="after")
+    def _check(self) -> NormalMap:
+        if not all(np.isfinite(self.scale)) or min(self.scale) <= 0:
+            raise ValueError("scale must be two positive numbers (repeats per UV unit)")
+        if not self.file.lower().endswith(".png"):
+            raise ValueError(f"normal map {self.file!r}: give an 8-bit RGB PNG")
+        return self
+
+
 Texture = Union[PatternTexture, BitmapTexture]
 
 

@@ -9,9 +9,12 @@ Conventions
 - **Coordinates**: Blender's world frame as it is — right-handed, +Z up, one Blender unit = one
   metre (a unit scale other than 1 is warned about, not applied). Views take ``up`` from the camera's
   +Y axis, so the image is framed as in Blender.
+- **Names**: shapes, lights, materials, views and groups get renderer-safe keys
+  (:mod:`scene_import.names`: Blender's duplicate ``Cube.001`` → ``Cube_001``; Mitsuba reserves ``.``);
+  the originals are listed in the scene's ``generator.renamed``, with one warning.
 - **Light groups**: the custom property ``illumix_group`` on the object (or light data) if set, else
-  the object's first collection (instances: their instancer's), else ``scene``; the world background
-  is the group ``world``. Every group has ``emission: flat``: a light's or emitting material's
+  the object's first collection (instances: their instancer's), else ``scene``; the world is the
+  group ``world``. Every group has ``emission: flat``: a light's or emitting material's
   *colour* is replaced by the group's spectrum (a warning names each non-grey one) and only its
   magnitude is kept.
 - **Emitter strengths** (per unit of the group spectrum): point and spot — intensity ``P / 4π``
@@ -19,7 +22,11 @@ Conventions
   same power); sun — irradiance = its strength [W/m²]; area light — an emitting ``rectangle``/``disk``
   of radiance ``P / (π A)`` [W/(m² sr)] (``P / π`` when "normalize" is off), emitting along the light's
   −Z as in Blender; emitting materials — emission strength × the colour's largest channel; world —
-  a constant sky of background strength × the colour's largest channel.
+  a plain Background of constant colour is a ``constant`` sky of strength × the colour's largest
+  channel; any other world (Environment Texture, Sky Texture, mixes, groups) is baked by Cycles into
+  an equirectangular EXR (:mod:`scene_import.blend_nodes`) and imported as an ``envmap`` light of
+  strength 1 (the Background strength is in the pixels), turned into Blender's frame; a world with a
+  Sky Texture makes ``world`` a ``daylight`` group.
 - **Materials**: ``illumix_reflectance`` (custom property: ``"Library/Sample"`` or a bare sample name)
   names a measured reflectance from :mod:`retarget.reflectances`; otherwise the linear sRGB base
   colour is upsampled to a smooth spectrum (Jakob & Hanika 2019, under D65, 380–780 nm / 5 nm) and
@@ -28,12 +35,17 @@ Conventions
   (α = roughness², IOR; an upsampled base colour divided by
   :func:`scene.plastic_scale.plastic_diffuse_scale`, so it renders as bright as in Blender —
   Mitsuba's rough plastic loses 7–27 % of its diffuse light in the coating, the Principled BSDF
-  does not), otherwise ``diffuse``. Whatever cannot be represented (texture-linked
+  does not), otherwise ``diffuse``. Shader nodes inside node groups are followed (values given on
+  the Group node included). A base colour from an Image Texture node (UV-mapped) becomes a bitmap
+  reflectance (the image × the rough-plastic factor per texel, in the cache), and a tangent-space
+  Normal Map node of a UV-mapped image on the Normal input the material's ``normal_map`` (its
+  strength baked in as Cycles blends it); objects without a UV map get the image's mean colour and
+  no normal map instead. Whatever cannot be represented (other texture-linked
   inputs, other shader nodes, no material) is replaced by a stated value with a ``UserWarning``.
 - **Cache**: the worker's output goes to ``$ILLUMIX_CACHE/blend-import/<sha256(file)[:16]>/``
   (``ILLUMIX_CACHE`` defaults to ``~/.cache/illumix``), written to a temporary directory and renamed
-  into place; it is reused while the worker is unchanged. Linked libraries and images are not part
-  of the key.
+  into place; it is reused while the worker (``blend_worker.py`` and ``blend_nodes.py``) is unchanged.
+  Linked libraries and images are not part of the key.
 """
 
 from __future__ import annotations
@@ -45,6 +57,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -57,8 +70,10 @@ from illumix.scene.schema import SceneError
 from illumix.scene_import.blend_materials import (GREY, WAVELENGTHS, _emission, _is_grey, _Names,  # noqa: F401
                                                   _upsample, _warn, material_doc, resolve_reflectance,
                                                   rgb_to_spectrum, sanitize)
+from illumix.scene_import.names import Names, key_name, renamed_summary
 
 WORKER = Path(__file__).with_name("blend_worker.py")
+NODES = Path(__file__).with_name("blend_nodes.py")  # the worker's sibling module (part of the cache key)
 
 
 # -- pieces of the scene ------------------------------------------------------------------------
@@ -96,10 +111,10 @@ def view_doc(cam: dict, name: str, what: str) -> dict | None:
 
 def _group(item: dict, groups: dict[str, str]) -> str:
     if item.get("illumix_group"):
-        g = sanitize(item["illumix_group"], "group")
+        g = key_name(item["illumix_group"], "group")
         groups.setdefault(g, f"custom property illumix_group = {item['illumix_group']!r}")
     elif item.get("collections"):
-        g = sanitize(item["collections"][0], "collection")
+        g = key_name(item["collections"][0], "collection")
         groups.setdefault(g, f"Blender collection {item['collections'][0]!r}")
     else:
         g = "scene"
@@ -111,11 +126,12 @@ def _group(item: dict, groups: dict[str, str]) -> str:
 def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
     """The scene document for the worker's ``scene.json`` ``data`` (files under ``cache``)."""
     groups: dict[str, str] = {}
-    mats, shape_names, light_names = _Names(), _Names(), _Names()
+    # renderer-safe keys ("Cube.001" → "Cube_001": shape and light names are Mitsuba object keys)
+    mats, shape_names, light_names, views_names = Names(), Names(), Names(), Names()
     materials: dict[str, dict] = {}
     by_blender: dict[str, tuple[str | None, dict]] = {}
     for bname, info in data["materials"].items():
-        mdoc = material_doc(info, f"{where}: material {bname!r}")
+        mdoc = material_doc(info, f"{where}: material {bname!r}", cache)
         key = mats(bname, "material") if mdoc is not None else None
         if mdoc is not None:
             materials[key] = mdoc
@@ -128,8 +144,7 @@ def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
     # lights, world): it decides which duplicate gets a "-2" and the order of the light groups.
     shapes = _object_shapes(data["objects"], cache, where, by_blender, materials, mats, shape_names, groups)
     lights = _light_docs(data["lights"], where, shapes, groups, shape_names, light_names)
-    _world_light(data.get("world"), where, lights, groups, light_names)
-    views_names = _Names()
+    kinds = _world_light(data.get("world"), where, lights, groups, light_names, cache)
     views = [v for c in data["cameras"] if (v := view_doc(c, views_names(c["name"], "camera"),
                                                           f"{where}: camera {c['name']!r}"))]
     if not views:
@@ -138,10 +153,16 @@ def scene_doc(data: dict, cache: Path, stem: str, where: str) -> dict:
     if not used:
         raise SceneError(f"{where}: nothing in the .blend emits light (no lights, emitting materials or world "
                          "background); add a light")
-    return {"name": sanitize(stem, "blend"), "description": f"imported from {data.get('file') or stem} "
+    renamed, n = renamed_summary({"shape": shape_names, "light": light_names, "material": mats, "view": views_names})
+    if n:
+        _warn(f"{where}: {n} name(s) changed to renderer-safe keys (e.g. {renamed.split(';')[0].split(': ', 1)[1]}); "
+              "the originals are listed in the scene's generator.renamed")
+    return {"name": key_name(stem, "blend"), "description": f"imported from {data.get('file') or stem} "
             f"(Blender {data.get('blender', '?')})", "materials": materials, "shapes": shapes, "lights": lights,
-            "light_groups": [{"name": g, "emission": "flat", "description": d} for g, d in groups.items() if g in used],
-            "views": views}
+            "light_groups": [{"name": g, "emission": "flat", "description": d, **kinds.get(g, {})}
+                             for g, d in groups.items() if g in used],
+            "views": views, **({"generator": {"name": "illumix.import", "format": "blend", "file": Path(where).name,
+                                             "renamed": renamed}} if n else {})}
 
 
 def _object_shapes(objects: list[dict], cache: Path, where: str, by_blender: dict, materials: dict[str, dict],
@@ -153,6 +174,9 @@ def _object_shapes(objects: list[dict], cache: Path, where: str, by_blender: dic
         what = f"{where}: object {ob['name']!r}"
         entry = {"name": shape_names(ob["name"], "shape"), "type": "ply", "filename": str(cache / ob["ply"])}
         key, info = by_blender.get(ob["material"], (None, None)) if ob["material"] else (None, None)
+        if info is not None and (info.get("base_color_texture") or info.get("normal_map")) and not ob.get("uv") \
+                and key is not None:
+            key = _untextured(ob["material"], info, by_blender, materials, mats, what)
         if info is None:
             if grey is None:
                 grey = mats("default-grey")
@@ -172,6 +196,20 @@ def _object_shapes(objects: list[dict], cache: Path, where: str, by_blender: dic
             entry["material"] = key
         shapes.append(entry)
     return shapes
+
+
+def _untextured(bname: str, info: dict, by_blender: dict, materials: dict[str, dict], mats: Names, what: str) -> str:
+    """The variant of a textured material with the texture's mean colour (and no normal map), for an object
+    without a UV map."""
+    _warn(f"{what} has no UV map; material {bname!r}'s image texture is replaced by its mean colour (a normal "
+          "map is dropped)", 2)
+    if (bname, "untextured") not in by_blender:
+        key = mats(f"{bname}-untextured", "material")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # its problems were reported with the textured variant
+            materials[key] = material_doc({**info, "base_color_texture": None, "normal_map": None}, what)
+        by_blender[(bname, "untextured")] = (key, info)
+    return by_blender[(bname, "untextured")][0]
 
 
 def _light_docs(lights_data: list[dict], where: str, shapes: list[dict], groups: dict[str, str],
@@ -210,18 +248,34 @@ def _light_docs(lights_data: list[dict], where: str, shapes: list[dict], groups:
     return lights
 
 
-def _world_light(w: dict | None, where: str, lights: list[dict], groups: dict[str, str], light_names: _Names) -> None:
-    """Appends the world background, a ``constant`` light of the group ``world``, to ``lights`` when it
-    can be imported and emits. Warnings as from :func:`scene_doc` (``up=1``)."""
-    if w:
+def _world_light(w: dict | None, where: str, lights: list[dict], groups: dict[str, str], light_names: Names,
+                 cache: Path) -> dict[str, dict]:
+    """Appends the world, a ``constant`` light or a baked ``envmap`` of the group ``world``, to ``lights``
+    when it can be imported and emits; returns the group's extra fields (``kind: daylight`` for a Sky
+    Texture). Warnings as from :func:`scene_doc` (``up=1``)."""
+    if not w:
+        return {}
+    if w.get("envmap") and not w.get("peak", 1.0) > 0:
+        _warn(f"{where}: world: its baked environment map is black; the world emits nothing", 1)
+    elif w.get("envmap"):
         for p in w.get("problems", []):
-            _warn(f"{where}: world: {p}; the background is not imported", 1)
-        if w.get("color") is not None and not w.get("problems"):
-            s = _emission(w["color"], w["strength"], f"{where}: world background", 1)
-            if s > 0:
-                groups["world"] = "the world background"
-                lights.append({"name": light_names("world", "world"), "type": "constant", "group": "world",
-                               "strength": s})
+            _warn(f"{where}: world: {p}", 1)
+        what = " and ".join(w.get("textures") or []) or "node tree"
+        _warn(f"{where}: world {what} baked by Cycles into an environment map ({w.get('bake_seconds', '?')} s) "
+              f"and imported as the envmap light group 'world'", 1)
+        groups["world"] = f"the world's {what}, baked to an environment map"
+        lights.append({"name": light_names("world", "world"), "type": "envmap", "group": "world", "strength": 1.0,
+                       "filename": str(cache / w["envmap"]), "transform": {"matrix": w["to_world"]}})
+        return {"world": {"kind": "daylight"}} if w.get("sky") else {}
+    for p in w.get("problems", []):
+        _warn(f"{where}: world: {p}; the background is not imported", 1)
+    if w.get("color") is not None and not w.get("problems"):
+        s = _emission(w["color"], w["strength"], f"{where}: world background", 1)
+        if s > 0:
+            groups["world"] = "the world background"
+            lights.append({"name": light_names("world", "world"), "type": "constant", "group": "world",
+                           "strength": s})
+    return {}
 
 
 # -- running the worker -------------------------------------------------------------------------
@@ -234,7 +288,7 @@ def _cache_root() -> Path:
 def export_blend(path: Path, cache_dir: Path | None = None) -> Path:
     """The worker's output directory for ``path`` (run now unless cached); :class:`SceneError` on failure."""
     digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    worker_hash = hashlib.sha256(WORKER.read_bytes()).hexdigest()[:16]
+    worker_hash = hashlib.sha256(WORKER.read_bytes() + NODES.read_bytes()).hexdigest()[:16]
     out = Path(cache_dir) if cache_dir is not None else _cache_root() / digest
     done = out / "done.json"
     if done.is_file() and json.loads(done.read_text()) == {"file": digest, "worker": worker_hash}:

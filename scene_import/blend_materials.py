@@ -1,16 +1,19 @@
 """Names, colours and materials of the ``.blend`` importer (:mod:`scene_import.blend`).
 
 Scene-name sanitising, the Jakob & Hanika upsampling of linear sRGB colours to reflectance spectra,
-``illumix_reflectance`` look-ups, the worker's material records as illumix materials, and the flat
-group strength of an emission colour. The conventions are the importer's: see its module docstring.
+``illumix_reflectance`` look-ups, the worker's material records as illumix materials (with their image
+textures and normal maps, written beside the worker's output), and the flat group strength of an
+emission colour. The conventions are the importer's: see its module docstring.
 """
 
 from __future__ import annotations
 
 import difflib
+import os
 import re
 import warnings
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -116,8 +119,9 @@ def _is_grey(rgb) -> bool:
     return float(c.max() - c.min()) <= GREY * max(float(c.max()), 1e-12)
 
 
-def material_doc(info: dict, what: str) -> dict | None:
-    """The illumix material for a worker material record (None: emission only)."""
+def material_doc(info: dict, what: str, base: Path | None = None) -> dict | None:
+    """The illumix material for a worker material record (None: emission only); ``base``: the worker's
+    output folder, where its image textures are (without it, a texture's mean colour is used)."""
     for p in info["problems"]:
         _warn(f"{what}: {p}")
     if info["shader"] == "emission":
@@ -126,15 +130,24 @@ def material_doc(info: dict, what: str) -> dict | None:
     ior = min(max(float(info.get("ior", 1.5)), 1.0001), 4.0)
     ref = info.get("illumix_reflectance")
     if info["metallic"] > 0.5 or info["transmission"] > 0.5:
+        if info.get("normal_map") and info["metallic"] <= 0.5:
+            _warn(f"{what}: a dielectric takes no normal map; {info['normal_map']['image']!r} is not used")
         kind = "roughconductor (aluminium)" if info["metallic"] > 0.5 else f"dielectric (IOR {ior:.3g})"
         _warn(f"{what}: imported as {kind}; its base colour {'and illumix_reflectance are' if ref else 'is'} "
               "not used")
         if info["metallic"] > 0.5:
-            return {"kind": "roughconductor", "conductor": "Al", "alpha": alpha}
+            return _with_normal_map({"kind": "roughconductor", "conductor": "Al", "alpha": alpha}, info, base)
         return {"kind": "dielectric", "int_ior": ior}
     plastic = info["shader"] == "principled" and info["roughness"] < 0.999
+    tex = info.get("base_color_texture")
+    if ref and tex:
+        _warn(f"{what}: illumix_reflectance replaces the image texture {tex['image']!r}")
     if ref:
         refl = resolve_reflectance(ref, what)
+    elif tex and base is not None:
+        from illumix.scene.plastic_scale import plastic_diffuse_scale
+
+        refl = _texture_file(tex, base, 1.0 / plastic_diffuse_scale(alpha, ior) if plastic else 1.0, what)
     elif plastic:
         # Mitsuba's roughplastic darkens its diffuse term by the coating's transmittances, Blender's
         # Principled BSDF does not: the base colour / c keeps the Blender look (the inverse of the
@@ -149,8 +162,48 @@ def material_doc(info: dict, what: str) -> dict | None:
     else:
         refl = rgb_to_spectrum(info["base_color"], what)
     if plastic:
-        return {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
-    return {"kind": "diffuse", "reflectance": refl}
+        doc = {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": ior}
+        return _with_normal_map(doc, info, base)
+    return _with_normal_map({"kind": "diffuse", "reflectance": refl}, info, base)
+
+
+def _with_normal_map(doc: dict, info: dict, base: Path | None) -> dict:
+    """``doc`` with the material's normal map (its strength baked in, beside the worker's PNG), if any."""
+    nm = info.get("normal_map")
+    if not nm or base is None:
+        return doc
+    from PIL import Image
+
+    from illumix.scene_import.gltf_textures import normal_png
+
+    src = base / nm["file"]
+    data, digest = normal_png(Image.open(src), 1.0, float(nm["strength"]))
+    dst = src.with_name(f"{src.stem}-normal-{digest}.png")
+    if not dst.is_file():
+        tmp = dst.with_name(f".{dst.stem}.{os.getpid()}.png")
+        tmp.write_bytes(data)
+        os.replace(tmp, dst)
+    return {**doc, "normal_map": {"file": str(dst)}}
+
+
+def _texture_file(tex: dict, base: Path, factor: float, what: str) -> dict:
+    """A bitmap reflectance: the worker's PNG × ``factor`` per texel (linear light; the plastic
+    brightness correction), clipped only where it exceeds 1, written beside it (absolute path)."""
+    from PIL import Image
+
+    from illumix.scene_import.gltf_textures import with_factor
+
+    src = base / tex["file"]
+    dst = src.with_name(f"{src.stem}-x{factor:.5f}.png")
+    img, over = with_factor(Image.open(src), np.full(3, factor))
+    if over > 0:
+        _warn(f"{what}: image {tex['image']!r} / {1 / factor:.3g} (to render as bright as Blender's Principled "
+              f"BSDF as a rough plastic) exceeds 1 in {over:.1%} of the texels; clipped there", 1)
+    if not dst.is_file():  # written once into the cache; a temporary name, then renamed (concurrent imports)
+        tmp = dst.with_name(f".{dst.stem}.{os.getpid()}.png")
+        img.save(tmp, format="PNG")
+        os.replace(tmp, dst)
+    return {"file": str(dst)}
 
 
 def _emission(color, strength: float, what: str, up: int = 0) -> float:

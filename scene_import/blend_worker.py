@@ -1,7 +1,7 @@
 """Blend worker: reads a ``.blend`` file with Blender's ``bpy`` into plain data for illumix.
 
 Runs in Blender's Python (``bpy`` 4.5 pins numpy < 2; see :mod:`scene.blender_env`) and
-imports only the standard library, numpy and bpy — nothing of illumix.
+imports only the standard library, numpy, bpy and its sibling ``blend_nodes`` — nothing of illumix.
 :mod:`scene_import.blend` runs it and turns its output into a scene::
 
     python blend_worker.py FILE.blend OUT_DIR     # writes OUT_DIR/scene.json and OUT_DIR/meshes/*.ply
@@ -13,16 +13,20 @@ which illumix takes as metres):
   mesh (modifiers applied, render settings: modifiers shown in render, subdivision render levels,
   render visibility), triangulated by Blender's loop triangles, in world space. Vertices carry
   Blender's corner normals (smooth/flat/sharp edges and custom normals respected); corners with the
-  same position and normal share a vertex, so flat faces get their own vertices. Mirrored
+  same position and normal (and UV) share a vertex, so flat faces get their own vertices. Objects
+  whose material has an image texture or a normal map also carry their render UV map as ``u v`` with ``v`` flipped
+  (``1 − v``: row 0 of an image file at ``v = 0``, Mitsuba's bitmap convention). Mirrored
   transforms keep counter-clockwise winding about the outward normal.
-- **materials**: the values a Principled BSDF / Diffuse BSDF / Emission node holds, colours linear
-  (scene-linear sRGB primaries), and ``problems``: everything that could not be read as data
-  (texture-linked inputs, other shader nodes, ignored features) with what was used instead.
+- **materials**: the values a Principled BSDF / Diffuse BSDF / Emission node holds — in the material's
+  tree or inside its node groups (:mod:`scene_import.blend_nodes`) — colours linear (scene-linear
+  sRGB primaries), and ``problems``: everything that could not be read as data (texture-linked
+  inputs, other shader nodes, ignored features) with what was used instead.
 - **lights**: world position, direction (the light's −Z axis), power ``energy × 2^exposure`` [W]
   (sun: irradiance [W/m²]), linear colour (× blackbody colour when a temperature is used).
 - **cameras**: world matrix (columns: right, up, backward, position), horizontal field of view
   [degrees] from Blender's projection matrix (sensor fit, pixel aspect), resolution × percentage.
-- **world**: the colour and strength of a plain Background node.
+- **world**: the colour and strength of a plain Background node, or any other world (environment or
+  sky texture, mixes, groups) baked by Cycles into ``OUT_DIR/world.exr`` (:mod:`scene_import.blend_nodes`).
 
 Prints nothing on success; on failure one line on stderr and exit status 1.
 """
@@ -36,10 +40,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from blend_nodes import material_info, world_info  # this file's sibling (Python puts its folder on sys.path)
 
 GEOMETRY = ("MESH", "CURVE", "SURFACE", "META", "FONT")
-BSDFS = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfDiffuse")
-CONSTANTS = ("ShaderNodeRGB", "ShaderNodeValue")
 
 
 def _mat(m) -> np.ndarray:
@@ -49,14 +52,14 @@ def _mat(m) -> np.ndarray:
 # -- meshes ------------------------------------------------------------------------------------
 
 
-def write_ply(path: Path, pos: np.ndarray, nrm: np.ndarray, tris: np.ndarray) -> None:
-    """Binary little-endian PLY: float32 ``x y z nx ny nz`` per vertex, ``uchar int`` triangle lists."""
-    vert = np.concatenate([pos, nrm], axis=1).astype("<f4")
+def write_ply(path: Path, pos: np.ndarray, nrm: np.ndarray, tris: np.ndarray, uv: np.ndarray | None = None) -> None:
+    """Binary little-endian PLY: float32 ``x y z nx ny nz [u v]`` per vertex, ``uchar int`` triangle lists."""
+    vert = np.concatenate([pos, nrm] + ([uv] if uv is not None else []), axis=1).astype("<f4")
     face = np.empty(len(tris), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     face["n"], face["i"] = 3, tris
     head = ("ply\nformat binary_little_endian 1.0\ncomment illumix blend_worker\n"
             f"element vertex {len(vert)}\n" + "".join(f"property float {c}\n" for c in
-                                                     ("x", "y", "z", "nx", "ny", "nz"))
+                                                     ("x", "y", "z", "nx", "ny", "nz", *("uv" * (uv is not None))))
             + f"element face {len(face)}\nproperty list uchar int vertex_indices\nend_header\n")
     with open(path, "wb") as f:
         f.write(head.encode("ascii"))
@@ -64,8 +67,10 @@ def write_ply(path: Path, pos: np.ndarray, nrm: np.ndarray, tris: np.ndarray) ->
         f.write(face.tobytes())
 
 
-def mesh_parts(me, matrix: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``{material index: (positions (n,3), normals (n,3), triangles (m,3))}`` in world space."""
+def mesh_parts(me, matrix: np.ndarray, with_uv: bool = False) -> dict[int, tuple]:
+    """``{material index: (positions (n,3), normals (n,3), triangles (m,3), UVs (n,2) or None)}`` in world
+    space; UVs (``with_uv`` and a UV map: the one active for rendering) in the bitmap convention
+    ``v = 1 − v_Blender`` (row 0 of the image file at v = 0)."""
     me.calc_loop_triangles()
     nt, nl, nv = len(me.loop_triangles), len(me.loops), len(me.vertices)
     if nt == 0:
@@ -88,100 +93,23 @@ def mesh_parts(me, matrix: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray
     corners = loops.reshape(-1, 3)
     if np.linalg.det(a) < 0:
         corners = corners[:, ::-1]
+    layer = next((u for u in me.uv_layers if u.active_render), me.uv_layers.active) if with_uv else None
+    uv = None
+    if layer is not None:
+        uv = np.empty(nl * 2, np.float32)
+        layer.uv.foreach_get("vector", uv)
+        uv = uv.reshape(-1, 2) * [1.0, -1.0] + [0.0, 1.0]
     out = {}
     for m in np.unique(mat_idx):
         c = corners[mat_idx == m]
         flat = c.ravel()
-        key = np.concatenate([vidx[flat, None], nrm[flat].view(np.int32)], axis=1)
-        uniq, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        cols = [vidx[flat, None], nrm[flat].view(np.int32)] + ([uv[flat].astype(np.float32).view(np.int32)]
+                                                              if uv is not None else [])
+        uniq, first, inv = np.unique(np.concatenate(cols, axis=1), axis=0, return_index=True, return_inverse=True)
         src = flat[first]
-        out[int(m)] = (pos[vidx[src]], nrm[src], inv.reshape(-1, 3).astype(np.int32))
+        out[int(m)] = (pos[vidx[src]], nrm[src], inv.reshape(-1, 3).astype(np.int32),
+                       None if uv is None else uv[src].astype(np.float32))
     return out
-
-
-# -- materials ---------------------------------------------------------------------------------
-
-
-def _upstream(node):
-    """Nodes feeding ``node``, breadth first (``node`` itself first)."""
-    seen, queue, out = set(), [node], []
-    while queue:
-        n = queue.pop(0)
-        if n.as_pointer() in seen:
-            continue
-        seen.add(n.as_pointer())
-        out.append(n)
-        queue += [lk.from_node for s in n.inputs for lk in s.links]
-    return out
-
-
-def _value(node, socket: str, problems: list, what: str):
-    """An input's value: its own, or a constant RGB/Value node's; a problem when linked otherwise."""
-    s = node.inputs[socket]
-    raw = s.default_value
-    val = [float(x) for x in raw][:3] if hasattr(raw, "__len__") else float(raw)
-    if s.is_linked:
-        src = s.links[0].from_node
-        while src.bl_idname == "NodeReroute" and src.inputs[0].is_linked:
-            src = src.inputs[0].links[0].from_node
-        if src.bl_idname in CONSTANTS:
-            raw = src.outputs[0].default_value  # both have one output
-            return [float(x) for x in raw][:3] if hasattr(raw, "__len__") else float(raw)
-        shown = [round(x, 3) for x in val] if isinstance(val, list) else round(val, 3)
-        problems.append(f"{what} '{socket}' is linked to a {src.bl_label} node ({src.name!r}), which "
-                        f"cannot be imported; used the input's unlinked value {shown}")
-    return val
-
-
-def material_info(mat) -> dict:
-    """Plain values of a Blender material (see the module docstring)."""
-    d = {"name": mat.name, "shader": None, "base_color": [0.8, 0.8, 0.8], "roughness": 0.5,
-         "metallic": 0.0, "transmission": 0.0, "ior": 1.5, "emission_color": [0.0, 0.0, 0.0],
-         "emission_strength": 0.0, "illumix_reflectance": mat.get("illumix_reflectance"), "problems": []}
-    probs = d["problems"]
-    if not isinstance(d["illumix_reflectance"], str):
-        d["illumix_reflectance"] = None
-    if not mat.use_nodes or mat.node_tree is None:
-        d.update(base_color=list(mat.diffuse_color)[:3], roughness=float(mat.roughness),
-                 metallic=float(mat.metallic))
-        probs.append("uses no shader nodes; used its viewport display colour, roughness and metallic")
-        return d
-    outs = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"
-            and n.target in ("ALL", "CYCLES")]
-    out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
-    if out is None or not out.inputs["Surface"].is_linked:
-        probs.append("has no shader connected to a Material Output's Surface")
-        return d
-    surf = out.inputs["Surface"].links[0].from_node
-    nodes = _upstream(surf)
-    bsdf = next((n for n in nodes if n.bl_idname in BSDFS), None)
-    emit = next((n for n in nodes if n.bl_idname == "ShaderNodeEmission"), None)
-    if surf.bl_idname not in (*BSDFS, "ShaderNodeEmission"):
-        used = " and ".join(f"the {n.bl_label} node {n.name!r}" for n in (bsdf, emit) if n) or "nothing"
-        probs.append(f"surface is a {surf.bl_label} node ({surf.name!r}), which cannot be imported; used {used}")
-    if bsdf is None and emit is None:
-        probs.append("has no Principled BSDF, Diffuse BSDF or Emission node")
-        return d
-    if bsdf is not None and bsdf.bl_idname == "ShaderNodeBsdfPrincipled":
-        d["shader"] = "principled"
-        for key, sock in (("base_color", "Base Color"), ("roughness", "Roughness"), ("metallic", "Metallic"),
-                          ("transmission", "Transmission Weight"), ("ior", "IOR"), ("emission_color", "Emission Color"),
-                          ("emission_strength", "Emission Strength")):
-            d[key] = _value(bsdf, sock, probs, "input")
-        for sock, bad in (("Alpha", lambda v: v < 1), ("Subsurface Weight", lambda v: v > 0),
-                          ("Coat Weight", lambda v: v > 0), ("Sheen Weight", lambda v: v > 0)):
-            if bsdf.inputs[sock].is_linked or bad(bsdf.inputs[sock].default_value):
-                probs.append(f"'{sock}' is not imported (ignored)")
-    elif bsdf is not None:
-        d["shader"] = "diffuse"
-        d["base_color"] = _value(bsdf, "Color", probs, "input")
-        d["roughness"] = 1.0
-    else:
-        d["shader"] = "emission"
-    if emit is not None:
-        d["emission_color"] = _value(emit, "Color", probs, "Emission")
-        d["emission_strength"] = _value(emit, "Strength", probs, "Emission")
-    return d
 
 
 # -- lights, cameras, world --------------------------------------------------------------------
@@ -222,25 +150,6 @@ def camera_info(ob, render, dg) -> dict:
             "lens_mm": float(cam.lens), "dof": bool(cam.dof.use_dof)}
 
 
-def world_info(world) -> dict | None:
-    if world is None:
-        return None
-    if not world.use_nodes or world.node_tree is None:
-        return {"color": list(world.color)[:3], "strength": 1.0, "problems": []}
-    outs = [n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"]
-    out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
-    if out is None or not out.inputs["Surface"].is_linked:
-        return None
-    bg = out.inputs["Surface"].links[0].from_node
-    if bg.bl_idname != "ShaderNodeBackground":
-        return {"color": None, "strength": 0.0,
-                "problems": [f"the world surface is a {bg.bl_label} node, not a plain Background"]}
-    probs: list[str] = []
-    color = _value(bg, "Color", probs, "world Background")
-    strength = _value(bg, "Strength", probs, "world Background")
-    return {"color": color, "strength": strength, "problems": probs}
-
-
 # -- the whole file ----------------------------------------------------------------------------
 
 
@@ -260,6 +169,34 @@ def _render_visibility(bpy) -> None:
                 ob.hide_set(False, view_layer=vl)
 
 
+def _geometry(doc: dict, ob, m: np.ndarray, record: dict, out: Path, infos: dict) -> None:
+    """One PLY and object record per material slot of a geometry instance (its evaluated mesh);
+    UVs where a slot's material has an image texture."""
+    slots = [s.material for s in ob.material_slots]
+    for mat in slots:
+        if mat is not None and mat.name not in infos:
+            infos[mat.name] = material_info(mat, out)
+    with_uv = any(mat is not None and (infos[mat.name].get("base_color_texture") or infos[mat.name].get("normal_map"))
+                  for mat in slots)
+    me = ob.to_mesh()
+    try:
+        parts = mesh_parts(me, m, with_uv) if me is not None else {}
+    finally:
+        ob.to_mesh_clear()
+    name = record["object"]
+    if not parts:
+        doc["skipped"].append([name, "has no faces"])
+    for mi, (pos, nrm, tris, uv) in sorted(parts.items()):
+        mat = slots[mi] if 0 <= mi < len(slots) else None
+        if mat is not None and mat.name not in doc["materials"]:
+            doc["materials"][mat.name] = infos[mat.name]
+        ply = f"meshes/{len(doc['objects']):05d}.ply"
+        write_ply(out / ply, pos, nrm, tris, uv)
+        doc["objects"].append({"name": name if len(parts) == 1 else f"{name}-{mat.name if mat else mi}",
+                               "ply": ply, "material": mat.name if mat else None, "uv": uv is not None,
+                               "triangles": int(len(tris)), **record})
+
+
 def export(bpy, out: Path) -> dict:
     sc = bpy.context.scene
     _render_visibility(bpy)
@@ -267,9 +204,10 @@ def export(bpy, out: Path) -> dict:
     (out / "meshes").mkdir(parents=True, exist_ok=True)
     doc = {"file": bpy.data.filepath, "blender": bpy.app.version_string, "objects": [], "lights": [],
            "cameras": [], "materials": {}, "skipped": [],
-           "unit_scale": float(sc.unit_settings.scale_length), "world": world_info(sc.world)}
+           "unit_scale": float(sc.unit_settings.scale_length)}
     master = sc.collection
     count: dict[str, int] = {}
+    infos: dict[str, dict] = {}  # material records by name, made once (their textures are saved once)
     # A curve or text object's evaluated mesh comes twice: from the object's to_mesh() and as an
     # instance of its own geometry; keep the instance.
     realized = {i.parent.original.name for i in dg.object_instances
@@ -286,24 +224,7 @@ def export(bpy, out: Path) -> dict:
         group = ob.original.get("illumix_group", owner.get("illumix_group"))
         m = _mat(inst.matrix_world)
         if ob.type in GEOMETRY:
-            me = ob.to_mesh()
-            try:
-                parts = mesh_parts(me, m) if me is not None else {}
-            finally:
-                ob.to_mesh_clear()
-            if not parts:
-                doc["skipped"].append([name, "has no faces"])
-            slots = [s.material for s in ob.material_slots]
-            for mi, (pos, nrm, tris) in sorted(parts.items()):
-                mat = slots[mi] if 0 <= mi < len(slots) else None
-                if mat is not None and mat.name not in doc["materials"]:
-                    doc["materials"][mat.name] = material_info(mat)
-                ply = f"meshes/{len(doc['objects']):05d}.ply"
-                write_ply(out / ply, pos, nrm, tris)
-                doc["objects"].append({"name": name if len(parts) == 1 else f"{name}-{mat.name if mat else mi}",
-                                       "object": name, "ply": ply, "material": mat.name if mat else None,
-                                       "collections": colls, "illumix_group": group,
-                                       "triangles": int(len(tris))})
+            _geometry(doc, ob, m, {"object": name, "collections": colls, "illumix_group": group}, out, infos)
         elif ob.type == "LIGHT":
             d = light_info(ob, m)
             d.update(name=name, collections=colls,
@@ -314,6 +235,7 @@ def export(bpy, out: Path) -> dict:
     cams = [o for o in sc.objects if o.type == "CAMERA" and not o.hide_render]
     cams.sort(key=lambda o: (o != sc.camera, o.name))
     doc["cameras"] = [camera_info(o, sc.render, dg) for o in cams]
+    doc["world"] = world_info(bpy, sc.world, out)  # last: a baked world adds a scene to this (unsaved) file
     for d in (*doc["objects"], *doc["lights"]):
         if not isinstance(d["illumix_group"], str):
             d["illumix_group"] = None

@@ -19,25 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.scene_import.blend import _Names, sanitize
 from illumix.scene.spectra import SceneError
-from illumix.scene_import.colour_match import illuminant_for, uv_distance
+from illumix.scene_import.grouping import Emitter, assign, group_emission
+from illumix.scene_import.names import Names, key_name, renamed_summary
 from illumix.scene_import.rules import Rules
 
-COLOUR_TOLERANCE_UV = 6e-3  # CIE 1960 Δuv beyond which an emitter's colour is not its group's illuminant
 DEFAULT_WIDTH = 320  # pixels of an imported view (views carry no resolution in glTF/OBJ)
-
-
-@dataclass
-class Emitter:
-    """One light or emitting shape awaiting its group: ``doc`` gets ``group`` (lights) or
-    ``emitter.group`` (shapes). ``names`` are matched by rules; ``key`` is its default group."""
-
-    doc: dict
-    names: list[str]
-    key: str
-    xy: np.ndarray | None
-    what: str
 
 
 @dataclass
@@ -57,8 +44,9 @@ class SceneBuilder:
     hi: np.ndarray = field(default_factory=lambda: np.full(3, -np.inf))
 
     def __post_init__(self) -> None:
-        self._shape_names, self._light_names, self._view_names = _Names(), _Names(), _Names()
-        self._mat_names, self._files = _Names(), _Names()
+        # renderer-safe unique keys per kind (scene_import.names): "Cube.001" → "Cube_001"
+        self._shape_names, self._light_names, self._view_names = Names(), Names(), Names()
+        self._mat_names, self._files, self._group_names = Names(), Names(), Names()
 
     # -- bookkeeping ------------------------------------------------------------------------------
 
@@ -73,7 +61,9 @@ class SceneBuilder:
 
     def file_path(self, name: str, suffix: str) -> tuple[Path, str]:
         """``(absolute path, path relative to out_dir)`` of a new asset file."""
-        stem = self._files(Path(name).stem or "file", "file")
+        # the name as given, less a file extension it may carry: Path.stem would cut "Cube.001-0" at ".001-0"
+        base = name[: -len(suffix)] if suffix and name.lower().endswith(suffix.lower()) else name
+        stem = self._files(Path(base).name or "file", "file")
         rel = f"{self.assets}/{stem}{suffix}"
         path = self.out_dir / rel
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -112,28 +102,31 @@ class SceneBuilder:
         return rel
 
     def add_shape(self, name: str, doc: dict, emitter: tuple[list[str], str, np.ndarray | None, float] | None = None,
-                  what: str = "") -> dict:
+                  what: str = "", *, spectrum: dict | str | None = None, given: str = "") -> dict:
         """Add a shape document (``type`` and its fields, ``material`` and/or ``transform``);
-        ``emitter``: ``(names, default group key, xy, strength)`` makes it an area light."""
+        ``emitter``: ``(names, own group key, xy, strength)`` makes it an area light; ``spectrum`` /
+        ``given``: its exact emission and how the file gave it (:class:`scene_import.grouping.Emitter`)."""
         d = {"name": self._shape_names(name, "shape"), **doc}
         if emitter is not None:
             names, key, xy, strength = emitter
             d["emitter"] = {"group": None, "strength": float(strength)}
-            self.emitters.append(Emitter(d, names, key, xy, what or f"shape {name!r}"))
+            self.emitters.append(Emitter(d, [*names, d["name"]], key, xy, what or f"shape {name!r}", spectrum, given))
         if "material" not in d and "emitter" not in d:
             raise ValueError("a shape needs a material or an emitter")
         self.shapes.append(d)
         return d
 
     def add_light(self, name: str, doc: dict, xy: np.ndarray | None, strength: float,
-                  names: list[str] | None = None, what: str = "") -> dict:
+                  names: list[str] | None = None, what: str = "", *, spectrum: dict | str | None = None,
+                  given: str = "") -> dict:
         for key in ("position", "direction"):
             v = np.asarray(doc.get(key, (0.0, 0.0, 1.0)), dtype=float)
             if not np.all(np.isfinite(v)) or (key == "direction" and np.linalg.norm(v) < 1e-12):
                 raise SceneError(f"{what or f'light {name!r}'}: its {key} is degenerate (zero scale?); "
                                  "fix the light in the source file")
         d = {"name": self._light_names(name, "light"), **doc, "group": None, "strength": float(strength)}
-        self.emitters.append(Emitter(d, names or [name], name, xy, what or f"light {name!r}"))
+        self.emitters.append(Emitter(d, [*(names or [name]), d["name"]], name, xy, what or f"light {name!r}",
+                                     spectrum, given))
         self.lights.append(d)
         return d
 
@@ -168,29 +161,24 @@ class SceneBuilder:
 
     # -- the document -------------------------------------------------------------------------------
 
-    def finish(self, name: str, rules: Rules | None, description: str = "") -> dict:
-        """The scene document: light groups assigned and their illuminants chosen (module docstring)."""
+    def finish(self, name: str, rules: Rules | None, description: str = "", sky: bool = False) -> dict:
+        """The scene document: light groups assigned (:func:`scene_import.grouping.assign`) and their
+        spectra chosen (:func:`scene_import.grouping.group_emission`); renamed names recorded.
+
+        Nothing renderable is a :class:`SceneError`: no shape, or no emitter unless ``sky`` (then a
+        constant D65 sky of radiance 1 lights it, with a warning)."""
+        skipped = f" ({len(self.warnings)} warning(s): {self.warnings[0][:160]} …)" if self.warnings else ""
+        if not self.shapes:
+            raise SceneError(f"{self.source}: nothing to render: no shape could be imported{skipped}")
+        if not self.emitters and not sky:
+            raise SceneError(f"{self.source}: nothing to render: nothing emits light (no light or emitting "
+                             f"material could be imported); add one, or light it with a constant sky: illumix import --sky")
         if not self.emitters:
             self.add_light("sky", {"type": "constant"}, None, 1.0, what="default sky")
             self.warn(f"{self.source.name}: nothing emits light; added a constant sky 'sky' of radiance 1 (D65)")
         if not self.views:
             self.default_view(f"{self.source.name}: no camera")
-        members: dict[str, list[Emitter]] = {}
-        groups = _Names()
-        own: dict[tuple[str, str], str] = {}
-        for e in self.emitters:
-            rule = rules.group_for(e.names) if rules else None
-            if rule is not None:
-                g = rule.name
-            elif rules is not None and rules.default_group:
-                g = rules.default_group
-            else:
-                # keyed by kind too: a light and an emissive material of the same name stay apart
-                k = ("light" if "group" in e.doc else "shape", e.key)
-                if k not in own:
-                    own[k] = groups(e.key, "light")
-                g = own[k]
-            members.setdefault(g, []).append(e)
+        members = assign(self.emitters, rules, self._group_names)
         if rules:
             for r in rules.groups:
                 if r.name not in members:
@@ -198,37 +186,30 @@ class SceneBuilder:
                               f"(patterns {', '.join(r.match)})")
         light_groups = []
         for g, es in members.items():
-            emission, how = self._emission(g, es, rules)
+            emission, how = group_emission(g, es, rules.illuminant(g) if rules else None, self.warn)
             for e in es:
-                (e.doc if "group" in e.doc else e.doc["emitter"])["group"] = g
+                e.set_group(g)
             desc = (rules.description(g) if rules else "") or (
                 f"imported: {', '.join(dict.fromkeys(n for e in es for n in e.names[:1]))} ({how})")
-            light_groups.append({"name": g, "emission": emission, "description": desc[:300]})
-        doc = {"name": sanitize(name, "imported"), "description": description,
-               "generator": {"name": "illumix.import", "format": self.fmt, "file": self.source.name},
+            group = {"name": g, "emission": emission, "description": desc[:300]}
+            kinds = {"daylight" if e.type in ("envmap", "constant", "directional") else "artificial" for e in es}
+            if len(kinds) == 1:
+                group["kind"] = kinds.pop()
+            light_groups.append(group)
+        generator = {"name": "illumix.import", "format": self.fmt, "file": self.source.name}
+        renamed, n = renamed_summary({"shape": self._shape_names, "light": self._light_names,
+                                      "material": self._mat_names, "view": self._view_names})
+        if n:
+            generator["renamed"] = renamed  # the source file's names, for finding objects again
+            first = renamed.split(";")[0].split(": ", 1)[1]
+            self.warn(f"{self.source.name}: {n} name(s) changed to renderer-safe keys (e.g. {first}); "
+                      "the originals are listed in the scene's generator.renamed")
+        doc = {"name": key_name(name, "imported"), "description": description, "generator": generator,
                "materials": self.materials, "shapes": self.shapes, "lights": self.lights,
                "light_groups": light_groups, "views": self.views}
         if self.max_depth is not None:
             doc["max_depth"] = self.max_depth
         return _plain(doc)
-
-    def _emission(self, group: str, es: list[Emitter], rules: Rules | None) -> tuple[str, str]:
-        """The group's illuminant name and how it was chosen; warns for members of another colour."""
-        named = rules.illuminant(group) if rules else None
-        xys = [e.xy for e in es if e.xy is not None]
-        if named:
-            emission, how = named, f"illuminant {named} from the rule file"
-        elif xys:
-            mean = np.mean(xys, axis=0)
-            emission, cct = illuminant_for(mean)
-            how = f"{emission}, chosen by colour temperature ~{cct:.0f} K"
-        else:
-            emission, how = "D65", "D65: no colour given"
-        for e in es:
-            if e.xy is not None and (d := uv_distance(e.xy, emission)) > COLOUR_TOLERANCE_UV:
-                self.warn(f"{e.what}: its colour (xy {np.round(e.xy, 4).tolist()}) is Δuv {d:.3f} from its group "
-                          f"{group!r}'s illuminant {emission}; it is rendered with {emission}")
-        return emission, how
 
 
 def _plain(x):

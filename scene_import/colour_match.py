@@ -2,7 +2,7 @@
 
 - **Reflectances**: a linear sRGB colour (glTF ``baseColorFactor``, MTL ``Kd``, Mitsuba ``<rgb>``) becomes
   the smooth Jakob & Hanika (2019) spectrum whose colour under D65 (CIE 1931 2°) is that colour
-  (:func:`scene_import.blend.rgb_to_spectrum`: colour-science's ``XYZ_to_sd_Jakob2019``,
+  (:func:`jakob_hanika`: colour-science's ``XYZ_to_sd_Jakob2019``,
   380–780 nm / 5 nm, given inline). Grey colours become a constant spectrum (exact, and no optimiser run).
 - **Light colours** are reduced to a chromaticity ``xy`` (CIE 1931) and a luminance factor ``Y``
   (linear sRGB white ``(1, 1, 1)`` and the flat unit spectrum both have ``Y = 1``). A light group's
@@ -50,14 +50,30 @@ def reflectance(rgb, what: str, warn: Callable[[str], None]) -> dict:
         c = np.clip(c, 0.0, 1.0)
     if float(c.max() - c.min()) <= GREY_SPREAD:
         return {"value": round(float(c.mean()), 6)}
-    from illumix.scene_import.blend import rgb_to_spectrum
+    values, err = jakob_hanika(tuple(round(float(x), 6) for x in c))
+    if err > 1.0:
+        warn(f"{what}: no reflectance spectrum reproduces colour {np.round(c, 3).tolist()} closely "
+             f"(ΔE2000 {err:.1f}); used the closest smooth spectrum")
+    return {"wavelengths": JH_WAVELENGTHS.tolist(), "values": list(values)}
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        spec = rgb_to_spectrum(c, what)
-    for w in caught:
-        warn(str(w.message))
-    return spec
+
+JH_WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled reflectances' table
+
+
+@lru_cache(maxsize=4096)
+def jakob_hanika(rgb: tuple[float, float, float]) -> tuple[tuple[float, ...], float]:
+    """``(values on JH_WAVELENGTHS in [0, 1], ΔE2000 error)``: the smooth Jakob & Hanika (2019) spectrum
+    whose colour under D65 (CIE 1931 2°) is the linear sRGB ``rgb`` (colour-science's fit; here, not in
+    the Blender importer, so that every importer depends on this module and not the reverse)."""
+    import colour
+    from colour.recovery import XYZ_to_sd_Jakob2019
+
+    shape = colour.SpectralShape(380, 780, 5)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
+    sd, err = XYZ_to_sd_Jakob2019(xyz, cmfs, d65, additional_data=True)
+    return tuple(np.round(np.clip(sd.copy().align(shape).values, 0.0, 1.0), 6).tolist()), float(err)
 
 
 def mean_rgb(values) -> np.ndarray:
@@ -170,3 +186,50 @@ def illuminant_for(xy) -> tuple[str, float]:
     if uv_distance(xy, named) <= d_best + NAMED_SLACK_UV:
         return named, cct
     return best, cct
+
+
+# -- exact emission spectra ------------------------------------------------------------------------
+
+EDGE_NM = (390.0, 710.0)  # a table is zero-extended to cover at least this (the default grid's 392.5–707.5)
+
+
+def luminance_factor(wavelengths, values) -> float:
+    """``Y`` of a spectrum relative to the flat unit spectrum, on the default grid — the factor by which
+    illumix's photometric normalisation (:func:`retarget.illuminants.normalise`) divides it."""
+    from illumix.retarget.grid import DEFAULT_GRID, resample
+    from illumix.retarget.illuminants import spd_from_samples
+
+    raw = resample(np.asarray(wavelengths, float), np.asarray(values, float), DEFAULT_GRID)
+    norm = spd_from_samples(np.asarray(wavelengths, float), np.asarray(values, float), DEFAULT_GRID)
+    k = int(np.argmax(norm))
+    return float(raw[k] / norm[k])
+
+
+def table_light(wavelengths, values) -> tuple[dict | None, np.ndarray | None, float]:
+    """``(table spectrum spec, xy, Y)`` of an emission sampled at ``wavelengths`` (nm): zero outside its
+    samples (as Mitsuba's irregular spectrum), normalised so that ``Y ×`` illumix's normalised table is
+    the given spectrum. ``(None, None, 0)`` when it has no luminance."""
+    wl, v = np.asarray(wavelengths, float), np.asarray(values, float)
+    order = np.argsort(wl)
+    wl, v = wl[order], np.clip(v[order], 0.0, None)
+    if wl[0] > EDGE_NM[0]:
+        wl, v = np.r_[EDGE_NM[0], wl[0] - 1e-3, wl], np.r_[0.0, 0.0, v]
+    if wl[-1] < EDGE_NM[1]:
+        wl, v = np.r_[wl, wl[-1] + 1e-3, EDGE_NM[1]], np.r_[v, 0.0, 0.0]
+    xy, _ = spectrum_light(wl, v)
+    if xy is None or not np.any(v > 0):
+        return None, None, 0.0
+    y = luminance_factor(wl, v)
+    spec = {"wavelengths": [round(float(x), 6) for x in wl], "values": [float(f"{x:.9g}") for x in v / y]}
+    return spec, xy, y
+
+
+def blackbody_light(kelvin: float) -> tuple[str, np.ndarray, float]:
+    """``("blackbody:K", xy, Y)`` of Planck's spectral radiance at ``kelvin`` in W/(m²·sr·nm), as Mitsuba
+    3's ``blackbody`` spectrum emits it; ``Y`` relative to the flat unit spectrum."""
+    import colour
+
+    wl = np.arange(360.0, 831.0, 1.0)
+    v = colour.colorimetry.planck_law(wl * 1e-9, float(kelvin)) * 1e-9  # W/(sr·m²·m) → per nm
+    xy, _ = spectrum_light(wl, v)
+    return f"blackbody:{float(kelvin):g}", xy, luminance_factor(wl, v)

@@ -11,21 +11,16 @@ What maps to what
   its −z axis with +y up; glTF's vertical ``yfov`` (radians) becomes illumix's horizontal ``fov``
   (degrees) through ``aspectRatio`` (4:3 when absent); the resolution is 320 pixels wide at that
   aspect. Orthographic cameras are skipped with a warning. No camera: a view framing the scene.
-- **Materials** (metallic-roughness PBR): ``metallicFactor ≥ 0.5`` → ``roughconductor`` (a perfect
-  mirror, ``conductor: none``, tinted by the base colour's spectrum: glTF's metal Fresnel F0 is the
-  base colour); otherwise ``roughplastic`` (IOR 1.5, glTF's dielectric specular) with the base
-  colour divided by :func:`scene.plastic_scale.plastic_diffuse_scale` (Mitsuba's coating
-  darkens the diffuse term; glTF's does not), or ``diffuse`` when roughness is 1. ``α = roughness²``.
-  ``baseColorFactor`` (linear) → a Jakob–Hanika spectrum; ``baseColorTexture`` → a PNG written beside
-  the scene with the factor baked in (sRGB), a :class:`~scene.textures.BitmapTexture`.
-  ``doubleSided`` → ``two_sided``. ``KHR_materials_transmission`` ≥ 0.5 → ``dielectric``
-  (``KHR_materials_ior``). Normal, occlusion, metallic-roughness and emissive textures, alpha
-  blending and other extensions are warnings naming the material.
-- **Lights**: emissive materials (``emissiveFactor`` × ``KHR_materials_emissive_strength``) make their
-  shapes area lights of that radiance; ``KHR_lights_punctual`` point / spot lights (intensity in cd)
+- **Materials** (metallic-roughness PBR, with their base colour, metallic-roughness, emissive and
+  normal textures): :mod:`scene_import.gltf_materials`. A primitive whose textures vary between metal
+  and dielectric, or emitting and not, is written as one mesh per part.
+- **Lights**: emissive materials make their shapes (or the emitting parts of them) area lights;
+  ``KHR_lights_punctual`` point / spot lights (intensity in cd)
   and directional lights (illuminance in lx, travelling along the node's −z) become illumix lights.
   Their strengths are the source's photometric values × the colour's luminance ``Y``; their colours
   pick each group's CIE illuminant (:mod:`scene_import.colour_match`). ``range`` is ignored (warning).
+  A file without punctual lights (viewers light glTF models with an environment) gets a constant sky
+  ``sky`` of radiance 1 (D65) as a light group of its own, with a warning.
 """
 
 from __future__ import annotations
@@ -39,12 +34,13 @@ import numpy as np
 
 from illumix.scene.spectra import SceneError
 from illumix.scene_import.builder import DEFAULT_WIDTH, SceneBuilder
-from illumix.scene_import.colour_match import mean_rgb, reflectance, rgb_light, write_texture
+from illumix.scene_import.colour_match import rgb_light
+from illumix.scene_import.gltf_materials import SUPPORTED_EXT, GltfMaterial, material
+from illumix.scene_import.gltf_textures import submesh
+from illumix.scene_import.names import key_name
 
 COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
-SUPPORTED_EXT = {"KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_transmission",
-                 "KHR_materials_ior"}
 
 
 class _Reader:
@@ -113,6 +109,28 @@ class _Reader:
         img.load()
         return img
 
+    def texture(self, ti, label: str, what: str, warn):
+        """The PIL image of texture info ``ti`` (``label``: which of the material's textures), or None
+        with a warning when it has no readable image."""
+        if (ti.texCoord or 0) != 0:
+            warn(f"{what}: {label} uses TEXCOORD_{ti.texCoord}; TEXCOORD_0 is used")
+        if ti.extensions:
+            warn(f"{what}: {label} extension(s) {', '.join(ti.extensions)} ignored")
+        tex = self.gltf.textures[ti.index]
+        if tex.source is None:
+            warn(f"{what}: {label} has no image (extension {', '.join(tex.extensions or {}) or '?'}); ignored")
+            return None
+        try:
+            img = self.image(tex.source)
+        except Exception as exc:  # noqa: BLE001 — any unreadable image: say so, carry on without it
+            warn(f"{what}: {label} image {tex.source} cannot be read ({exc}); ignored")
+            return None
+        if tex.sampler is not None:
+            smp = self.gltf.samplers[tex.sampler]
+            if (smp.wrapS or 10497) != 10497 or (smp.wrapT or 10497) != 10497:
+                warn(f"{what}: texture wrap modes other than REPEAT are rendered as REPEAT")
+        return img
+
 
 def _local_matrix(node) -> np.ndarray:
     if node.matrix is not None and len(node.matrix) == 16:
@@ -148,116 +166,6 @@ def _name(obj, kind: str, i: int) -> str:
     return getattr(obj, "name", None) or f"{kind}{i}"
 
 
-def _material(b: SceneBuilder, r: _Reader, i: int) -> tuple[str | None, tuple | None]:
-    """``(material key or None, (names, xy, radiance) of its emission or None)``."""
-    m = r.gltf.materials[i]
-    name = _name(m, "material", i)
-    what = f"material {name!r}"
-    warn = b.warn
-    ext = m.extensions or {}
-    pbr = m.pbrMetallicRoughness
-    factor, metallic, rough = _pbr_factors(m, ext, what, warn)
-    alpha = min(max(rough ** 2, 1e-3), 1.0)
-    ti = pbr.baseColorTexture if pbr else None
-    texture = _base_color_texture(r, ti, what, warn) if ti is not None else None
-    trans = float((ext.get("KHR_materials_transmission") or {}).get("transmissionFactor", 0.0))
-    em = np.asarray(m.emissiveFactor or [0, 0, 0], float) * float(
-        (ext.get("KHR_materials_emissive_strength") or {}).get("emissiveStrength", 1.0))
-    if m.emissiveTexture is not None:
-        warn(f"{what}: emissiveTexture is ignored; emissiveFactor is used")
-    emission = ([name], *rgb_light(em)) if em.max() > 0 else None
-    if trans >= 0.5:
-        ior = float((ext.get("KHR_materials_ior") or {}).get("ior", 1.5))
-        warn(f"{what}: transmission {trans:g} → dielectric (IOR {ior:g}); base colour and roughness not used")
-        if emission:
-            warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped")
-        return b.add_material(name, {"kind": "dielectric", "int_ior": min(max(ior, 1.0001), 4.0)}), None
-    elif trans > 0:
-        warn(f"{what}: transmission {trans:g} < 0.5 is ignored (opaque)")
-    if 0 < metallic < 0.5 or 0.5 <= metallic < 1:
-        warn(f"{what}: metallicFactor {metallic:g} rounded to {'metal' if metallic >= 0.5 else 'dielectric'}")
-    metal = metallic >= 0.5
-    plastic = not metal and rough < 0.999
-    scale = 1.0
-    if plastic:
-        from illumix.scene.plastic_scale import plastic_diffuse_scale
-
-        scale = plastic_diffuse_scale(alpha, 1.5)
-    if texture is not None and metal:
-        factor = factor * np.append(mean_rgb(np.asarray(texture.convert("RGB"))), 1.0)
-        warn(f"{what}: a metal's baseColorTexture is averaged to one colour (conductor colours are spectra)")
-        texture = None
-    refl = _base_reflectance(b, texture, factor[:3] / scale, scale, name, what, warn)
-    two = bool(m.doubleSided)
-    if metal:
-        spec = reflectance(factor[:3], what, warn)
-        doc = {"kind": "roughconductor", "conductor": "none", "alpha": alpha, "specular_reflectance": spec,
-               "two_sided": two}
-    elif plastic:
-        doc = {"kind": "roughplastic", "reflectance": refl, "alpha": alpha, "int_ior": 1.5, "two_sided": two}
-    else:
-        doc = {"kind": "diffuse", "reflectance": refl, "two_sided": two}
-    return b.add_material(name, doc), emission
-
-
-def _pbr_factors(m, ext: dict, what: str, warn) -> tuple[np.ndarray, float, float]:
-    """``(base colour factor (4,), metallic, roughness)`` of material ``m``; warns of what is ignored."""
-    for e in sorted(set(ext) - SUPPORTED_EXT):
-        warn(f"{what}: extension {e} is not supported; ignored")
-    for tex, label in ((m.normalTexture, "normal map"), (m.occlusionTexture, "occlusion texture")):
-        if tex is not None:
-            warn(f"{what}: {label} is ignored")
-    if (m.alphaMode or "OPAQUE") != "OPAQUE":
-        warn(f"{what}: alphaMode {m.alphaMode} is ignored; the surface is opaque")
-    pbr = m.pbrMetallicRoughness
-    factor = np.asarray((pbr.baseColorFactor if pbr and pbr.baseColorFactor else [1, 1, 1, 1]), float)
-    metallic = float(pbr.metallicFactor if pbr and pbr.metallicFactor is not None else 1.0)
-    rough = float(pbr.roughnessFactor if pbr and pbr.roughnessFactor is not None else 1.0)
-    if pbr and pbr.metallicRoughnessTexture is not None:
-        warn(f"{what}: metallicRoughnessTexture is ignored; metallicFactor {metallic:g} and roughnessFactor "
-             f"{rough:g} are used")
-    return factor, metallic, rough
-
-
-def _base_color_texture(r: _Reader, ti, what: str, warn):
-    """The image of the ``baseColorTexture`` info ``ti``, or None (with a warning) if it has none."""
-    if (ti.texCoord or 0) != 0:
-        warn(f"{what}: baseColorTexture uses TEXCOORD_{ti.texCoord}; TEXCOORD_0 is used")
-    if ti.extensions:
-        warn(f"{what}: baseColorTexture extension(s) {', '.join(ti.extensions)} ignored")
-    tex = r.gltf.textures[ti.index]
-    if tex.source is None:
-        warn(f"{what}: baseColorTexture has no image (extension {', '.join(tex.extensions or {}) or '?'}); "
-             f"the base colour factor is used")
-        return None
-    try:
-        texture = r.image(tex.source)
-    except Exception as exc:  # noqa: BLE001 — any unreadable image: say so, use the factor
-        warn(f"{what}: baseColorTexture image {tex.source} cannot be read ({exc}); the factor is used")
-        return None
-    if tex.sampler is not None:
-        s = r.gltf.samplers[tex.sampler]
-        if (s.wrapS or 10497) != 10497 or (s.wrapT or 10497) != 10497:
-            warn(f"{what}: texture wrap modes other than REPEAT are rendered as REPEAT")
-    return texture
-
-
-def _base_reflectance(b: SceneBuilder, texture, base: np.ndarray, scale: float, name: str, what: str, warn) -> dict:
-    """The diffuse reflectance: ``texture`` × ``base`` (the base colour factor / ``scale``) as a PNG
-    beside the scene, or without a texture ``base``'s spectrum; ``base`` is clipped to 1, with a warning."""
-    if texture is not None:
-        if texture.mode in ("RGBA", "LA", "PA") and np.asarray(texture.getchannel("A")).min() < 255:
-            warn(f"{what}: the texture's alpha channel is ignored")
-        path, rel = b.file_path(f"{name}-basecolor", ".png")
-        if base.max() > 1:
-            warn(f"{what}: base colour factor / {scale:.3g} exceeds 1; clipped")
-        write_texture(texture, np.minimum(base, 1.0), path)
-        return {"file": rel}
-    if base.max() > 1:
-        warn(f"{what}: base colour / {scale:.3g} (to render as bright as glTF's diffuse lobe) exceeds 1; clipped")
-    return reflectance(np.minimum(base, 1.0), what, warn)
-
-
 def import_gltf(path: Path, b: SceneBuilder) -> str:
     """Fill ``b`` from a glTF file; returns the scene's name (see the module docstring)."""
     from pygltflib import GLTF2
@@ -274,9 +182,9 @@ def import_gltf(path: Path, b: SceneBuilder) -> str:
     for e in sorted(set(gltf.extensionsUsed or []) - SUPPORTED_EXT - set(gltf.extensionsRequired or [])):
         b.warn(f"{path.name}: extension {e} is not supported; ignored")
     lights_def = ((gltf.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
-    materials: dict[int, tuple] = {}
-    written: dict[tuple[int, int], tuple[str, bool]] = {}
-    default_mat: list[str] = []
+    materials: dict[int, GltfMaterial] = {}
+    written: dict[tuple[int, int], list[tuple]] = {}
+    default_mat: list[GltfMaterial] = []
     scene_i = gltf.scene if gltf.scene is not None else 0
     if not gltf.scenes:
         raise SceneError(f"{path}: the glTF file has no scene")
@@ -302,6 +210,10 @@ def import_gltf(path: Path, b: SceneBuilder) -> str:
                 b.warn(f"node {nname!r}: KHR_lights_punctual light {li} does not exist; skipped")
             else:
                 _light(b, lights_def[li], li, nname, world)
+    if not b.lights:
+        b.add_light("sky", {"type": "constant"}, None, 1.0, what="default sky")
+        b.warn(f"{path.name}: no punctual lights (glTF viewers light models with an environment); added a "
+               "constant sky 'sky' of radiance 1 (D65) as a light group of its own")
     return path.stem
 
 
@@ -315,39 +227,60 @@ def _mesh_node(b, r, mi, nname, world, materials, written, default_mat) -> None:
             continue
         if prim.targets:
             b.warn(f"{what}: morph targets are ignored")
+        mat = _prim_material(b, r, prim, materials, default_mat)
         if (mi, pi) not in written:
-            att = prim.attributes
-            if att.POSITION is None:
-                b.warn(f"{what}: no POSITION; skipped")
-                continue
-            pos = r.accessor(att.POSITION, what, b.warn)
-            idx = (r.accessor(prim.indices, what, b.warn)[:, 0].astype(np.int64) if prim.indices is not None
-                   else np.arange(len(pos)))
-            tris = _triangles(prim.mode if prim.mode is not None else 4, idx)
-            if tris is None or len(tris) == 0:
-                b.warn(f"{what}: mode {prim.mode} (points/lines) or no triangles; skipped")
-                continue
-            nrm = r.accessor(att.NORMAL, what, b.warn) if att.NORMAL is not None else None
-            uv = r.accessor(att.TEXCOORD_0, what, b.warn) if att.TEXCOORD_0 is not None else None
-            rel = b.write_ply(f"{mname}-{pi}", pos, tris, nrm, uv)
-            written[(mi, pi)] = (rel, nrm is None)
-            b.extend_bounds((world @ np.c_[pos, np.ones(len(pos))].T).T[:, :3])
-        rel, flat = written[(mi, pi)]
-        if prim.material is None:
-            if not default_mat:
-                default_mat.append(b.add_material("default", {"kind": "diffuse", "reflectance": {"value": 0.8}}))
-            key, emission = default_mat[0], None
-        else:
-            if prim.material not in materials:
-                materials[prim.material] = _material(b, r, prim.material)
-            key, emission = materials[prim.material]
-        doc = {"type": "ply", "filename": rel, "face_normals": flat, "material": key,
-               "transform": {"matrix": np.round(world, 12).tolist()}}
-        em = None
-        if emission is not None:
-            names, xy, y = emission
-            em = ([*names, nname, mname], names[0], xy, y)
-        b.add_shape(f"{nname}" + (f"-{pi}" if len(mesh.primitives) > 1 else ""), doc, em, what=what)
+            written[(mi, pi)] = _write_parts(b, r, prim, mat, key_name(f"{mname}-{pi}"), world, what)
+        parts = written[(mi, pi)]
+        for suffix, rel, flat, key, emission in parts:
+            doc = {"type": "ply", "filename": rel, "face_normals": flat, "material": key,
+                   "transform": {"matrix": np.round(world, 12).tolist()}}
+            em = None
+            if emission is not None:
+                xy, y = rgb_light(emission)
+                em = ([mat.name, nname, mname], mat.name, xy, y) if y > 0 else None
+            name = nname + (f"-{pi}" if len(mesh.primitives) > 1 else "") + (f"-{suffix}" if len(parts) > 1 else "")
+            b.add_shape(name, doc, em, what=what)
+
+
+def _prim_material(b, r, prim, materials, default_mat) -> GltfMaterial:
+    if prim.material is None:
+        if not default_mat:
+            g = GltfMaterial("default", "the default material")
+            g.fixed = b.add_material("default", {"kind": "diffuse", "reflectance": {"value": 0.8}})
+            default_mat.append(g)
+        return default_mat[0]
+    if prim.material not in materials:
+        materials[prim.material] = material(b, r, prim.material,
+                                            lambda ti, label, what: r.texture(ti, label, what, b.warn))
+    return materials[prim.material]
+
+
+def _write_parts(b, r, prim, mat: GltfMaterial, stem: str, world, what: str) -> list[tuple]:
+    """``[(suffix, PLY path, face normals?, material key, emission RGB or None)]``: the primitive's
+    triangles in object space, one PLY per part of its material (:meth:`GltfMaterial.parts`)."""
+    att = prim.attributes
+    if att.POSITION is None:
+        b.warn(f"{what}: no POSITION; skipped")
+        return []
+    pos = r.accessor(att.POSITION, what, b.warn)
+    idx = (r.accessor(prim.indices, what, b.warn)[:, 0].astype(np.int64) if prim.indices is not None
+           else np.arange(len(pos)))
+    tris = _triangles(prim.mode if prim.mode is not None else 4, idx)
+    if tris is None or len(tris) == 0:
+        b.warn(f"{what}: mode {prim.mode} (points/lines) or no triangles; skipped")
+        return []
+    nrm = r.accessor(att.NORMAL, what, b.warn) if att.NORMAL is not None else None
+    uv = r.accessor(att.TEXCOORD_0, what, b.warn) if att.TEXCOORD_0 is not None else None
+    if uv is None and mat.normal:
+        b.warn(f"{what}: no TEXCOORD_0, so {mat.what}'s normal map cannot apply; rendered without it")
+    b.extend_bounds((world @ np.c_[pos, np.ones(len(pos))].T).T[:, :3])
+    parts = mat.parts(pos, uv, tris, b.warn, what)
+    out = []
+    for suffix, sel, metal, emission in parts:
+        p, n, t, f = (pos, nrm, uv, tris) if len(parts) == 1 else submesh(pos, nrm, uv, tris[sel])
+        rel = b.write_ply(stem if len(parts) == 1 else f"{stem}-{suffix}", p, f, n, t)
+        out.append((suffix, rel, nrm is None, mat.key(metal, uv is not None), emission))
+    return out
 
 
 def _camera(b, cam, ci, nname, world) -> None:

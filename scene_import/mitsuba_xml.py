@@ -1,12 +1,14 @@
-"""Mitsuba 3 XML scenes → an illumix scene document, read with ElementTree (plain data, no Mitsuba).
+"""Mitsuba XML scenes (3, and legacy 0.5/2.x upgraded) → an illumix scene document, read with ElementTree.
 
-Values, references and transforms are read by :mod:`scene_import.mitsuba_xml_values`. Supported:
-``$variables`` with ``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture`` objects;
-transforms (``matrix``, ``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as Mitsuba
-does: each operation left-multiplies the matrix so far).
+Files, includes, search paths and legacy upgrades: :mod:`scene_import.mitsuba_files`. Values,
+references and transforms: :mod:`scene_import.mitsuba_xml_values`. Supported: ``$variables`` with
+``<default name value>``; ``<ref id>`` to top-level ``bsdf``/``texture`` objects; transforms (``matrix``,
+``translate``, ``rotate``, ``scale``, ``lookat``, applied in order as Mitsuba does: each operation
+left-multiplies the matrix so far).
 
-- **Shapes** ``obj``/``ply`` (the file is copied beside the scene), ``rectangle``, ``cube``, ``disk``,
-  ``sphere`` (``center``, ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), with ``to_world``.
+- **Shapes** ``obj``/``ply`` (copied beside the scene), ``serialized`` (read by Mitsuba, written as
+  PLY: :mod:`scene_import.mitsuba_meshes`), ``rectangle``, ``cube``, ``disk``, ``sphere`` (``center``,
+  ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), with ``to_world``.
 - **BSDFs** ``diffuse``, ``roughplastic``, ``plastic`` (α 0.01), ``conductor`` (α 0.01) /
   ``roughconductor`` (``material`` if illumix knows it, else Al), ``dielectric`` (also ``thindielectric``
   / ``roughdielectric``, with a warning), a ``twosided`` wrapper (illumix ``two_sided``; Mitsuba's
@@ -15,15 +17,12 @@ does: each operation left-multiplies the matrix so far).
   → constant; ``<spectrum value="λ:v, …">`` or ``filename`` → a table; ``bitmap`` textures (PNG/JPEG,
   copied) → bitmap textures.
 - **Emitters** ``area`` (in a shape), ``point``, ``spot``, ``directional``, ``constant`` and ``envmap``
-  → lights; each emitter's colour (rgb or spectrum) picks its group's CIE illuminant by colour
-  temperature and its strength is the colour's luminance ``Y`` (rgb white and the flat unit spectrum
-  both have ``Y = 1``; blackbody spectra are normalised to ``Y = 1`` × ``scale``).
+  → lights, their spectra kept where the file gives one (:mod:`scene_import.mitsuba_emitters`).
 - **Sensors** ``perspective`` (``thinlens`` with a warning) → views: ``to_world`` (Mitsuba's camera
   looks down its +z with +y up), ``fov`` + ``fov_axis`` or ``focal_length`` (35 mm film), film
   ``width``/``height`` (768×576 default).
 
-Anything else (integrators other than ``path`` ``max_depth``, ``include``, other plugins) is a warning
-naming the object.
+Anything else (integrators other than ``path`` ``max_depth``, other plugins) is a warning naming the object.
 """
 
 from __future__ import annotations
@@ -35,37 +34,15 @@ from pathlib import Path
 
 import numpy as np
 
-from illumix.scene.schema import CONDUCTORS, SceneError
+from illumix.scene.schema import CONDUCTORS
 from illumix.scene_import.builder import SceneBuilder
-from illumix.scene_import.colour_match import reflectance, rgb_light, spectrum_light
+from illumix.scene_import.colour_match import reflectance
+from illumix.scene_import.mitsuba_emitters import add_emitter, emission
+from illumix.scene_import.mitsuba_files import load_tree
+from illumix.scene_import.mitsuba_meshes import MESHES, mesh_doc, object_points
 from illumix.scene_import.mitsuba_xml_values import XmlDoc, ior, spectrum_samples, to_world, transform, vec
 
-SHAPES = ("obj", "ply", "rectangle", "cube", "disk", "sphere", "cylinder")
-
-
-def _colour(d: XmlDoc, c: ET.Element | None, what: str) -> tuple[np.ndarray | None, float, str]:
-    """``(xy, Y, kind)`` of an emission value element (rgb / spectrum / float)."""
-    if c is None:
-        return rgb_light([1, 1, 1])[0], 1.0, "default"
-    if c.tag == "rgb":
-        xy, y = rgb_light(vec(d, c))
-        return xy, y, "rgb"
-    if c.tag == "float":
-        v = float(d.get(c, "value"))
-        return rgb_light([1, 1, 1])[0] if v > 0 else None, v, "float"
-    if c.tag == "spectrum":
-        if d.get(c, "type") == "blackbody":
-            from illumix.scene_import.colour_match import illuminant_xy
-
-            t = float(d.value(c, "temperature", 6504.0))
-            return np.asarray(illuminant_xy(f"blackbody:{t:g}")), 1.0, "blackbody"
-        wl, v = spectrum_samples(d, c)
-        if wl is None:
-            return (rgb_light([1, 1, 1])[0] if v[0] > 0 else None), float(v[0]), "float"
-        xy, y = spectrum_light(wl, v)
-        return xy, y, "spectrum"
-    d.b.warn(f"{what}: emission given as <{c.tag}> (a texture?) is not supported; white of radiance 1 used")
-    return rgb_light([1, 1, 1])[0], 1.0, "default"
+SHAPES = (*MESHES, "rectangle", "cube", "disk", "sphere", "cylinder")
 
 
 def _reflectance(d: XmlDoc, c: ET.Element | None, what: str, default: float = 0.5):
@@ -84,7 +61,7 @@ def _reflectance(d: XmlDoc, c: ET.Element | None, what: str, default: float = 0.
         wl, v = spectrum_samples(d, c)
         return {"value": float(v[0])} if wl is None else {"wavelengths": wl.tolist(), "values": v.tolist()}
     if c.tag == "texture" and d.get(c, "type") == "bitmap":
-        src = d.path.parent / (d.value(c, "filename", "") or "")
+        src = d.file(c, d.value(c, "filename", "") or "")
         if src.suffix.lower() not in (".png", ".jpg", ".jpeg") or not src.is_file():
             d.b.warn(f"{what}: bitmap {src.name!r} is not a readable PNG/JPEG; grey {default} used")
             return {"value": default}
@@ -157,13 +134,8 @@ def _bsdf(d: XmlDoc, el: ET.Element, what: str, two: bool = False) -> dict:
 
 def import_mitsuba_xml(path: Path, b: SceneBuilder) -> str:
     """Fill ``b`` from a Mitsuba 3 XML file; returns the scene's name (module docstring)."""
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError) as exc:
-        raise SceneError(f"{path}: not a readable XML file ({exc})") from None
-    if root.tag != "scene":
-        raise SceneError(f"{path}: the root element is <{root.tag}>, not a Mitsuba <scene>")
-    d = XmlDoc(root, path, b)
+    root, paths = load_tree(path, b.warn)
+    d = XmlDoc(root, path, b, paths)
     mats: dict[int, str] = {}
     for i, el in enumerate(root):
         what = f"<{el.tag}{' type=' + repr(d.get(el, 'type')) if el.get('type') else ''}" \
@@ -173,14 +145,17 @@ def import_mitsuba_xml(path: Path, b: SceneBuilder) -> str:
         if el.tag == "shape":
             _shape(d, el, i, mats)
         elif el.tag == "emitter":
-            _emitter(d, el, d.get(el, "id") or f"{d.get(el, 'type')}{i}", np.eye(4))
+            add_emitter(d, el, d.get(el, "id") or f"{d.get(el, 'type')}{i}", np.eye(4))
         elif el.tag == "sensor":
             _sensor(d, el, i)
         elif el.tag == "integrator":
             depth = d.value(el, "max_depth")
             if d.get(el, "type") not in ("path", "volpath", "direct"):
                 b.warn(f"{what}: integrator is not used (illumix renders with its own path tracer)")
-            if depth is not None and 1 <= depth <= 64:
+            if depth == -1:  # Mitsuba's "unlimited"
+                b.max_depth = 64
+                b.warn(f"{what}: max_depth -1 (unlimited) is rendered with illumix's largest, 64")
+            elif depth is not None and 1 <= depth <= 64:
                 b.max_depth = int(depth)
             elif depth is not None:
                 b.warn(f"{what}: max_depth {depth:g} is outside 1..64; illumix's default 8 used")
@@ -199,14 +174,11 @@ def _shape(d: XmlDoc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
         return
     m = to_world(d, el)
     doc: dict = {"type": t}
-    if t in ("obj", "ply"):
-        src = d.path.parent / (d.value(el, "filename", "") or "")
-        if not src.is_file():
-            b.warn(f"{what}: mesh file {src.name!r} does not exist; skipped")
+    if t in MESHES:
+        mesh = mesh_doc(d, el, t, name, what)
+        if mesh is None:
             return
-        path, rel = b.file_path(src.stem, src.suffix.lower())
-        shutil.copyfile(src, path)
-        doc.update(filename=rel, face_normals=bool(d.value(el, "face_normals", False)))
+        doc = mesh
     elif t == "sphere":
         doc.update(center=list(d.value(el, "center", np.zeros(3))), radius=float(d.value(el, "radius", 1.0)))
     elif t == "cylinder":
@@ -216,7 +188,8 @@ def _shape(d: XmlDoc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
         b.warn(f"{what}: flip_normals is ignored")
     if not np.allclose(m, np.eye(4)):
         doc["transform"] = {"matrix": np.round(m, 12).tolist()}
-    b.extend_bounds(m[:3, 3])
+    pts = object_points(b, doc)
+    b.extend_bounds(pts @ m[:3, :3].T + m[:3, 3])
     bsdf = next((d.deref(c) for c in el if c.tag in ("bsdf", "ref")), None)
     if bsdf is not None and bsdf.tag == "bsdf":
         if id(bsdf) not in mats:
@@ -229,66 +202,18 @@ def _shape(d: XmlDoc, el: ET.Element, i: int, mats: dict[int, str]) -> None:
         if d.get(em_el, "type") != "area":
             b.warn(f"{what}: emitter type {d.get(em_el, 'type')!r} inside a shape is not supported; ignored")
         else:
-            xy, y, _ = _colour(d, d.child(em_el, "radiance"), what)
-            if xy is not None and y > 0:
+            em = emission(d, d.child(em_el, "radiance"), what)
+            if em.xy is not None and em.y > 0:
                 if doc.get("material") and b.materials[doc["material"]]["kind"] == "dielectric":
                     b.warn(f"{what}: a dielectric cannot emit in illumix; its emission is dropped")
                 else:
-                    emitter = ([name, d.get(em_el, "id") or ""], name, xy, y)
+                    emitter = ([name, d.get(em_el, "id") or ""], name, em.xy, em.y)
     if "material" not in doc and emitter is None:
         # Mitsuba's default BSDF is a grey diffuse (reflectance 0.5), one-sided
         if "default-diffuse" not in b.materials:
             b.materials["default-diffuse"] = {"kind": "diffuse", "reflectance": {"value": 0.5}, "two_sided": False}
         doc["material"] = "default-diffuse"
-    b.add_shape(name, doc, emitter, what=what)
-
-
-def _emitter(d: XmlDoc, el: ET.Element, name: str, parent: np.ndarray) -> None:
-    t = d.get(el, "type")
-    b = d.b
-    what = f"emitter {name!r}"
-    m = parent @ to_world(d, el)
-    if t == "point":
-        pos = d.value(el, "position")
-        pos = m[:3, 3] if pos is None else pos
-        xy, y, _ = _colour(d, d.child(el, "intensity"), what)
-        if xy is not None and y > 0:
-            b.add_light(name, {"type": "point", "position": np.asarray(pos, float).tolist()}, xy, y, what=what)
-    elif t == "spot":
-        xy, y, _ = _colour(d, d.child(el, "intensity"), what)
-        cutoff = float(d.value(el, "cutoff_angle", 20.0))
-        beam = float(d.value(el, "beam_width", cutoff * 3 / 4))
-        pos, fwd = m[:3, 3], m[:3, 2] / np.linalg.norm(m[:3, 2])
-        if xy is not None and y > 0:
-            b.add_light(name, {"type": "spot", "position": pos.tolist(), "target": (pos + fwd).tolist(),
-                               "cutoff_angle": min(cutoff, 89.9), "beam_width": min(beam, cutoff, 89.9)}, xy, y,
-                        what=what)
-    elif t == "directional":
-        xy, y, _ = _colour(d, d.child(el, "irradiance"), what)
-        direction = d.value(el, "direction")
-        direction = m[:3, 2] if direction is None else m[:3, :3] @ direction
-        if xy is not None and y > 0:
-            b.add_light(name, {"type": "directional", "direction": np.asarray(direction, float).tolist()}, xy, y,
-                        what=what)
-    elif t == "constant":
-        xy, y, _ = _colour(d, d.child(el, "radiance"), what)
-        if xy is not None and y > 0:
-            b.add_light(name, {"type": "constant"}, xy, y, what=what)
-    elif t == "envmap":
-        src = d.path.parent / (d.value(el, "filename", "") or "")
-        if not src.is_file():
-            b.warn(f"{what}: environment map {src.name!r} does not exist; skipped")
-            return
-        path, rel = b.file_path(src.stem, src.suffix.lower())
-        shutil.copyfile(src, path)
-        b.warn(f"{what}: the environment map's colours are replaced by its light group's illuminant (D65 unless "
-               "a rule names one); its luminance is kept")
-        doc = {"type": "envmap", "filename": rel}
-        if not np.allclose(m, np.eye(4)):
-            doc["transform"] = {"matrix": np.round(m, 12).tolist()}
-        b.add_light(name, doc, rgb_light([1, 1, 1])[0], float(d.value(el, "scale", 1.0)), what=what)
-    else:
-        b.warn(f"{what}: emitter type {t!r} is not supported; skipped")
+    b.add_shape(name, doc, emitter, what=what, **({"spectrum": em.spec, "given": em.given} if emitter else {}))
 
 
 def _sensor(d: XmlDoc, el: ET.Element, i: int) -> None:

@@ -25,8 +25,10 @@ IOR = {"vacuum": 1.0, "helium": 1.00004, "hydrogen": 1.00013, "air": 1.00028, "c
        "amber": 1.55, "pet": 1.575, "diamond": 2.419}
 
 class XmlDoc:
-    def __init__(self, root: ET.Element, path: Path, b: SceneBuilder) -> None:
-        self.path, self.b = path, b
+    """The scene tree (includes inlined) with its variables, ids and search folders."""
+
+    def __init__(self, root: ET.Element, path: Path, b: SceneBuilder, paths: list[Path] | None = None) -> None:
+        self.path, self.b, self.paths = path, b, list(paths or [])
         self.vars: dict[str, str] = {}
         self.ids: dict[str, ET.Element] = {}
         self.textures: dict[int, str] = {}
@@ -68,6 +70,13 @@ class XmlDoc:
         if c.tag in ("point", "vector"):
             return vec(self, c)
         return v
+
+    def file(self, el: ET.Element, name: str) -> Path:
+        """A file named in (a child of) ``el``: beside the file ``el`` came from, in a ``<path>`` folder,
+        or beside the main file (:func:`scene_import.mitsuba_files.resolve`)."""
+        from illumix.scene_import.mitsuba_files import resolve
+
+        return resolve(el, self.sub(name), self.paths, self.path.parent)
 
     def deref(self, el: ET.Element) -> ET.Element:
         if el.tag == "ref":
@@ -130,7 +139,7 @@ def to_world(d: XmlDoc, el: ET.Element) -> np.ndarray:
 
 def spectrum_samples(d: XmlDoc, c: ET.Element) -> tuple[np.ndarray | None, np.ndarray]:
     if c.get("filename"):
-        rows = [ln.split() for ln in (d.path.parent / d.get(c, "filename")).read_text().splitlines()
+        rows = [ln.split() for ln in d.file(c, d.get(c, "filename")).read_text().splitlines()
                 if ln.strip() and not ln.lstrip().startswith("#")]
         a = np.asarray([[float(x) for x in r[:2]] for r in rows])
         return a[:, 0], a[:, 1]

@@ -9,12 +9,17 @@ YAML::
         description: ceiling panels     # optional
       - name: window
         match: ["Sun", "Sky*"]
-    default_group: other                # optional: lights no rule names (default: a group of their own)
+    default_group: other                # optional: lights no rule names (default: the default rule)
+    grouping: kind                      # optional: "kind" (default) or "each" (one group per light)
 
-An emitter joins the first group with a pattern matching any of its names. Without a rule file (or
-for lights no rule names and no ``default_group``) each light — and each emissive material, with all
-its shapes — is a group of its own, named after it. Illuminant names are checked against
-:mod:`retarget.illuminants` (``F1``–``F12`` are accepted for colour-science's ``FL1``–``FL12``).
+An emitter joins the first group with a pattern matching any of its names (the source file's names
+and the renderer-safe keys they became, e.g. ``Cube.001`` and ``Cube_001``). Without a rule file, or
+for emitters no rule names when there is no ``default_group``, the default rule applies
+(:mod:`scene_import.grouping`): ``daylight`` (environment, sky, sun), ``warm`` (other emitters below
+4000 K) and ``cool`` (the rest), each with its own illuminant. ``grouping: each`` instead makes each
+light — and each emissive material, with all its shapes — a group of its own, named after it.
+Illuminant names are checked against :mod:`retarget.illuminants` (``F1``–``F12`` are accepted for
+colour-science's ``FL1``–``FL12``).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from __future__ import annotations
 import fnmatch
 import re
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, ValidationError, field_validator
 
@@ -53,6 +59,7 @@ class GroupRule(StrictModel):
 class Rules(StrictModel):
     groups: list[GroupRule] = Field(default_factory=list)
     default_group: Name | None = None
+    grouping: Literal["kind", "each"] = "kind"
 
     @field_validator("groups")
     @classmethod

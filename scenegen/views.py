@@ -12,11 +12,19 @@ emission, every emitter strength as in the scene), luminance ``Y`` per pixel, li
 below :data:`MIXED_SHARE` — where no single illuminant explains the white point, the pixels
 white-balance methods get wrong. One Mitsuba scene per group renders every candidate view at once
 (a ``batch`` sensor: one kernel per group).
+
+A kept view must be mixed enough to be worth its cubes (:class:`MixedLightRule`, :func:`probe_views`):
+by default at least 30 % of its valid pixels (some light arrives) have **two** groups each bringing
+more than 20 % of the pixel's light. A room with a "screen" group giving 4 % of the light has views
+that are single-illuminant in all but name; they are dropped, and the reason is given per view.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 CLEARANCE = 0.35
 MIXED_SHARE = 0.8
@@ -69,17 +77,87 @@ def clear_views(scene, views: list[str], resolution=PROBE_RES) -> np.ndarray:
     return (centre >= TARGET_SEEN * dist) & (near <= NEAR_SHARE)
 
 
-def probe(scene, views: list[str] | None = None, resolution=PROBE_RES,
-          spp: int = PROBE_SPP) -> tuple[np.ndarray, np.ndarray]:
-    """``(mixed fraction (V,), each group's share of the view's luminance (V, G))`` (module docstring)."""
+class MixedLightRule(BaseModel):
+    """The least mixed light a kept view must have (module docstring): at least ``min_fraction`` of its
+    valid pixels with two light groups each above ``min_share`` of the pixel's light."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    min_fraction: float = Field(default=0.3, ge=0.0, le=1.0,
+                                description="share of the view's valid pixels that must be mixed (0: keep every view)")
+    min_share: float = Field(default=0.2, gt=0.0, le=0.5,
+                             description="a group counts in a pixel above this share of the pixel's light")
+
+
+@dataclass
+class ViewProbe:
+    """What :func:`probe_views` measured per view: ``mixed`` the mixed-light fraction (module
+    docstring), ``shares`` ``(V, G)`` each group's share of the view's light, ``two_group`` the
+    fraction of valid pixels with two groups above the rule's share, ``keep`` whether the view passes
+    the rule, ``why`` a line per dropped view."""
+
+    views: list[str]
+    mixed: np.ndarray
+    shares: np.ndarray
+    two_group: np.ndarray
+    keep: np.ndarray
+    why: list[str] = field(default_factory=list)
+
+
+def two_group_fraction(y: np.ndarray, min_share: float) -> np.ndarray:
+    """``(V,)``: of each view's valid pixels (any light, ``Σ_g Y > 0``), the fraction whose second
+    strongest group brings more than ``min_share`` of the pixel's light. ``y``: ``(G, V, H, W)``
+    luminance per group (non-negative); 0 for a view without valid pixels or with one group."""
+    y = np.asarray(y, np.float64)
+    total = y.sum(axis=0)
+    valid = total > 0
+    if y.shape[0] < 2:
+        return np.zeros(y.shape[1])
+    second = np.sort(y, axis=0)[-2]  # (V, H, W): the second-largest group per pixel
+    mixed = valid & (second > min_share * np.where(valid, total, 1.0))
+    return mixed.sum(axis=(1, 2)) / np.maximum(valid.sum(axis=(1, 2)), 1)
+
+
+def apply_rule(views: list[str], two_group: np.ndarray, rule: MixedLightRule) -> tuple[np.ndarray, list[str]]:
+    """``(keep (V,) bool, a line per dropped view)`` of :class:`MixedLightRule`."""
+    keep = np.asarray(two_group) >= rule.min_fraction
+    why = [f"view {v}: {f:.0%} of its pixels have two light groups above {rule.min_share:.0%} of the light "
+           f"(at least {rule.min_fraction:.0%} needed); dropped" for v, f, k in zip(views, two_group, keep) if not k]
+    return keep, why
+
+
+def _luminance(scene, views: list[str], resolution, spp: int) -> np.ndarray:
+    """``(G, V, H, W)`` each group's probe luminance, blurred 3×3 (module docstring)."""
     import cv2
 
     from illumix.renderer_jobs.mitsuba.view_probe import group_luminance
 
+    y = np.stack([group_luminance(scene, views, g, resolution, spp) for g in scene.group_names])
+    return np.stack([[cv2.blur(y[g, v].astype(np.float32), (3, 3)) for v in range(y.shape[1])]
+                     for g in range(y.shape[0])])
+
+
+def probe_views(scene, views: list[str] | None = None, rule: MixedLightRule | None = None,
+                resolution=PROBE_RES, spp: int = PROBE_SPP) -> ViewProbe:
+    """One probe of ``views`` (all the scene's by default) and the verdict of ``rule`` (:class:`ViewProbe`;
+    default :class:`MixedLightRule`)."""
+    rule = MixedLightRule() if rule is None else rule
     views = [v.name for v in scene.views] if views is None else views
-    groups = scene.group_names
-    y = np.stack([group_luminance(scene, views, g, resolution, spp) for g in groups])  # (G, V, H, W)
-    y = np.stack([[cv2.blur(y[g, v].astype(np.float32), (3, 3)) for v in range(y.shape[1])] for g in range(y.shape[0])])
+    y = _luminance(scene, views, resolution, spp)
+    frac, shares = _fractions(y)
+    two = two_group_fraction(y, rule.min_share)
+    keep, why = apply_rule(views, two, rule)
+    return ViewProbe(views, frac, shares, two, keep, why)
+
+
+def probe(scene, views: list[str] | None = None, resolution=PROBE_RES,
+          spp: int = PROBE_SPP) -> tuple[np.ndarray, np.ndarray]:
+    """``(mixed fraction (V,), each group's share of the view's luminance (V, G))`` (module docstring)."""
+    views = [v.name for v in scene.views] if views is None else views
+    return _fractions(_luminance(scene, views, resolution, spp))
+
+
+def _fractions(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(mixed fraction (V,), shares (V, G))`` of ``(G, V, H, W)`` probe luminance."""
     total = y.sum(axis=0)
     lit = total > 0
     share = np.where(lit, y.max(axis=0) / np.where(lit, total, 1), 1.0)

@@ -39,10 +39,11 @@ def test_dng_single_illuminant(store, tmp_path):
 
     out = tmp_path / "dng"
     export_dataset(ExportOptions(store=store, out=str(out), format="DNG", sensors=[SENSOR], count=2, seed=1,
-                                 size=(32, 24)))
+                                 size=(32, 24), noise=None))  # noise-free: exact digital numbers below
     man = json.loads((out / "manifest.json").read_text())
     single = next(s for s in man["samples"] if s["file"].endswith("_1.dng"))
-    name = single["params"]["illuminants"][0]
+    # a pair place (the default A,D65): the one lit illuminant of the pair
+    name = single["params"]["pair"][single["params"]["intensities"].index(1.0)]
     w = get_sensor(SENSOR, DEFAULT_GRID).weights()
     wp = illuminant_spd(name, DEFAULT_GRID) @ w
     wp = wp / wp[1]
@@ -79,7 +80,7 @@ def test_dng_linear(store, tmp_path):
 
     out = tmp_path / "linear"
     s = export_dataset(ExportOptions(store=store, out=str(out), format="dng", bayer=None, count=2, seed=1,
-                                     size=(32, 24)))
+                                     size=(32, 24), noise=None))
     assert s["bayer"] is None and "LinearRaw" in (out / "README.md").read_text()
     man = json.loads((out / "manifest.json").read_text())
     ctx = make_context(CubeStore.open(store, mode="r"))

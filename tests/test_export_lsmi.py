@@ -25,7 +25,8 @@ def exported(tmp_path_factory):
     root = tmp_path_factory.mktemp("lsmi")
     store = build_export_store(root / "store")
     out = root / "out"
-    summary = export_dataset(ExportOptions(store=store, out=str(out), sensors=[SENSOR], seed=3))
+    # noise-free (noise=None, `--noise none`): the checks below compare exact values
+    summary = export_dataset(ExportOptions(store=store, out=str(out), sensors=[SENSOR], seed=3, noise=None))
     return store, out, summary
 
 

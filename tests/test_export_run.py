@@ -104,13 +104,13 @@ def test_interrupted_write_leaves_no_file(tmp_path):
     (["--size", "12x"], "WxH"),
     (["--size", "5000x10", "--count", "1"], "exceeds the service's limits"),
     (["--split", "0.5,0.5"], "three fractions"),
-    (["--gt", "physics"], "physical or formula"),
+    (["--gt", "physics"], "choose mixture (default), physical or formula"),
     (["--noise", "loud"], "noise"),
     (["--noise", "black_level:64.6"], "whole digital numbers"),
     (["--noise", "camera"], "--noise camera is /sample's"),  # not silently noise-free frames  # a DNG's BlackLevel, a TIFF's DN offset
     (["--format", "dng", "--size", "10x8"], "at least 22x22"),  # libraw refuses smaller DNGs
     (["--format", "exr", "--sensors", "XYZ", "--bayer", "BGGR"], "drop --sensors, --bayer"),
-    (["--format", "exr", "--gt", "formula", "--noise", "phone"], "drop --noise, --gt"),
+    (["--format", "exr", "--gt", "formula", "--noise", "none"], "drop --noise, --gt"),
     (["--format", "lsmi", "--exr-dtype", "float16"], "drop --exr-dtype"),
     (["--format", "lsmi", "--bayer", "BGGR"], "drop --bayer"),
     (["--format", "dng", "--exr-dtype", "float16"], "drop --exr-dtype"),

@@ -18,7 +18,9 @@ from illumix.scene.load import load_scenes, scene_from_dict
 from illumix.scene.schema import SceneError, rotation_matrix
 from illumix.scene_import import import_scene
 from illumix.scene_import.colour_match import illuminant_for, illuminant_xy, rgb_light
-from illumix.scene_import.rules import load_rules
+from illumix.scene_import.rules import load_rules, rules_from_dict
+
+EACH = rules_from_dict({"grouping": "each"})  # one group per light (the default groups by kind and CCT)
 from test_cli_spectra import assert_one_line_error
 
 
@@ -40,7 +42,7 @@ def _has(warnings, *words):
 
 @pytest.mark.parametrize("glb", [False, True], ids=["gltf", "glb"])
 def test_gltf_round_trip(tmp_path, glb):
-    doc, warns = import_scene(t.write_gltf(tmp_path / ("s.glb" if glb else "s.gltf"), glb=glb), tmp_path / "out")
+    doc, warns = import_scene(t.write_gltf(tmp_path / ("s.glb" if glb else "s.gltf"), glb=glb), tmp_path / "out", EACH)
     scene = _load(doc, tmp_path / "out")
     shapes = {s.name: s for s in scene.shapes}
     # GlowPanel: translate (0, 3, -2) · rotate 90° about x · scale 0.5 (glTF's T·R·S)
@@ -91,7 +93,7 @@ def test_cct_picks_the_illuminant():
 
 
 def test_obj_round_trip(tmp_path):
-    doc, warns = import_scene(t.write_obj(tmp_path / "room.obj"), tmp_path / "out")
+    doc, warns = import_scene(t.write_obj(tmp_path / "room.obj"), tmp_path / "out", EACH)
     scene = _load(doc, tmp_path / "out")
     shapes = {s.name: s for s in scene.shapes}
     assert set(shapes) == {"room-floor", "room-red", "panel"}
@@ -115,7 +117,7 @@ def test_obj_round_trip(tmp_path):
 
 
 def test_mitsuba_xml_round_trip(tmp_path):
-    doc, warns = import_scene(t.write_xml(tmp_path / "s.xml"), tmp_path / "out")
+    doc, warns = import_scene(t.write_xml(tmp_path / "s.xml"), tmp_path / "out", EACH)
     scene = _load(doc, tmp_path / "out")
     shapes = {s.name: s for s in scene.shapes}
     # scale 3, then rotate −90° about x, then translate y −0.01 (Mitsuba applies them in that order)
@@ -181,7 +183,9 @@ def test_cli_import_and_render_dry_run(tmp_path, capsys):
                       (["import", str(tmp_path / "missing.obj"), "--out", str(tmp_path / "a.yaml")], "does not exist"),
                       (["import", str(src), "--out", str(tmp_path / "a.txt")], ".yaml"),
                       (["import", str(src), "--out", str(tmp_path / "a.yaml"), "--rules", str(src)], "rule"),
-                      (["render", str(tmp_path / "x.fbx"), "--store", str(tmp_path / "st")], ".gltf")):
+                      (["render", str(tmp_path / "x.fbx"), "--store", str(tmp_path / "st")], ".gltf"),
+                      (["import", str(tmp_path / "x.blend"), "--out", str(tmp_path / "a.yaml")], "illumix render")):
+        (tmp_path / "x.blend").write_bytes(b"BLENDER")
         if argv[1].endswith(".fbx"):
             (tmp_path / "x.fbx").write_text("not a scene")
         line = assert_one_line_error(*run_cli(capsys, *argv))
@@ -210,6 +214,22 @@ def test_load_scene_file_caches_the_import(tmp_path):
     assert again == first and again.stat().st_mtime_ns == stamp and _has(warns, "no cameras")
 
 
+def test_an_edited_mtl_beside_the_obj_is_imported_again(tmp_path):
+    """The cache key covers the files beside the scene file (an MTL, an included XML, a texture),
+    not the main file alone: an edited material is not served from a stale import."""
+    import os
+
+    from illumix.scene_files import import_cached
+
+    src = t.write_obj(tmp_path / "room.obj")
+    first, _ = import_cached(src)
+    mtl = next(tmp_path.glob("*.mtl"))
+    mtl.write_text(mtl.read_text() + "\n# edited\n")
+    os.utime(mtl, ns=(mtl.stat().st_atime_ns, mtl.stat().st_mtime_ns + 10**9))
+    again, _ = import_cached(src)
+    assert again != first and again.is_file()
+
+
 # The required check: Mitsuba lifts the texture's sRGB texels by Jakob–Hanika; the rendered colour of
 # each patch under D65 must be the colour of colour-science's Jakob–Hanika spectrum of that texel.
 # Tolerance ΔE00 0.5: the quad is lit directly by a distant light along its normal, so a pixel's only
@@ -229,7 +249,7 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     from illumix.retarget.grid import resample
     from illumix.scene_import.colour_match import srgb_decode
 
-    doc, _ = import_scene(t.write_gltf(tmp_path / "s.gltf"), tmp_path / "out")
+    doc, _ = import_scene(t.write_gltf(tmp_path / "s.gltf"), tmp_path / "out", EACH)
     doc["views"][0]["resolution"] = [32, 32]
     scene = _load(doc, tmp_path / "out")
     assert scene.group("Sun").emission == "D65"
@@ -283,7 +303,7 @@ def test_degenerate_cameras_and_materials(tmp_path):
         import_scene(tmp_path / "same.xml", tmp_path / "o2")
     (tmp_path / "m.mtl").write_text("newmtl a\nKd 0.5 0.5 0.5\nNs -2\n")
     (tmp_path / "t.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n")
-    doc, _ = import_scene(tmp_path / "t.obj", tmp_path / "o3")
+    doc, _ = import_scene(tmp_path / "t.obj", tmp_path / "o3", sky=True)
     assert all(np.isfinite(m.get("alpha", 1.0)) for m in doc["materials"].values())
 
 
@@ -303,3 +323,29 @@ def test_one_importer_registry_keyed_by_extension(tmp_path):
     (tmp_path / "x.blend").write_bytes(b"BLENDER")
     with pytest.raises(SceneError, match="Blender file: import it"):
         load_scenes(tmp_path / "x.blend")
+
+
+def test_obj_finds_its_mtl_and_maps_like_exporters_write_them(tmp_path, monkeypatch):
+    """Issue 39: ``mtllib`` relative to the OBJ's folder (not the working folder), a name with spaces,
+    Windows separators; ``map_Kd``/``map_Ke`` relative to the MTL's folder, with options skipped."""
+    models = tmp_path / "models"
+    (models / "materials" / "tex").mkdir(parents=True)
+    t.texture_png(models / "materials" / "tex" / "wood.png", 8)
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (255, 128, 0)).save(models / "materials" / "tex" / "glow.png")
+    (models / "materials" / "my room.mtl").write_text(
+        "newmtl wood\nKd 1 1 1\nmap_Kd -s 2 2 1 -bm 0.5 tex/wood.png\n\n"
+        "newmtl neon\nKd 0 0 0\nKe 2 2 2\nmap_Ke tex\\glow.png\n")
+    (models / "room.obj").write_text(
+        "mtllib materials\\my room.mtl\nv 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 2 0\nv 1 2 0\nv 1 2 1\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nusemtl wood\nf 1/1 2/2 3/3\no sign\nusemtl neon\nf 4 5 6\n")
+    monkeypatch.chdir(tmp_path)  # elsewhere: names must not resolve against the working folder
+    doc, warns = import_scene(models / "room.obj", tmp_path / "out", EACH)
+    scene = _load(doc, tmp_path / "out")
+    assert scene.materials["wood"].reflectance.file.endswith(".png")
+    assert _has(warns, "material 'wood'", "-s 2 2 1", "-bm 0.5") and not _has(warns, "grey")
+    sign = next(s for s in scene.shapes if s.emitter is not None)
+    glow = colour.models.eotf_sRGB(np.array([1.0, 128 / 255, 0.0])) * 2  # Ke × the map's linear colour
+    assert math.isclose(sign.emitter.strength, rgb_light(glow)[1], rel_tol=1e-6)
+    assert _has(warns, "material 'neon'", "map_Ke", "averaged")

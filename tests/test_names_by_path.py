@@ -82,7 +82,7 @@ def test_one_resolver_takes_files_and_the_service_library_does_not(export_store,
 def test_export_takes_a_camera_json_and_an_illuminant_csv_by_path(export_store, files, tmp_path, capsys):
     import cv2
 
-    common = ["--count", "1", "--size", "32x24", "--seed", "3", "--json"]
+    common = ["--count", "1", "--size", "32x24", "--seed", "3", "--json", "--noise", "none"]
     code, out, err = run_cli(capsys, "export", export_store, str(tmp_path / "path"), "--sensors", files["camera"],
                              "--pairs", f"{files['light']},D65", *common)
     assert code == 0, err

@@ -106,6 +106,9 @@ def material_doc(scene: Scene, name: str, warn) -> dict:
                  "physical-conductor Fresnel takes no tint); used the bare conductor")
         return {"kind": "conductor", "eta": eta.tolist(), "k": k.tolist(), "roughness": math.sqrt(m.alpha),
                 "two_sided": m.two_sided, "albedo_rgb": [0, 0, 0]}
+    if getattr(m, "normal_map", None) is not None:
+        warn(f"{what}: the cycles backend renders without the normal map {m.normal_map.file!r} (flat shading "
+             "normals); use --backend mitsuba to render it")
     if is_texture(m.reflectance):
         raise SceneError(f"{what}: reflectance: textures render with the Mitsuba backend only; "
                          "use --backend mitsuba (or a plain spectrum)")

@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba.textures import reflectance_dict
+from illumix.renderer_jobs.mitsuba.textures import normal_map_dict, reflectance_dict
 from illumix.renderer_jobs.mitsuba.variant import RenderError, import_mitsuba
 from illumix.scene.model import Scene
 from illumix.scene.schema import (ConstantSky, Cube, Cylinder, Dielectric, DirectionalLight, Disk, EnvMapSky,
@@ -79,6 +79,8 @@ def _bsdf(scene: Scene, name: str) -> dict:
              "distribution": "ggx", "diffuse_reflectance": reflectance_dict(scene, m.reflectance, what, step_spectrum)}
     else:
         d = {"type": "diffuse", "reflectance": reflectance_dict(scene, m.reflectance, what, step_spectrum)}
+    if m.normal_map is not None:
+        d = {"type": "normalmap", "normalmap": normal_map_dict(scene, m.normal_map), "bsdf": d}
     return {"type": "twosided", "bsdf": d} if m.two_sided else d
 
 

@@ -8,6 +8,8 @@
   every process that builds a scene dictionary fills its own registry first).
 - A :class:`~scene.textures.BitmapTexture` becomes Mitsuba's ``bitmap`` (its spectral
   variants lift sRGB texels with the Jakob–Hanika 2019 model), repeated ``scale`` times per UV unit.
+- A material's :class:`~scene.textures.NormalMap` becomes a raw ``bitmap`` inside Mitsuba's ``normalmap``
+  BSDF, which wraps the material's own BSDF (inside ``twosided``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import hashlib
 import numpy as np
 
 from illumix.renderer_jobs.mitsuba.variant import RenderError, import_mitsuba
-from illumix.scene.textures import BitmapTexture, PatternTexture
+from illumix.scene.textures import BitmapTexture, NormalMap, PatternTexture
 
 PLUGIN = "illumix_pattern"
 _REGISTRY: dict[str, dict] = {}  # content key -> {"labels", "table", "start", "step", "scale"}
@@ -113,6 +115,15 @@ def bitmap_texture_dict(scene, tex: BitmapTexture) -> dict:
     return {"type": "bitmap", "filename": str(scene.resolve_path(tex.file)), "raw": False,
             "filter_type": "bilinear", "wrap_mode": "repeat",
             "to_uv": mi.ScalarTransform4f().scale([tex.scale[0], tex.scale[1], 1.0])}
+
+
+def normal_map_dict(scene, nm: NormalMap) -> dict:
+    """Mitsuba's ``bitmap`` of a tangent-space normal map, read raw (its texels are vectors, not colours),
+    for the ``normalmap`` BSDF that wraps a material with a ``normal_map``."""
+    mi, _ = import_mitsuba()
+    return {"type": "bitmap", "filename": str(scene.resolve_path(nm.file)), "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "repeat",
+            "to_uv": mi.ScalarTransform4f().scale([nm.scale[0], nm.scale[1], 1.0])}
 
 
 def reflectance_dict(scene, spec, what: str, step_spectrum) -> dict:
