@@ -9,11 +9,13 @@ Each scenario runs in its own process with its own ``HOME`` (Dr.Jit keeps compil
   (6 cubes and 2 views, defaults) in a fresh process, with an empty and then with a filled cache
   (goal: cold ≤ 60 CPU-s).
 * In one warm worker process (the cache filled by a first pass, as a long-lived worker has it), the
-  CPU of each job in turn: a 240×180 cube of scene A, then a cube of scene B (other geometry, same
-  light type: the fixed cost of a *new scene*), then scene B's point-light group (a *new light
-  type* for that process), then B's first cube again (into another store: nothing new).
-  ``new_scene_fixed_pct_of_240x180_cube``: (B's first cube − the same cube again) / the same cube
-  again (goal ≤ 10 %).
+  CPU of each job in turn: a 240×180 cube of scene A, then for three new scenes B1–B3 (other
+  geometry each, same light type) their first cube — the fixed cost of a *new scene* — and the same
+  cube again (into another store: nothing new); and B1's point-light group (a *new light type* for
+  that process). ``new_scene_fixed_pct_of_240x180_cube``: the mean of (first − again) over B1–B3
+  / the mean cube again (goal ≤ 10 %); ``new_scene_fixed_spread_pct`` the spread of the three
+  (a shared machine's noise); ``new_scene_fixed_pct_of_default_cube`` the same fixed cost against
+  the cube at the default settings (64 spp; the scenes above use 16, as the issue's commands do).
 
 CPU seconds (process time, all threads) so that other load on a shared machine does not count.
 Human lines on stderr; one JSON object last on stdout.
@@ -51,28 +53,31 @@ def scene(name, extra_shape, res):
     doc["name"] = name
     for v in doc["views"]:
         v["resolution"] = list(res)
-    if extra_shape:  # other geometry: a second ball and a box
-        doc["shapes"] += [{"name": "ball2", "type": "sphere", "material": "grey", "center": [0.8, 0.3, 0.2],
-                           "radius": 0.3},
-                          {"name": "box", "type": "cube", "material": "cc",
-                           "transform": {"scale": 0.25, "translate": [-0.8, 0.25, 0.3]}}]
+    for k in range(extra_shape):  # other geometry: more balls and boxes, each scene its own
+        doc["shapes"] += [{"name": f"ball{k + 2}", "type": "sphere", "material": "grey",
+                           "center": [0.8 - 0.3 * k, 0.3, 0.2 + 0.2 * k], "radius": 0.3 - 0.05 * k},
+                          {"name": f"box{k}", "type": "cube", "material": "cc",
+                           "transform": {"scale": 0.25, "translate": [-0.8 + 0.2 * k, 0.25, 0.3 - 0.3 * k]}}]
     p = tmp / f"{name}.yaml"
     p.write_text(yaml.safe_dump(doc))
     return load_scenes(p)[0]
 
-def run(s, store, group):
+def run(s, store, group, config=settings):
     p = jobs.plan([s], str(tmp / store), groups=[group])
     for job in p.jobs:
         t = time.process_time()
-        jobs.run_job(jobs._scene_payload(s), job, str(tmp / store), settings, 2)
+        jobs.run_job(jobs._scene_payload(s), job, str(tmp / store), config, 2)
         out.append({"store": store, "job": job.label, "cpu_s": round(time.process_time() - t, 3)})
 
-run(scene("warm", False, (240, 180)), "warmup", "lamp")  # a long-lived worker's kernels
-run(scene("a", False, (240, 180)), "a", "lamp")
-b = scene("b", True, (240, 180))
-run(b, "b", "lamp")    # scene B's first cube in this process: new scene (its kernels, its data)
-run(b, "b", "bulb")    # its point light: a light type this process has not rendered yet
-run(b, "b2", "lamp")   # scene B's same cube again: what the cube costs without anything new
+run(scene("warm", 0, (240, 180)), "warmup", "lamp")  # a long-lived worker's kernels
+run(scene("a", 0, (240, 180)), "a", "lamp")
+for k in (1, 2, 3):  # new scenes, each rendered twice: the first time pays what a new scene costs
+    b = scene(f"b{k}", k, (240, 180))
+    run(b, f"b{k}", "lamp")        # its first cube in this process (its kernels, its data)
+    if k == 1:
+        run(b, f"b{k}", "bulb")    # its point light: a light type this process has not rendered yet
+    run(b, f"b{k}-again", "lamp")  # the same cube again: what the cube costs without anything new
+run(b, "b3-default", "lamp", RenderSettings().model_dump(mode="json"))  # the cube at the default spp
 print(json.dumps(out))
 '''
 
@@ -106,16 +111,23 @@ def main() -> None:
         rows = json.loads(out.strip().splitlines()[-1])
         for r in rows:
             say(f"  {r['store']}: {r['job']} 240x180: {r['cpu_s']:.2f} CPU-s")
-        a = next(r["cpu_s"] for r in rows if r["store"] == "a" and r["job"].endswith("/lamp"))
-        b_same = next(r["cpu_s"] for r in rows if r["store"] == "b" and r["job"].endswith("/lamp"))
-        b_point = next(r["cpu_s"] for r in rows if r["store"] == "b" and r["job"].endswith("/bulb"))
-        b_again = next(r["cpu_s"] for r in rows if r["store"] == "b2" and r["job"].endswith("/lamp"))
+        cube = lambda store, group="lamp": next(r["cpu_s"] for r in rows  # noqa: E731
+                                                if r["store"] == store and r["job"].endswith("/" + group))
+        firsts = [cube(f"b{k}") for k in (1, 2, 3)]
+        agains = [cube(f"b{k}-again") for k in (1, 2, 3)]
+        fixed = [f - a for f, a in zip(firsts, agains)]
+        mean_again = sum(agains) / len(agains)
+        mean_fixed = sum(fixed) / len(fixed)
         result = {"demo_cold_cpu_s": round(cold, 1), "demo_warm_cpu_s": round(warm, 1),
                   "kernel_build_cpu_s": round(cold - warm, 1), "demo_goal_met": cold <= 60.0,
-                  "cube_240x180_cpu_s": a, "new_scene_cube_cpu_s": b_same, "new_light_type_cube_cpu_s": b_point,
-                  "same_cube_again_cpu_s": b_again,
-                  "new_scene_fixed_cpu_s": round(b_same - b_again, 2),
-                  "new_scene_fixed_pct_of_240x180_cube": round(100 * max(b_same - b_again, 0.0) / b_again, 1),
+                  "cube_240x180_cpu_s": cube("a"), "new_scene_cube_cpu_s": firsts,
+                  "new_light_type_cube_cpu_s": cube("b1", "bulb"), "same_cube_again_cpu_s": agains,
+                  "new_scene_fixed_cpu_s": [round(x, 2) for x in fixed],
+                  "new_scene_fixed_pct_of_240x180_cube": round(100 * max(mean_fixed, 0.0) / mean_again, 1),
+                  "new_scene_fixed_spread_pct": round(100 * (max(fixed) - min(fixed)) / mean_again, 1),
+                  "new_scene_goal_met": mean_fixed <= 0.10 * mean_again,
+                  "cube_240x180_default_spp_cpu_s": cube("b3-default"),
+                  "new_scene_fixed_pct_of_default_cube": round(100 * max(mean_fixed, 0.0) / cube("b3-default"), 1),
                   "jobs": rows}
     print(json.dumps(result))
 

@@ -98,9 +98,13 @@ class _BandPath:
     ``rho``) in place and return the other loop values they change."""
 
     def __init__(self, props, quads, step, max_depth, illumination, flat_emission):
-        mi, _ = import_mitsuba()
+        mi, dr = import_mitsuba()
         mi.SamplingIntegrator.__init__(self, props)
+        # opaque: the band set's wavelengths are the kernel's inputs, not literals in its code, so
+        # every band set and pass of a scene runs the one compiled kernel (as literals, each set
+        # compiled its own: bench/RENDER_PERF.md "Fixed costs")
         self.lows = [mi.Spectrum(*q) for q in quads]
+        dr.make_opaque(*self.lows)
         self.quads = list(self.lows)  # this path's wavelengths, set per sample (sample())
         self.guard = band_guard(step)
         self.width = float(step) - 2 * self.guard

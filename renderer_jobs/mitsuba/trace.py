@@ -141,7 +141,9 @@ class Tracer:
         hit = si.is_valid() & mi.has_flag(bsdf.flags(), mi.BSDFFlags.DiffuseReflection)
         out = np.empty((len(pix), quads.size), np.float32)
         for q, quad in enumerate(quads):
-            si.wavelengths = type(si.wavelengths)(*[float(x) for x in quad])
+            wl = type(si.wavelengths)(*[float(x) for x in quad])
+            dr.make_opaque(wl)  # an input, not literals: the 16 quadruples share one kernel
+            si.wavelengths = wl
             alb = dr.select(hit, bsdf.eval_diffuse_reflectance(si, hit), 0.0)
             dr.eval(alb)
             out[:, 4 * q:4 * q + 4] = _numpy4(alb)
