@@ -27,7 +27,12 @@ Warm cubes (kernels cached): 64×48 × 16 spp 1.5–3.3 CPU s; 160×120 × 16 sp
 4.9–12.2 s, × 128 spp 12.7–21.7 s; 320×240 × 32 spp 18.1–38.0 s (``MEASURED``). Views: 0.6 s (64×48), 3.0 s
 (160×120), 12.2 s (320×240). A fresh process with a cold kernel cache: the 64×48 demo (2 views, 6
 cubes) took 32.6 CPU s against 16.4 s warm, the first cube of each of its 3 light groups 3.6–7.9 s
-over a warm one (16 s in all). Timings of identical work move by ±15 % on that machine.
+over a warm one (16 s in all); since the band sets' wavelengths are kernel inputs rather than
+literals (one kernel for every band set), 27.2 against 17.9 s warm: 9.3 s of kernel builds for its
+3 light group kinds (``bench/fixed_costs.py``, bench/RENDER_PERF.md). The per-cube terms were then
+refitted to the demo measured warm at two sizes (the estimate had missed a fixed cost that small
+cubes feel: 9.8 s estimated against 17.9 s measured at 64×48, 46.7 against 48.2 s at 160×120 × 16 spp):
+``CUBE_S`` 0.3 → 1.9 s, ``CUBE_PER_PIXEL_S`` 2.6e-4 → 1.9e-4 s. Timings of identical work move by ±15 % on that machine.
 """
 
 from __future__ import annotations
@@ -40,10 +45,10 @@ from dataclasses import dataclass
 MACHINE = "a 2-vCPU shared VM (CPU only, Mitsuba 3.9 LLVM)"
 VIEW_S = 0.15  # CPU s of a view job, fixed
 VIEW_PER_PIXEL_S = 1.6e-4  # … per pixel at aov_spp 16
-CUBE_S = 0.3  # CPU s of a cube job, fixed (tests/test_render_cli.py's 20×14 scene: 0.2–0.4 s a cube)
-CUBE_PER_PIXEL_S = 2.6e-4  # … per pixel (guides, boost mask, denoising, writing the cubes)
+CUBE_S = 1.9  # CPU s of a cube job, fixed (refitted 2026-11-28 on the demo at 64×48 and 160×120, below)
+CUBE_PER_PIXEL_S = 1.9e-4  # … per pixel (guides, boost mask, denoising, writing the cubes)
 PER_MPATH_S = 3.2  # CPU s per million paths (each up to 16 bands; the illumination cube included)
-KERNEL_BUILD_S = 5.4  # CPU s per light group kind, once per worker process, cold kernel cache
+KERNEL_BUILD_S = 3.1  # CPU s per light group kind, once per worker process, cold kernel cache
 MAX_KINDS = 4
 WALL_PER_CPU = 0.75  # wall s per CPU s of a worker with >= 2 threads (measured 0.68-0.9; 1 thread: 1)
 #: the share of pixels the boost targets, measured at (pixels, share): it falls with the resolution
