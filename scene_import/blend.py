@@ -68,7 +68,7 @@ from illumix.scene.schema import SceneError
 # The name, colour and material helpers live in blend_materials; callers import some from here
 # (scene_import.builder and colour_match, scene_import.import_scene, the tests).
 from illumix.scene_import.blend_materials import (GREY, WAVELENGTHS, _emission, _is_grey, _Names,  # noqa: F401
-                                                  _upsample, _warn, material_doc, resolve_reflectance,
+                                                  _warn, material_doc, resolve_reflectance,
                                                   rgb_to_spectrum, sanitize)
 from illumix.scene_import.names import Names, key_name, renamed_summary
 

@@ -12,12 +12,12 @@ import difflib
 import os
 import re
 import warnings
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from illumix.scene.schema import SceneError
+from illumix.scene_import.colour_match import jakob_hanika
 
 WAVELENGTHS = np.arange(380.0, 781.0, 5.0)  # nm, the upsampled spectra's table
 GREY = 1e-3  # relative channel spread below which a colour counts as grey
@@ -53,20 +53,6 @@ class _Names:
 # -- spectra ----------------------------------------------------------------------------------
 
 
-@lru_cache(maxsize=4096)
-def _upsample(rgb: tuple[float, float, float]) -> tuple[tuple[float, ...], float]:
-    import colour
-    from colour.recovery import XYZ_to_sd_Jakob2019
-
-    shape = colour.SpectralShape(380, 780, 5)
-    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
-    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
-    xyz = colour.RGB_to_XYZ(np.asarray(rgb), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
-    sd, err = XYZ_to_sd_Jakob2019(xyz, cmfs, d65, additional_data=True)
-    values = np.clip(sd.copy().align(shape).values, 0.0, 1.0)
-    return tuple(np.round(values, 6).tolist()), float(err)
-
-
 def rgb_to_spectrum(rgb, what: str) -> dict:
     """An inline table reflectance (380–780 nm / 5 nm, values in [0, 1]) whose sRGB colour under D65
     is the linear sRGB ``rgb`` (Jakob & Hanika 2019). Components outside [0, 1] are clipped, with a
@@ -76,7 +62,7 @@ def rgb_to_spectrum(rgb, what: str) -> dict:
         warnings.warn(f"{what}: base colour {np.round(c, 3).tolist()} is outside [0, 1]; clipped", UserWarning,
                       stacklevel=3)
         c = np.clip(c, 0.0, 1.0)
-    values, err = _upsample(tuple(round(float(x), 6) for x in c))
+    values, err = jakob_hanika(tuple(round(float(x), 6) for x in c))
     if err > 1.0:
         warnings.warn(f"{what}: no reflectance spectrum reproduces base colour {np.round(c, 3).tolist()} "
                       f"closely (ΔE2000 {err:.1f}); used the closest smooth spectrum", UserWarning, stacklevel=3)

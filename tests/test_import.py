@@ -243,7 +243,7 @@ def test_textured_gltf_renders_the_texture_colours(tmp_path):
     pytest.importorskip("mitsuba")
     import colour
 
-    from illumix.scene_import.blend import _upsample
+    from illumix.scene_import.colour_match import jakob_hanika as _upsample
     from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.retarget.grid import resample
