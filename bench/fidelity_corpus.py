@@ -117,11 +117,21 @@ def load(entry: Entry, cache: Path):
         doc["views"] = [v for v in doc["views"] if v["name"] == entry.view]
         scene = scene_from_dict(doc, source=entry.name)
     elif entry.kind == "room":
-        from illumix.scenegen.generate import GeneratorConfig, generate_doc
+        import json
 
-        doc = generate_doc(int(entry.source), GeneratorConfig(probe=False))
-        doc["views"] = [v for v in doc["views"] if v["name"] == entry.view][:1] or doc["views"][:1]
-        doc["views"][0]["name"] = entry.view
+        # generated once and kept with the stores: the corpus stays the scenes its stores were
+        # rendered from while the generator changes (the document records its generator version)
+        frozen = cache / entry.name / "room.json"
+        if frozen.is_file():
+            doc = json.loads(frozen.read_text())
+        else:
+            from illumix.scenegen.generate import GeneratorConfig, generate_doc
+
+            doc = generate_doc(int(entry.source), GeneratorConfig(probe=False))
+            doc["views"] = [v for v in doc["views"] if v["name"] == entry.view][:1] or doc["views"][:1]
+            doc["views"][0]["name"] = entry.view
+            frozen.parent.mkdir(parents=True, exist_ok=True)
+            frozen.write_text(json.dumps(doc))
         scene = scene_from_dict(doc, source=entry.name)
     else:
         from illumix.scene_import import import_scene

@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from illumix.scenegen import mesh as M
+from illumix.scenegen.meshparts import Parts
 from illumix.scenegen.parts import Item, MaterialPicker, box, cylinder, disk, rect
 from illumix.scenegen.rooms import Plan
 
@@ -69,10 +71,13 @@ def pendants(rng, plan: Plan, mats: MaterialPicker, group: str, over: list[tuple
         hung.append((x, z))
         r, hgt = float(rng.uniform(0.12, 0.25)), float(rng.uniform(0.18, 0.32))
         bottom = float(min(plan.height - 0.5, rng.uniform(1.85, 2.2)))
-        out += [cylinder(f"pendant{k}_cord", cord, (x, bottom + hgt, z), (x, plan.height, z), 0.006),
-                cylinder(f"pendant{k}_shade", shade, (x, bottom, z), (x, bottom + hgt, z), r),
-                disk(f"pendant{k}_cap", shade, (x, bottom + hgt, z), (0, -1, 0), r),
-                disk(f"pendant{k}_glow", None, (x, bottom + 0.02, z), (0, -1, 0), 0.92 * r, emitter=_em(group))]
+        p = Parts(f"pendant{k}")
+        p.add(cord, M.rod((x, bottom + hgt, z), (x, plan.height, z), 0.006, 8))
+        top = r * float(rng.uniform(0.25, 1.0))  # cone, bell or drum
+        p.add(shade, M.lathe(shade_profile(r, top, hgt), 32).at(x, bottom, z))
+        p.add(shade, M.lathe([(0, hgt - 0.004), (top, hgt - 0.004), (top, hgt), (0, hgt)], 32, sharp=(1, 2)).at(x, bottom, z))
+        out += p.shapes() + [
+            disk(f"pendant{k}_glow", None, (x, bottom + 0.02, z), (0, -1, 0), 0.9 * r, emitter=_em(group))]
     return out
 
 
@@ -125,30 +130,39 @@ def strips(rng, plan: Plan, mats: MaterialPicker, group: str) -> list[dict]:
     return out
 
 
+def shade_profile(r_bottom: float, r_top: float, h: float, t: float = 0.003) -> list[tuple[float, float]]:
+    """A lamp shade's closed lathe profile: a shell ``t`` thick from radius ``r_bottom`` at y = 0 to
+    ``r_top`` at ``h``, open at both ends (a ring solid)."""
+    return [(r_bottom, 0.0), (r_top, h), (r_top - t, h), (r_bottom - t, 0.0), (r_bottom, 0.0)]
+
+
 def floor_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
+    """A floor lamp: a domed base, a pole, a drum or cone shade glowing up and down."""
     r, hgt = float(rng.uniform(0.16, 0.25)), float(rng.uniform(1.35, 1.75))
-    shade_h = float(rng.uniform(0.25, 0.35))
-    metal, shade = mats.pick("metal"), mats.pick("lampshade")
-    return Item("floor_lamp", [
-        cylinder(f"{name}_base", metal, (0, 0.0, 0), (0, 0.03, 0), 0.15),
-        disk(f"{name}_base_top", metal, (0, 0.03, 0), (0, 1, 0), 0.15),
-        cylinder(f"{name}_pole", metal, (0, 0.03, 0), (0, hgt - shade_h / 2, 0), 0.012),
-        cylinder(f"{name}_shade", shade, (0, hgt - shade_h, 0), (0, hgt, 0), r),
-        disk(f"{name}_glow_down", None, (0, hgt - shade_h + 0.02, 0), (0, -1, 0), 0.92 * r, emitter=_em(group)),
-        disk(f"{name}_glow_up", None, (0, hgt - 0.02, 0), (0, 1, 0), 0.92 * r, emitter=_em(group)),
+    shade_h, top = float(rng.uniform(0.25, 0.35)), r * float(rng.uniform(0.6, 1.0))
+    metal, shade, p = mats.pick(str(rng.choice(["metal", "black", "wood"]))), mats.pick("lampshade"), Parts(name)
+    p.add(metal, M.lathe([(0, 0), (0.15, 0), (0.15, 0.012), (0.05, 0.035), (0.02, 0.04), (0, 0.04)], 32, sharp=(1, 2)))
+    p.add(metal, M.rod((0, 0.04, 0), (0, hgt - shade_h / 2, 0), 0.012, 10))
+    p.add(shade, M.lathe(shade_profile(r, top, shade_h), 32).at(0, hgt - shade_h, 0))
+    return Item("floor_lamp", p.shapes() + [
+        disk(f"{name}_glow_down", None, (0, hgt - shade_h + 0.02, 0), (0, -1, 0), 0.9 * min(r, top), emitter=_em(group)),
+        disk(f"{name}_glow_up", None, (0, hgt - 0.02, 0), (0, 1, 0), 0.9 * min(r, top), emitter=_em(group)),
     ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
 
 
 def desk_lamp(rng, mats: MaterialPicker, name: str, group: str) -> Item:
+    """A table lamp: a turned base and stem with a drum shade, or a metal cone shade on a stem."""
     hgt, r = float(rng.uniform(0.35, 0.5)), float(rng.uniform(0.07, 0.11))
-    metal, shade = mats.pick("metal"), mats.pick(str(rng.choice(["metal", "lampshade", "plastic"])))
-    return Item("desk_lamp", [
-        cylinder(f"{name}_base", metal, (0, 0.0, 0), (0, 0.02, 0), 0.08),
-        disk(f"{name}_base_top", metal, (0, 0.02, 0), (0, 1, 0), 0.08),
-        cylinder(f"{name}_arm", metal, (0, 0.02, 0), (0, hgt - 0.12, 0), 0.008),
-        cylinder(f"{name}_shade", shade, (0, hgt - 0.16, 0), (0, hgt - 0.02, 0), r),
-        disk(f"{name}_cap", shade, (0, hgt - 0.02, 0), (0, 1, 0), r),
-        disk(f"{name}_glow", None, (0, hgt - 0.14, 0), (0, -1, 0), 0.92 * r, emitter=_em(group)),
+    metal, p = mats.pick(str(rng.choice(["metal", "ceramic", "black"]))), Parts(name)
+    shade = mats.pick(str(rng.choice(["metal", "lampshade", "plastic"])))
+    sh = 0.14
+    prof = [(0, 0), (0.08, 0), (0.08, 0.012), (0.04, 0.03), (0.05, 0.09), (0.03, 0.15), (0.012, 0.17), (0.012, hgt - sh),
+            (0, hgt - sh)]
+    p.add(metal, M.lathe(prof, 24, sharp=(1, 2, 7)))
+    p.add(shade, M.lathe(shade_profile(r, r * float(rng.uniform(0.55, 0.9)), sh), 28).at(0, hgt - sh, 0))
+    return Item("desk_lamp", p.shapes() + [
+        disk(f"{name}_glow", None, (0, hgt - sh + 0.02, 0), (0, -1, 0), 0.88 * r * 0.55, emitter=_em(group)),
+        disk(f"{name}_glow_up", None, (0, hgt - 0.02, 0), (0, 1, 0), 0.88 * r * 0.55, emitter=_em(group)),
     ], footprint=(2 * r + 0.02, 2 * r + 0.02), height=hgt)
 
 

@@ -1,5 +1,10 @@
-"""One procedural interior from a seed: plan → windows and daylight → furniture → light fixtures →
-clutter → power balance → views (chosen by the mixed-light probe) → a validated scene document.
+"""One procedural interior from a seed: plan → windows and daylight → window joinery → furniture →
+light fixtures → clutter → dressing (curtains, a closed door, something on every wall and every top,
+a plank or tile floor) → power balance → views (chosen by the mixed-light probe) → a validated
+scene document. Objects are triangle meshes (:mod:`scenegen.meshfurniture`,
+:mod:`scenegen.appliances`, :mod:`scenegen.meshclutter`) kept as PLY files under
+``$ILLUMIX_CACHE/scenegen-meshes`` (:mod:`scenegen.meshparts`); walls, ceilings and emitters stay
+primitives.
 
 ``generate_doc(seed, config)`` is deterministic in ``(GENERATOR_VERSION, seed, config)``: every
 random draw comes from one ``numpy`` generator seeded with both. The document carries
@@ -8,7 +13,9 @@ metadata by the render jobs). ``layout_hash(doc)`` — sha256 of the geometry, m
 two rooms are distinct when their hashes differ.
 
 Light groups: ``daylight`` when the room has windows (sun + sky portals, :mod:`scenegen.windows`),
-plus 1–3 artificial groups of distinct kinds (:mod:`scenegen.fixtures`), 2–4 groups in all, each
+plus 1–3 artificial groups of distinct kinds (:mod:`scenegen.fixtures`), 2–4 groups in all — a kind
+that finds no place (a desk lamp without a top, strips without a free wall) is replaced by another
+until two groups light the room — each
 declaring its ``kind`` (``daylight`` / ``artificial``: what ``pair=`` maps its illuminants by). Each
 group's total emitted power is drawn around a common level (log-normal, σ = 0.5) scaled with the
 floor area, so that no group routinely drowns the others — mixing is the point of the data.
@@ -24,19 +31,22 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from illumix.scenegen import GENERATOR_VERSION
+from illumix.scenegen import dressing
 from illumix.scenegen import fixtures as fx
 from illumix.scenegen.materials import Materials
 from illumix.scenegen.placement import Placer
 from illumix.scenegen.rooms import LAYOUTS, make_plan, shell_shapes
+from illumix.scenegen.views import MixedLightRule
 from illumix.scenegen.windows import add_windows, daylight
 
 ROOM_TYPES: dict[str, list[str]] = {
-    "living": ["sofa", "table", "shelf", "cabinet", "chair"],
-    "bedroom": ["bed", "cabinet", "shelf", "desk", "chair"],
-    "kitchen": ["kitchen_counter", "table", "chair", "cabinet"],
-    "office": ["desk", "chair", "shelf", "cabinet"],
-    "dining": ["table", "chair", "cabinet", "shelf"],
+    "living": ["sofa", "coffee_table", "table", "chair", "chair", "shelf", "cabinet", "shelf"],
+    "bedroom": ["bed", "cabinet", "shelf", "desk", "chair", "cabinet"],
+    "kitchen": ["kitchen_counter", "fridge", "oven", "table", "chair", "chair", "cabinet", "washing_machine"],
+    "office": ["desk", "chair", "shelf", "shelf", "cabinet", "sofa", "coffee_table"],
+    "dining": ["table", "chair", "chair", "chair", "chair", "cabinet", "shelf"],
 }
+ONCE = ("bed", "kitchen_counter", "fridge", "oven", "washing_machine", "coffee_table")  # one to a room
 GROUP_SEEN = 0.05  # a view "sees" a group that brings at least this share of its light (probe)
 POWER_PER_M2 = 6.0  # a group's mean emitted power per m² of floor (radiance × m² × π, flat emission)
 
@@ -51,6 +61,8 @@ class GeneratorConfig(BaseModel):
     resolution: tuple[int, int] = (240, 180)
     probe: bool = True  # choose views by a probe render's mixed-light fraction
     candidates: int = Field(default=16, ge=1, le=64)  # candidate views the probe chooses from
+    # a kept view's least mixed light (probe): candidates below it are dropped
+    mixed_light: MixedLightRule = Field(default_factory=MixedLightRule)
 
     @model_validator(mode="after")
     def _check(self) -> GeneratorConfig:
@@ -85,7 +97,8 @@ def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> 
         rtype = str(rng.choice(list(ROOM_TYPES)))
         area = sum((r[2] - r[0]) * (r[3] - r[1]) for r, k in zip(plan.rects, plan.rooms) if k == room)
         names = list(ROOM_TYPES[rtype])
-        names += list(rng.choice(names, size=int(area // 8)))  # bigger rooms, more furniture
+        more = [k for k in names if k not in ONCE]
+        names += list(rng.choice(more, size=int(area // 6)))  # bigger rooms, more furniture
         for kind in names:
             name = _obj(kind, n)
             item = FURNITURE[kind](rng, mats, name)
@@ -94,6 +107,10 @@ def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> 
                 got = _chair_at_table(rng, placer, item, name, tables[-1])
             elif item.against_wall:
                 got = placer.against_wall(item, name)
+            elif kind == "coffee_table" and any(p.kind == "sofa" for p in placer.placed):
+                got = _in_front(rng, placer, item, name, next(p for p in placer.placed if p.kind == "sofa"))
+            elif kind == "table":  # room for chairs round it, which stand close (they are placed next)
+                got = placer.free_standing(item, name, clearance=0.75, mark=0.02) or placer.free_standing(item, name)
             else:
                 got = placer.free_standing(item, name)
             if got is None:
@@ -105,48 +122,78 @@ def _furnish(rng, plan, placer: Placer, mats: Materials, shapes: list[dict]) -> 
     return [(t[0], t[1]) for t in tables]
 
 
+def _in_front(rng, placer: Placer, item, name: str, of) -> list[dict] | None:
+    """Stand ``item`` 35–45 cm in front of the placed item ``of`` (a coffee table before a sofa),
+    turned like it; anywhere free near it otherwise."""
+    from illumix.scenegen.parts import rotation_y
+
+    f = rotation_y(of.turns) @ [0, 0, 1, 0]
+    dist = of.item.footprint[1] / 2 + float(rng.uniform(0.35, 0.45)) + item.footprint[1] / 2
+    got = placer.facing(item, name, of.x + f[0] * dist, of.z + f[2] * dist, of.turns)
+    return got if got is not None else placer.free_standing(item, name, near=(of.x, of.z))
+
+
 def _chair_at_table(rng, placer: Placer, chair, name: str, table) -> list[dict] | None:
+    """Stand ``chair`` at a free place round ``table`` (one per 0.6 m of each side), facing it."""
     x, z, (w, d), k = table
     ex, ez = (d, w) if k % 2 else (w, d)
-    sides = [((x, z + ez / 2 + 0.25), 2), ((x, z - ez / 2 - 0.25), 0), ((x + ex / 2 + 0.25, z), 3),
-             ((x - ex / 2 - 0.25, z), 1)]
-    for i in rng.permutation(4):
-        (cx, cz), turn = sides[int(i)]
+    gap = chair.footprint[1] / 2 + 0.08  # the occupancy grid rounds both boxes out to its 5 cm cells
+    sides = ((ex, 2, lambda t: (x + t, z + ez / 2 + gap)), (ex, 0, lambda t: (x + t, z - ez / 2 - gap)),
+             (ez, 3, lambda t: (x + ex / 2 + gap, z + t)), (ez, 1, lambda t: (x - ex / 2 - gap, z + t)))
+    spots = []
+    for length, turn, at in sides:  # chair centres along each side, turned to face the table
+        n = max(1, int(length / 0.6))
+        spots += [(at((i + 0.5) / n * length - length / 2), turn) for i in range(n)]
+    for i in rng.permutation(len(spots)):
+        (cx, cz), turn = spots[int(i)]
         got = placer.facing(chair, name, cx, cz, turn)
         if got is not None:
             return got
     return placer.free_standing(chair, name, near=(x, z))
 
 
-def _light_groups(rng, plan, placer: Placer, mats: Materials, shapes: list[dict], tables, n_art: int) -> list[dict]:
-    kinds = list(rng.choice(fx.KINDS, size=n_art, replace=False))
+def _light_groups(rng, plan, placer: Placer, mats: Materials, shapes: list[dict], tables, n_art: int,
+                  n_day: int) -> list[dict]:
+    """``n_art`` artificial groups of distinct kinds; when fewer than two groups would light the room
+    (a kind that found no place: no top for a desk lamp, no free wall for a strip), more kinds are
+    tried until two do — ceiling panels, which always fit, last."""
+    kinds = [str(k) for k in rng.choice(fx.KINDS, size=n_art, replace=False)]
     kinds.sort(key=lambda k: k != "pendant")  # pendants first: panels and tubes keep clear of them
     groups, hung = [], []
     for kind in kinds:
-        g = str(kind).replace("_", "-")
-        before = len(shapes)
-        if kind == "ceiling":
-            shapes += fx.ceiling_panels(rng, plan, mats, g, hung)
-        elif kind == "pendant":
-            shapes += fx.pendants(rng, plan, mats, g, tables, hung)
-        elif kind == "tubes":
-            shapes += fx.tubes(rng, plan, mats, g, hung)
-        elif kind == "strip":
-            shapes += fx.strips(rng, plan, mats, g)
-        elif kind in ("floor_lamp", "desk_lamp", "screen"):
-            for i in range(int(rng.integers(1, 3))):
-                build = getattr(fx, str(kind))
-                item = build(rng, mats, f"{g}{i}", g)
-                got = (placer.against_wall(item, item.kind) if kind == "floor_lamp" else
-                       placer.on_surface(item, item.kind) if kind == "desk_lamp" else
-                       placer.hang(item, item.kind, (1.1, 1.6)))
-                if got is None and kind == "floor_lamp":
-                    got = placer.free_standing(item, item.kind, clearance=0.1)
-                shapes += got or []
-        if any(s.get("emitter", {}).get("group") == g for s in shapes[before:]):
-            groups.append({"name": g, "kind": "artificial",
-                           "description": f"{kind.replace('_', ' ')}; typical: {fx.TYPICAL[kind]}"})
+        groups += _one_group(rng, plan, placer, mats, shapes, tables, kind, hung)
+    spare = [k for k in ("floor_lamp", "tubes", "pendant", "strip", "ceiling") if k not in kinds]
+    while len(groups) + n_day < 2 and spare:
+        groups += _one_group(rng, plan, placer, mats, shapes, tables, spare.pop(0), [] if not spare else hung)
     return groups
+
+
+def _one_group(rng, plan, placer: Placer, mats: Materials, shapes: list[dict], tables, kind: str,
+               hung: list) -> list[dict]:
+    """The fixtures of one artificial group of ``kind`` (appended to ``shapes``): ``[group]``, or ``[]``
+    when none found a place."""
+    g = kind.replace("_", "-")
+    before = len(shapes)
+    if kind == "ceiling":
+        shapes += fx.ceiling_panels(rng, plan, mats, g, hung)
+    elif kind == "pendant":
+        shapes += fx.pendants(rng, plan, mats, g, tables, hung)
+    elif kind == "tubes":
+        shapes += fx.tubes(rng, plan, mats, g, hung)
+    elif kind == "strip":
+        shapes += fx.strips(rng, plan, mats, g)
+    else:
+        for i in range(int(rng.integers(1, 3))):
+            item = getattr(fx, kind)(rng, mats, f"{g}{i}", g)
+            got = (placer.against_wall(item, item.kind) if kind == "floor_lamp" else
+                   placer.on_surface(item, item.kind) if kind == "desk_lamp" else
+                   placer.hang(item, item.kind, (1.1, 1.6)))
+            if got is None and kind == "floor_lamp":
+                got = placer.free_standing(item, item.kind, clearance=0.1)
+            shapes += got or []
+    if not any(s.get("emitter", {}).get("group") == g for s in shapes[before:]):
+        return []
+    return [{"name": g, "kind": "artificial", "description": f"{kind.replace('_', ' ')}; typical: {fx.TYPICAL[kind]}"}]
 
 
 def _clutter(rng, placer: Placer, mats: Materials, shapes: list[dict]) -> None:
@@ -200,14 +247,23 @@ def generate_doc(seed: int, config: GeneratorConfig = GeneratorConfig()) -> dict
     shell = {"floor": mats.pick("floor"), "ceiling": mats.pick("ceiling")}
     for room in set(plan.rooms):
         shell[f"wall{room}"] = mats.pick("accent" if rng.random() < 0.2 else "paint")
-    shapes = shell_shapes(plan, shell)
+    shapes = [s for s in shell_shapes(plan, shell) if not s["name"].startswith("floor")]
+    wood = mats.docs[shell["floor"]]["reflectance"].get("pattern") == "wood"
+    shapes += dressing.floors(rng, plan, shell["floor"], wood)
     portals, lights, day = daylight(rng, plan, windows)
     shapes += portals
     placer = Placer(plan, rng)
+    shapes += dressing.window_frames(rng, plan, placer, mats, windows)
+    shapes += dressing.doorways(plan, mats, shell["ceiling"])
     tables = _furnish(rng, plan, placer, mats, shapes)
+    shapes += dressing.kitchen_wall_units(rng, plan, placer, mats)
     n_art = int(rng.integers(1, 4)) if day else int(rng.integers(2, 4))
-    groups = ([day] if day else []) + _light_groups(rng, plan, placer, mats, shapes, tables, n_art)
+    groups = ([day] if day else []) + _light_groups(rng, plan, placer, mats, shapes, tables, n_art, int(bool(day)))
     _clutter(rng, placer, mats, shapes)
+    shapes += dressing.curtains(rng, plan, placer, mats, windows)
+    shapes += dressing.doors(rng, plan, placer, mats)
+    shapes += dressing.walls(rng, plan, placer, mats)
+    shapes += dressing.tops(rng, placer, mats)
     _balance(rng, plan, shapes, lights, groups)
     interest = [(p.x, min(p.item.height, 1.5) * 0.6, p.z) for p in placer.placed]
     interest += [((r[0] + r[2]) / 2, 1.0, (r[1] + r[3]) / 2) for r in plan.rects]
@@ -245,16 +301,29 @@ def _choose_views(doc: dict, n_views: int, config: GeneratorConfig) -> dict:
     if not config.probe or len(doc["views"]) <= 1:
         doc["views"] = doc["views"][:n_views]
         return doc
+    import warnings
+
     from illumix.scene.load import scene_from_dict
-    from illumix.scenegen.views import clear_views, probe
+    from illumix.scenegen.views import clear_views, probe_views
 
     scene = scene_from_dict(doc, source=doc["name"], check=False)
-    frac, shares = probe(scene)
+    res = probe_views(scene, rule=config.mixed_light)
+    frac, shares = res.mixed, res.shares
     clear = clear_views(scene, [v["name"] for v in doc["views"]])
     # clear views (they see their target, no wall fills them) first, then those that see at least two
-    # groups (each >= 5 % of the view's light), then by mixed fraction
+    # groups (each >= 5 % of the view's light), then by mixed fraction; only views the mixed-light
+    # rule keeps, unless none does: then the best one, and the room says so
     two = (shares >= GROUP_SEEN).sum(axis=1) >= 2
-    order = np.lexsort((-frac, ~two, ~clear))[:n_views]
+    ranked = np.lexsort((-frac, ~two, ~clear))
+    order = [i for i in ranked if res.keep[i]][:n_views]
+    met = bool(order)
+    if not met:
+        order = [int(np.argmax(res.two_group))]
+        warnings.warn(f"{doc['name']}: no candidate view has {config.mixed_light.min_fraction:.0%} of its pixels "
+                      f"lit by two groups each above {config.mixed_light.min_share:.0%}; kept the most mixed one "
+                      f"({res.two_group[order[0]]:.0%})", UserWarning, stacklevel=3)
+    doc["generator"]["views_dropped"] = int((~res.keep).sum())
+    doc["generator"]["mixed_light_rule_met"] = met
     doc["views"] = [dict(doc["views"][i], name=f"view{k}") for k, i in enumerate(sorted(order))]
     doc["description"] += "; mixed-light fraction per view " + ", ".join(f"{frac[i]:.2f}" for i in sorted(order))
     return doc
@@ -268,6 +337,9 @@ def generate_scene(seed: int, config: GeneratorConfig = GeneratorConfig()):
 
 
 def layout_hash(doc: dict) -> str:
-    """sha256 of a document's geometry, materials, lights and groups."""
+    """sha256 of a document's geometry, materials, lights and groups (mesh files by name, not by the
+    folder they are kept in: their names are their contents' hashes)."""
     key = {k: doc.get(k) for k in ("shapes", "materials", "lights", "light_groups")}
+    key["shapes"] = [dict(s, filename=s["filename"].rsplit("/", 1)[-1]) if "filename" in s else s
+                     for s in key["shapes"] or []]
     return hashlib.sha256(json.dumps(key, sort_keys=True, default=float).encode()).hexdigest()

@@ -132,9 +132,34 @@ class Materials:
         made.append(name)
         return name
 
-    def _texture(self, pattern: str, spectra: list[dict], scale=(1.0, 1.0), **params) -> dict:
+    def _texture(self, pattern: str, spectra: list[dict], scale=(1.0, 1.0), resolution: int = 256,
+                 **params) -> dict:
         return {"pattern": pattern, "spectra": spectra, "seed": int(self.rng.integers(2**31)),
-                "scale": [float(scale[0]), float(scale[1])], "params": {k: float(v) for k, v in params.items()}}
+                "scale": [round(float(scale[0]), 4), round(float(scale[1]), 4)], "resolution": int(resolution),
+                "params": {k: round(float(v), 4) for k, v in params.items()}}
+
+    def _wood(self) -> dict:
+        """Wood grain at its physical size: ``rings`` grain lines per texture tile, the tile repeated
+        ``scale`` times per metre so that the lines lie 4–14 mm apart (meshes' UVs are in metres)."""
+        rings = float(self.rng.uniform(18, 30))
+        spacing = float(self.rng.uniform(0.004, 0.014))  # m between grain lines
+        s = 1 / (rings * spacing)
+        return self._texture("wood", [self.spectrum("wood"), self.spectrum("wood")], (s, s * 0.5), 512,
+                             rings=rings, noise=float(self.rng.uniform(0.25, 0.45)))
+
+    def _cloth(self, cls: str) -> dict:
+        """Cloth at its physical size (meshes' UVs in metres): a weave of 3–5 mm threads, stripes
+        1.5–5 cm wide, checks of 2–8 cm; a rug's pattern spans the rug (its mesh's UVs are [0, 1])."""
+        rng = self.rng
+        spectra = [self.spectrum(cls) for _ in range(int(rng.integers(2, 4)))]
+        if cls == "rug":
+            pattern = str(rng.choice(["weave", "stripes", "blobs", "picture"]))
+            extra = {"threads": 240.0} if pattern == "weave" else {}
+            return self._texture(pattern, spectra, (1.0, 1.0), 1024 if pattern == "weave" else 512, **extra)
+        pattern = str(rng.choice(["weave", "weave", "stripes", "checker"]))
+        size = {"weave": 48 * rng.uniform(0.003, 0.005), "stripes": 12 * rng.uniform(0.015, 0.05),
+                "checker": 8 * rng.uniform(0.02, 0.08)}[pattern]
+        return self._texture(pattern, spectra, (1 / size, 1 / size), 512 if pattern == "weave" else 256)
 
     def _make(self, cls: str) -> dict:  # one branch per class
         rng = self.rng
@@ -151,35 +176,31 @@ class Materials:
         if cls == "lampshade":  # thin fabric or paper: pale, diffuse
             return {"kind": "diffuse", "reflectance": self.spectrum(str(rng.choice(["linen", "paper"])))}
         if cls == "wood":
-            a, b = self.spectrum("wood"), self.spectrum("wood")
-            return {"kind": "roughplastic", "alpha": round(float(rng.uniform(0.15, 0.45)), 3),
-                    "reflectance": self._texture("wood", [a, b], rings=float(rng.uniform(5, 12)))}
+            return {"kind": "roughplastic", "alpha": round(float(rng.uniform(0.15, 0.45)), 3), "reflectance": self._wood()}
         if cls == "floor":
-            if rng.random() < 0.6:  # planks: wood grain
-                return {"kind": "roughplastic", "alpha": round(float(rng.uniform(0.2, 0.5)), 3),
-                        "reflectance": self._texture("wood", [self.spectrum("wood"), self.spectrum("wood")],
-                                                     scale=(2.0, 2.0))}
-            if rng.random() < 0.5:  # tiles with grout
+            if rng.random() < 0.6:  # boards: wood grain (the floor mesh cuts each board from elsewhere)
+                return {"kind": "roughplastic", "alpha": round(float(rng.uniform(0.2, 0.5)), 3), "reflectance": self._wood()}
+            if rng.random() < 0.5:  # tiles 30–60 cm with grout
+                s = 1 / (4 * float(rng.uniform(0.3, 0.6)))
                 return {"kind": "roughplastic", "alpha": round(float(rng.uniform(0.05, 0.2)), 3),
                         "reflectance": self._texture("tiles", [self.spectrum("paint"), self.spectrum("tile"),
-                                                               self.spectrum("tile")], scale=(2.0, 2.0))}
-            return {"kind": "diffuse", "reflectance": self._texture(  # carpet
-                "weave", [self.spectrum("rug"), self.spectrum("rug")], scale=(8.0, 8.0))}
+                                                               self.spectrum("tile")], (s, s), 512, grout=0.02)}
+            return {"kind": "diffuse", "reflectance": self._texture(  # carpet: 4–6 mm loops
+                "weave", [self.spectrum("rug"), self.spectrum("rug")], (4.0, 4.0), 512, threads=48)}
         if cls in ("fabric", "rug", "linen"):
-            spectra = [self.spectrum(cls) for _ in range(int(rng.integers(2, 4)))]
-            pattern = str(rng.choice(["weave", "weave", "stripes", "checker"] if cls != "rug" else
-                                     ["weave", "stripes", "blobs", "picture"]))
-            return {"kind": "diffuse", "reflectance": self._texture(pattern, spectra)}
-        if cls == "book":
+            return {"kind": "diffuse", "reflectance": self._cloth(cls)}
+        if cls == "book":  # covers and spines in bands of 3–6 cm
             spectra = [self.spectrum("book") for _ in range(2)] + [self.spectrum("paper")]
-            return {"kind": "roughplastic", "alpha": 0.3, "reflectance": self._texture("stripes", spectra, stripes=3)}
+            return {"kind": "roughplastic", "alpha": 0.3, "reflectance": self._texture("stripes", spectra, (6.0, 6.0),
+                                                                                      stripes=3)}
         if cls == "picture":
             spectra = [self.spectrum("picture") for _ in range(int(rng.integers(4, 7)))]
             pattern = str(rng.choice(["picture", "blobs"]))
             return {"kind": "diffuse", "reflectance": self._texture(pattern, spectra)}
-        if cls == "tile":
+        if cls == "tile":  # 10–15 cm tiles on worktops and table tops
+            s = 1 / (4 * float(rng.uniform(0.1, 0.15)))
             return {"kind": "roughplastic", "alpha": 0.08, "reflectance": self._texture(
-                "tiles", [self.spectrum("paint"), self.spectrum("tile"), self.spectrum("tile")], scale=(3.0, 3.0))}
+                "tiles", [self.spectrum("paint"), self.spectrum("tile"), self.spectrum("tile")], (s, s), grout=0.04)}
         if cls in ("ceramic", "plastic", "leather"):
             alpha = {"ceramic": (0.03, 0.12), "plastic": (0.1, 0.4), "leather": (0.25, 0.5)}[cls]
             return {"kind": "roughplastic", "reflectance": self.spectrum(cls),

@@ -1,5 +1,6 @@
-"""Parametric parts: the primitives furniture, clutter and fixtures are built from, and how a built
-item is placed in a room.
+"""Parts: what a built item is (:class:`Item`), the primitive shapes the room shell and the emitters
+are made of (furniture and clutter are triangle meshes: :mod:`scenegen.mesh`,
+:mod:`scenegen.meshparts`), and how a built item is placed in a room.
 
 An :class:`Item` is described in its own frame: origin at the centre of its footprint on the floor
 (``y = 0`` is what it stands on), its front facing ``+z``, ``x`` to its right. Its ``shapes`` are scene

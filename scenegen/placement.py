@@ -40,6 +40,7 @@ class Placed:
     z: float
     turns: int
     item: Item
+    y: float = 0.0  # what it stands on (floor 0, a top, a hung item's bottom)
 
 
 def quarter_turns_facing(normal: tuple[float, float]) -> int:
@@ -74,13 +75,18 @@ class Placer:
         self.surfaces: list[PlacedSurface] = []
         self.wall_spans: dict[int, list[tuple[float, float, float, float]]] = {}  # s0, s1, y0, y1
         self.boxes: list[np.ndarray] = []  # (2, 3) bounds of hung items and of things on tops
+        self.opening_spans: set[tuple] = set()  # (wall, s0, s1, y0, y1) of window joinery: curtains may cover it
 
     def _box3(self, item: Item, x: float, z: float, k: int, y: float) -> np.ndarray:
         ex, ez = footprint_extent(item, k)
         return np.array([[x - ex / 2, y, z - ez / 2], [x + ex / 2, y + item.height, z + ez / 2]])
 
+    @staticmethod
+    def _overlap(b: np.ndarray, o: np.ndarray) -> bool:
+        return bool(np.all(np.minimum(b[1], o[1]) - np.maximum(b[0], o[0]) > 1e-3))
+
     def _clashes(self, b: np.ndarray) -> bool:
-        return any(np.all(np.minimum(b[1], o[1]) - np.maximum(b[0], o[0]) > 1e-3) for o in self.boxes)
+        return any(self._overlap(b, o) for o in self.boxes)
 
     # -- grid -----------------------------------------------------------------------------------
     def _idx(self, box):
@@ -122,7 +128,7 @@ class Placer:
         if y == 0.0 and item.kind != "rug":
             self._mark((x - ex / 2 - clearance, z - ez / 2 - clearance, x + ex / 2 + clearance,
                         z + ez / 2 + clearance), False)
-        self.placed.append(Placed(name, item.kind, x, z, k, item))
+        self.placed.append(Placed(name, item.kind, x, z, k, item, y))
         m = rotation_y(k)
         for s in item.surfaces:
             if s.size[0] <= 0 or s.size[1] <= 0:
@@ -157,8 +163,10 @@ class Placer:
         return None
 
     def free_standing(self, item: Item, name: str, near: tuple[float, float] | None = None,
-                      clearance: float = 0.3, tries: int = 40) -> list[dict] | None:
-        """Stand ``item`` anywhere free (turned by a random quarter), near a point if given."""
+                      clearance: float = 0.3, tries: int = 40, mark: float | None = None) -> list[dict] | None:
+        """Stand ``item`` anywhere free (turned by a random quarter), near a point if given, with
+        ``clearance`` free round it; ``mark``: the margin then blocked (default ``clearance``; less for
+        a table whose chairs come next)."""
         x0, z0, x1, z1 = self.plan.bounds()
         for _ in range(tries):
             k = int(self.rng.integers(4))
@@ -169,7 +177,8 @@ class Placer:
                 x, z = near[0] + self.rng.normal(0, 0.6), near[1] + self.rng.normal(0, 0.6)
             box = (x - ex / 2 - clearance, z - ez / 2 - clearance, x + ex / 2 + clearance, z + ez / 2 + clearance)
             if item.kind == "rug" or self.is_free(box):
-                return self._commit(item, name, float(x), float(z), k, clearance if item.kind != "rug" else 0.0)
+                keep = clearance if mark is None else mark
+                return self._commit(item, name, float(x), float(z), k, keep if item.kind != "rug" else 0.0)
         return None
 
     def facing(self, item: Item, name: str, x: float, z: float, k: int) -> list[dict] | None:
@@ -179,9 +188,11 @@ class Placer:
             return None
         return self._commit(item, name, x, z, k, 0.02)
 
-    def on_surface(self, item: Item, name: str, tries: int = 12) -> list[dict] | None:
-        """Stand ``item`` on a random free top (no overlap with what stands there already)."""
-        ok = [s for s in self.surfaces if s.size[0] >= item.footprint[0] + 0.04 and s.size[1] >= item.footprint[1] + 0.04
+    def on_surface(self, item: Item, name: str, tries: int = 12,
+                   only: PlacedSurface | None = None) -> list[dict] | None:
+        """Stand ``item`` on a random free top (``only`` that one, if given; no overlap with what stands
+        there already)."""
+        ok = [s for s in (self.surfaces if only is None else [only]) if s.size[0] >= item.footprint[0] + 0.04 and s.size[1] >= item.footprint[1] + 0.04
               and s.y + item.height < self.plan.height - 0.3]
         for _ in range(tries if ok else 0):
             s = ok[int(self.rng.integers(len(ok)))]
@@ -199,15 +210,18 @@ class Placer:
                 continue
             self.boxes.append(b3)
             s.taken.append(box)
-            self.placed.append(Placed(name, item.kind, float(x), float(z), k, item))
+            self.placed.append(Placed(name, item.kind, float(x), float(z), k, item, s.y))
             return place(item, float(x), float(z), k, "", s.y + 0.0005)
         return None
 
-    def hang(self, item: Item, name: str, y_range=(1.2, 1.7), tries: int = 30) -> list[dict] | None:
-        """Hang ``item`` (front +z) on a wall where no opening, hung item or taller standing item is."""
+    def hang(self, item: Item, name: str, y_range=(1.2, 1.7), tries: int = 30,
+             walls: list[int] | None = None) -> list[dict] | None:
+        """Hang ``item`` (front +z) on a wall (one of ``walls`` if given) where no opening, hung item or
+        taller standing item is; its tops (a wall shelf's board) take clutter."""
         w_w = item.footprint[0]
-        for _ in range(tries):
-            wi = int(self.rng.integers(len(self.plan.walls)))
+        pool = list(range(len(self.plan.walls))) if walls is None else list(walls)
+        for _ in range(tries if pool else 0):
+            wi = pool[int(self.rng.integers(len(pool)))]
             w = self.plan.walls[wi]
             if w.length < w_w + 0.4:
                 continue
@@ -227,6 +241,51 @@ class Placer:
                 continue
             self.boxes.append(b3)
             self.wall_spans.setdefault(wi, []).append((s0, s0 + w_w, y0, y1))
-            self.placed.append(Placed(name, item.kind, float(c[0]), float(c[1]), k, item))
+            self._add_surfaces(item, name, float(c[0]), float(c[1]), k, y0)
+            self.placed.append(Placed(name, item.kind, float(c[0]), float(c[1]), k, item, y0))
             return place(item, float(c[0]), float(c[1]), k, "", y0)
         return None
+
+    def _add_surfaces(self, item: Item, name: str, x: float, z: float, k: int, y: float) -> None:
+        m = rotation_y(k)
+        for s in item.surfaces:
+            if s.size[0] > 0 and s.size[1] > 0:
+                c = m @ [s.center[0], 0, s.center[1], 0]
+                size = (s.size[1], s.size[0]) if k % 2 else s.size
+                self.surfaces.append(PlacedSurface(y + s.y, (x + c[0], z + c[2]), size, name))
+
+    def at_wall(self, item: Item, name: str, wi: int, s0: float, y0: float, gap: float = 0.002,
+                keep: float = 0.0, over_openings: bool = False) -> list[dict] | None:
+        """Put ``item`` at ``s0`` along wall ``wi`` (its left edge), bottom at ``y0``, back ``gap`` off the
+        wall — doors and curtains, where the caller chose the spot — when that spot is free: no
+        standing or hung item in the way, nothing on the floor in front of it (``keep`` m more in
+        front: a door's swing). Openings are the caller's business."""
+        w = self.plan.walls[wi]
+        w_w, y1 = item.footprint[0], y0 + item.height
+        if s0 < 0 or s0 + w_w > w.length:
+            return None
+        if any(not (s0 + w_w <= a or s0 >= b) and not (y1 <= b0 or y0 >= b1) and
+               (not over_openings or (wi, a, b, b0, b1) not in self.opening_spans)
+               for a, b, b0, b1 in self.wall_spans.get(wi, [])):
+            return None
+        if not over_openings and any(not (s0 + w_w <= o.s0 or s0 >= o.s1) and not (y1 <= o.y0 or y0 >= o.y1)
+                                     for o in w.openings):
+            return None
+        off = item.footprint[1] / 2 + gap + (PARTITION / 2 if w.partition else 0.0)
+        c = w.point(s0 + w_w / 2, off)
+        k = quarter_turns_facing(w.normal)
+        b3 = self._box3(item, float(c[0]), float(c[1]), k, y0)
+        if self._clashes(b3) or any(self._overlap(b3, self._box3(p.item, p.x, p.z, p.turns, p.y))
+                                    for p in self.placed if p.kind != "rug"):
+            return None
+        if y0 < 0.3:  # reaches the floor: the floor in front must be free, and stays free
+            base = PARTITION / 2 + 0.02 if w.partition else 0.0
+            front = [w.point(s0, base), w.point(s0 + w_w, base + item.footprint[1] + gap + keep + 0.05)]
+            box = (*np.minimum(*front), *np.maximum(*front))
+            if not self.is_free(box):
+                return None
+            self._mark(box, False)
+        self.boxes.append(b3)
+        self.wall_spans.setdefault(wi, []).append((s0, s0 + w_w, y0, y1))
+        self.placed.append(Placed(name, item.kind, float(c[0]), float(c[1]), k, item, y0))
+        return place(item, float(c[0]), float(c[1]), k, "", y0)

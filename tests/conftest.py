@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+# The suite's caches (generated rooms' meshes, imports) in a folder of its own, removed at the end,
+# not in the user's ~/.cache/illumix (a generated room writes ~3 MB of meshes there)
+if "ILLUMIX_CACHE" not in os.environ:
+    os.environ["ILLUMIX_CACHE"] = tempfile.mkdtemp(prefix="illumix-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["ILLUMIX_CACHE"], True)
 try:
     import illumix_client  # noqa: F401
 except ImportError:  # the client is not installed yet: its tests use the source tree

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from illumix.scene.load import scene_from_dict
+from illumix.scenegen import GENERATOR_VERSION
 from illumix.scenegen.generate import GeneratorConfig, generate_doc, layout_hash
 
 pytest.importorskip("mitsuba")
@@ -41,15 +42,23 @@ def _boxes(scene):
     return out
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _mesh_cache(tmp_path_factory):
+    mp = pytest.MonkeyPatch()
+    mp.setenv("ILLUMIX_CACHE", str(tmp_path_factory.mktemp("cache")))  # generated meshes go here
+    yield
+    mp.undo()
+
+
 @pytest.fixture(scope="module")
-def rooms():
+def rooms(_mesh_cache):
     return {seed: generate_doc(seed, FAST) for seed in SEEDS}
 
 
 def test_generated_rooms_validate_and_are_reproducible(rooms):
     for seed, doc in rooms.items():
         scene = scene_from_dict(doc, source=f"seed {seed}")
-        assert scene.generator == {"name": "illumix.scenegen", "version": "1", "seed": seed}
+        assert scene.generator == {"name": "illumix.scenegen", "version": GENERATOR_VERSION, "seed": seed}
         assert 2 <= len(scene.group_names) <= 4
         assert 3 <= len(scene.views) <= 7
     assert generate_doc(5, FAST) == rooms[5]

@@ -100,3 +100,44 @@ def test_dataset_summary_counts_dropped_views():
               SimpleNamespace(generator={"name": "illumix.scenegen"}), SimpleNamespace(generator=None),
               SimpleNamespace(generator={"views_dropped": 1})]
     assert views_dropped(scenes) == 4
+
+
+def _stand_in_probe(monkeypatch, two_group):
+    """Generation with a stand-in probe: every candidate clear, the given two-group fractions."""
+    import illumix.scenegen.views as views
+    from illumix.scenegen.views import ViewProbe, apply_rule
+
+    def probe(scene, views=None, rule=None):
+        names = [v.name for v in scene.views]
+        two = np.resize(np.asarray(two_group, float), len(names))
+        keep, why = apply_rule(names, two, rule)
+        return ViewProbe(names, mixed=two.copy(), shares=np.full((len(names), 2), 0.5), two_group=two,
+                         keep=keep, why=why)
+
+    monkeypatch.setattr(views, "probe_views", probe)
+    monkeypatch.setattr(views, "clear_views", lambda scene, names, resolution=None: np.ones(len(names), bool))
+
+
+def test_generated_rooms_keep_only_views_the_rule_keeps(monkeypatch, tmp_path):
+    from illumix.scenegen.generate import GeneratorConfig, generate_doc
+
+    monkeypatch.setenv("ILLUMIX_CACHE", str(tmp_path))
+    _stand_in_probe(monkeypatch, [0.1, 0.5, 0.05, 0.4])  # every other candidate below 0.3
+    cfg = GeneratorConfig(candidates=8, views=(3, 3))
+    doc = generate_doc(11, cfg)
+    assert len(doc["views"]) == 3 and doc["generator"]["views_dropped"] == 4
+    assert doc["generator"]["mixed_light_rule_met"] is True
+    assert "0.50" in doc["description"] and "0.05" not in doc["description"].split("per view")[1]
+
+
+def test_a_room_with_no_mixed_view_keeps_its_best_and_says_so(monkeypatch, tmp_path):
+    from illumix.scenegen.generate import GeneratorConfig, generate_doc
+
+    monkeypatch.setenv("ILLUMIX_CACHE", str(tmp_path))
+    _stand_in_probe(monkeypatch, [0.1, 0.2, 0.05, 0.15])
+    with pytest.warns(UserWarning, match="no candidate view has 30% .*kept the most mixed one \\(20%\\)"):
+        doc = generate_doc(11, GeneratorConfig(candidates=4, views=(3, 3)))
+    assert len(doc["views"]) == 1 and doc["generator"]["mixed_light_rule_met"] is False
+    assert doc["generator"]["views_dropped"] == 4
+    off = generate_doc(11, GeneratorConfig(candidates=4, views=(3, 3), mixed_light={"min_fraction": 0.0}))
+    assert len(off["views"]) == 3 and off["generator"]["views_dropped"] == 0
