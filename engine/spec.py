@@ -94,6 +94,10 @@ def _ints(what: str, n: int, example: str):
                 raise ValueError(f"size must be WxH in pixels, e.g. {example}")
             vals = [int(m[1]), int(m[2])]
         else:
+            texts = [x for x in (v if isinstance(v, list) else [v]) if isinstance(x, str)]
+            if any(not x.strip() for t in texts for x in t.split(",")):  # "0,0,1,1," or "0,,1,1"
+                raise ValueError(f"{what} must be {n} comma-separated integers with nothing between two commas "
+                                 f"or after the last, e.g. {example}")
             items = v if isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in v) \
                 else _items(v, what)
             try:
