@@ -7,4 +7,4 @@ seed).
 Imports flow one way: ``retarget, renderer_jobs ← scenegen`` (the CLI wires it to the render jobs).
 """
 
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"

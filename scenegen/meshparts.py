@@ -135,3 +135,16 @@ def read_ply_positions(path: str) -> np.ndarray:
     end = data.index(b"end_header\n") + len(b"end_header\n")
     n = int(data[:end].split(b"element vertex ")[1].split(b"\n")[0])
     return np.frombuffer(data, dtype="<f4", count=n * 8, offset=end).reshape(n, 8)[:, :3].astype(np.float64)
+
+
+def mesh_area(path: str) -> float:
+    """Surface area (m²) of a PLY written by :func:`ply_bytes` (its triangles, as written)."""
+    data = Path(path).read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    head = data[:end]
+    n = int(head.split(b"element vertex ")[1].split(b"\n")[0])
+    nf = int(head.split(b"element face ")[1].split(b"\n")[0])
+    v = np.frombuffer(data, dtype="<f4", count=n * 8, offset=end).reshape(n, 8)[:, :3].astype(np.float64)
+    rec = np.frombuffer(data, dtype=[("n", "u1"), ("i", "<i4", (3,))], count=nf, offset=end + n * 32)
+    p = v[rec["i"]]
+    return float(np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2)
