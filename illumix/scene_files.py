@@ -40,17 +40,29 @@ def _key(path: Path, rules: Path | None) -> str:
 COMPANION_LIMIT = 2000
 
 
+#: What an importer may read beside a scene file: meshes, materials, includes, textures, spectra.
+COMPANION_SUFFIXES = frozenset({".obj", ".mtl", ".ply", ".serialized", ".xml", ".gltf", ".glb", ".bin", ".png",
+                                ".jpg", ".jpeg", ".exr", ".hdr", ".tga", ".bmp", ".tif", ".tiff", ".csv", ".spd"})
+
+
 def _companions(path: Path) -> list[Path]:
-    """The files under ``path``'s folder an import may read (includes, MTLs, meshes, textures): all
-    of them but the import caches, sorted; none when there are more than :data:`COMPANION_LIMIT`
-    (a scene file in a large folder, e.g. a home directory: then only the file itself counts)."""
+    """The files under ``path``'s folder an import may read (:data:`COMPANION_SUFFIXES`), sorted;
+    none when there are more than :data:`COMPANION_LIMIT` (a scene file in a large folder, e.g. a
+    home directory: then only the file itself counts). Hidden folders (the import caches) and cube
+    stores (a folder holding ``zarr.json``) are not looked into: a store rendered beside the scene
+    changes with every render, and would make every load a new import."""
     out = []
-    for f in path.parent.rglob("*"):
-        if ".illumix-import" in f.parts or not f.is_file() or f == path:
+    for root, dirs, files in os.walk(path.parent):
+        if "zarr.json" in files:
+            dirs[:] = []
             continue
-        out.append(f)
-        if len(out) > COMPANION_LIMIT:
-            return []
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        for name in files:
+            f = Path(root) / name
+            if f.suffix.lower() in COMPANION_SUFFIXES and f != path:
+                out.append(f)
+                if len(out) > COMPANION_LIMIT:
+                    return []
     return sorted(out)
 
 

@@ -32,7 +32,10 @@ literals (one kernel for every band set), 27.2 against 17.9 s warm: 9.3 s of ker
 3 light group kinds (``bench/fixed_costs.py``, bench/RENDER_PERF.md). The per-cube terms were then
 refitted to the demo measured warm at two sizes (the estimate had missed a fixed cost that small
 cubes feel: 9.8 s estimated against 17.9 s measured at 64×48, 46.7 against 48.2 s at 160×120 × 16 spp):
-``CUBE_S`` 0.3 → 1.9 s, ``CUBE_PER_PIXEL_S`` 2.6e-4 → 1.9e-4 s. Timings of identical work move by ±15 % on that machine.
+``CUBE_S`` 0.3 → 1.9 s, ``CUBE_PER_PIXEL_S`` 2.6e-4 → 1.9e-4 s. On a scene it was not fitted on — a
+generated room (generator 3, seed 8102, ~100 shapes), view and ``ceiling`` cube at 240×180 × 64 spp — it
+estimates 32 CPU s against 52–58 s measured: a room's cube costs more per path than the demo's,
+so take the estimate as a lower bound for furnished rooms. Timings of identical work move by ±15 % on that machine.
 """
 
 from __future__ import annotations

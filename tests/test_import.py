@@ -349,3 +349,19 @@ def test_obj_finds_its_mtl_and_maps_like_exporters_write_them(tmp_path, monkeypa
     glow = colour.models.eotf_sRGB(np.array([1.0, 128 / 255, 0.0])) * 2  # Ke × the map's linear colour
     assert math.isclose(sign.emitter.strength, rgb_light(glow)[1], rel_tol=1e-6)
     assert _has(warns, "material 'neon'", "map_Ke", "averaged")
+
+
+def test_a_store_rendered_beside_the_scene_does_not_make_a_new_import(tmp_path):
+    """Only what an importer may read counts in the cache key: a cube store (or an import cache)
+    beside the scene file, rewritten by every render, must not make every load a new import."""
+    from illumix.scene_files import import_cached
+
+    src = t.write_obj(tmp_path / "room.obj")
+    first, _ = import_cached(src)
+    store = tmp_path / "my-store"
+    (store / "room" / "c").mkdir(parents=True)
+    (store / "zarr.json").write_text("{}")
+    (store / "room" / "c" / "0").write_bytes(b"chunk")
+    (tmp_path / "notes.txt").write_text("not read by any importer")
+    again, _ = import_cached(src)
+    assert again == first
