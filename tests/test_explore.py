@@ -69,6 +69,12 @@ def test_the_page_names_no_other_host():
             assert line.lstrip().startswith(("//", "*")), line
 
 
+def test_the_page_modules_stay_small():
+    """The page's ES modules keep the project's ~400 lines a module (tests/test_import_flow.py checks the Python)."""
+    big = [f"{p.name}: {n} lines" for p in sorted((STATIC / "js").glob("*.js")) if (n := p.read_text().count("\n")) > 410]
+    assert not big, "split these:\n" + "\n".join(big)
+
+
 def test_static_files_ship_with_the_package():
     """A non-editable install carries the page: every static file matches the package data globs."""
     import tomllib

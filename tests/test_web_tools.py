@@ -1,5 +1,5 @@
 """Issue 38, the explorer's research tools in headless Chromium (as tests/test_web.py): zoom and pan
-shared by every panel, the spectrum at the hovered pixel, the camera-noise preview and the dataset
+shared by every panel and kept in the page link, the spectrum at the hovered pixel, the camera-noise preview and the dataset
 gallery with its statistics — each drawn without a console error. The gallery's screenshot is kept
 in ``bench/out/web-explorer-gallery.png`` (git ignores it).
 """
@@ -102,6 +102,69 @@ def test_zoom_pan_and_reset_stay_in_sync(browser, url):
     assert f"pixel x {int(u * W)}, y {int(v * H)}" in browser.find_element(By.ID, "readout").text
     ActionChains(browser).double_click(frame).perform()
     assert set(transforms(browser)) == {""}
+    assert not severe(browser)
+
+
+def zoom_link(driver) -> dict[str, str]:
+    """The link's ``zoom`` and ``at`` (absent at no zoom)."""
+    from urllib.parse import parse_qs, urlsplit
+
+    q = parse_qs(urlsplit(driver.current_url).query)
+    return {k: q[k][0] for k in ("zoom", "at") if k in q}
+
+
+def centre_in_link(driver) -> bool:
+    """The link's ``at`` is the image point at the panels' centre now (the URL follows a gesture once it rests)."""
+    link = zoom_link(driver)
+    if "at" not in link:
+        return False
+    return [float(t) for t in link["at"].split(",")] == pytest.approx(image_point(driver, "c-srgb", 0.5, 0.5), abs=2e-3)
+
+
+def test_zoom_and_pan_are_kept_in_the_link(browser, url):
+    browser.get_log("browser")
+    open_page(browser, url, "?illuminants=A,D65")
+    assert zoom_link(browser) == {}
+    for _ in range(3):
+        wheel(browser, "c-srgb", 0.7, 0.3, -100)
+    frame = browser.find_element(By.CSS_SELECTOR, "figure[data-kind=mixture] .frame")
+    ActionChains(browser).move_to_element(frame).click_and_hold().move_by_offset(25, 15).release().perform()
+    WebDriverWait(browser, WAIT_S).until(centre_in_link)
+    link = zoom_link(browser)
+    assert float(link["zoom"]) == pytest.approx(1.25 ** 3, rel=1e-3)
+    zoom = browser.execute_script("return document.body.dataset.zoom")
+    points = [image_point(browser, c, fx, fy) for c, fx, fy in (("c-srgb", 0.5, 0.5), ("c-raw", 0.1, 0.9))]
+    # the link reopens the same zoom and pan (on every panel), with no notice
+    query = browser.current_url.split("?", 1)[1]
+    open_page(browser, url, "?" + query)
+    assert browser.execute_script("return document.body.dataset.zoom") == zoom
+    again = [image_point(browser, c, fx, fy) for c, fx, fy in (("c-srgb", 0.5, 0.5), ("c-raw", 0.1, 0.9))]
+    assert again == [pytest.approx(p, abs=2e-3) for p in points]
+    assert len(set(transforms(browser))) == 1 and not browser.find_element(By.ID, "notice").is_displayed()
+    assert zoom_link(browser) == link  # the reopened page keeps it in its link
+    # image fractions, not pixels: the same spot at half the frame size
+    open_page(browser, url, f"?{query}&size={W // 2}x{H // 2}")
+    assert image_point(browser, "c-srgb", 0.5, 0.5) == pytest.approx(points[0], abs=2e-3)
+    # a reset drops both from the link
+    frame = browser.find_element(By.CSS_SELECTOR, "figure[data-kind=mixture] .frame")
+    ActionChains(browser).double_click(frame).perform()
+    WebDriverWait(browser, WAIT_S).until(lambda d: zoom_link(d) == {})
+    assert set(transforms(browser)) == {""} and "illuminants=A%2CD65" in browser.current_url
+    assert not severe(browser)
+
+
+def test_a_malformed_zoom_in_the_link_opens_the_default_view(browser, url):
+    browser.get_log("browser")
+    bad = ["zoom=abc", "zoom=0.5", "zoom=65", "zoom=Infinity", "zoom=2&at=1.5,0.2", "zoom=2&at=0.3",
+           "zoom=2&at=x,y", "zoom=2&at=0.1,0.2,0.3"]
+    quiet = ["zoom=", "at=0.2,0.2", "zoom=1&at=0.2,0.2"]  # no zoom asked for: nothing to say
+    for extra in bad + quiet:
+        open_page(browser, url, f"?illuminants=A,D65&{extra}")
+        assert set(transforms(browser)) == {""}, extra
+        assert browser.execute_script("return document.body.dataset.zoom") == "1.0000", extra
+        assert zoom_link(browser) == {}, extra
+        notice = browser.find_element(By.ID, "notice-text").get_attribute("textContent")
+        assert ("no zoom" in notice) == (extra in bad), (extra, notice)
     assert not severe(browser)
 
 

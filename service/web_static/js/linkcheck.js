@@ -2,6 +2,7 @@
 // offers and the controls' ranges before the first request: a value that is not there or out of
 // range is replaced and named in one line, so a stale or hand-edited link still draws the page.
 import { DEFAULT_NPZ, NPZ_OUTPUTS } from "./forms.js";
+import { MAX_ZOOM } from "./zoom.js";
 
 /** The sensor export and evaluate default to: a measured camera colour-science ships on every install. */
 export const PREFERRED_SENSOR = "Nikon 5100 (NPL)";
@@ -44,6 +45,21 @@ function illuminant(text, k, names, unavailable = {}) {
   if (kelvin === undefined) return [cct, null]; // the slider's start
   const [v, why] = number(kelvin, CCT[cct], CCT[cct][3]);
   return [`${cct}:${v}`, why && `illuminant ${quote(text)} ${why}${why === "not a number" ? "" : " K"} → ${cct}:${v}`];
+}
+
+/**
+ * The zoom and pan of the link (js/link.js writes them): `zoom` in [1, MAX_ZOOM] and `at=u,v`, the image
+ * point at the panels' centre in fractions of the image (0–1; the centre when absent; `at` alone means
+ * nothing). `[{s, u, v} or null, why it was dropped or null]`: anything malformed opens the default view.
+ */
+function zoomFromLink(zoom, at) {
+  if (!zoom) return [null, null];
+  const s = Number(zoom), uv = (at || "0.5,0.5").split(",").map((t) => (t.trim() ? Number(t) : NaN));
+  const inside = (x, lo, hi) => Number.isFinite(x) && x >= lo && x <= hi;
+  if (!inside(s, 1, MAX_ZOOM) || uv.length !== 2 || !uv.every((x) => inside(x, 0, 1))) {
+    return [null, `zoom ${quote(zoom)}${at ? `, at ${quote(at)}` : ""}: not a zoom 1–${MAX_ZOOM} at an image point u,v in 0–1 → no zoom`];
+  }
+  return [s === 1 ? null : { s, u: uv[0], v: uv[1] }, null];
 }
 
 /**
@@ -93,11 +109,14 @@ export function stateFromLink(q, lib) {
   const npz = q.has("npz") ? get("npz").split(",").filter((x) => x) : DEFAULT_NPZ;
   const unknown = npz.filter((x) => !NPZ_OUTPUTS.includes(x));
   if (unknown.length) notes.push(`npz ${unknown.map(quote).join(", ")} unknown, dropped`);
+  const [zoom, zoomNote] = zoomFromLink(get("zoom"), get("at"));
+  if (zoomNote) notes.push(zoomNote);
   return {
     state: {
       scene, view: view.name, sensor, illuminants, intensities, size: sizeOk ? size : "", gt, denoise, aov, noise, ev, gain,
       npz: npz.filter((x) => NPZ_OUTPUTS.includes(x)),
     },
+    zoom,
     notes,
   };
 }

@@ -1,19 +1,17 @@
 // The web explorer: controls ↔ URL query string ↔ one /explore/frame request per update.
 import { getArrays, getJSON } from "./api.js";
-import { DEFAULT_NPZ, outputChecks, setDownloads, wireUploads } from "./forms.js";
-import {
-  GROUP_COLOURS, drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend,
-} from "./images.js";
+import { outputChecks, wireUploads } from "./forms.js";
+import { chooseScene, chooseView, sensorOptions, wireControls } from "./controls.js";
+import { drawMixture, esc, drawRGB8, drawRaw, drawScalar, gainValues, mixtureLegend, rawScale, scalarLegend } from "./images.js";
 import { DEFAULT_POOL, drawGallery } from "./gallery.js";
-import { CCT, DEFAULT_LIGHTS, EV, INTENSITY, stateFromLink } from "./linkcheck.js";
+import { currentScene, downloads, lib, notice, sampleParams, state, writeURL, writeURLSoon } from "./link.js";
+import { EV, stateFromLink } from "./linkcheck.js";
 import { loadNoise, noisyAt } from "./noise.js";
 import { hoverSpectrum, wireSpectrum } from "./pixel.js";
 import { chromaHover, plotChroma, plotSensor, plotSpectra, resizePlots } from "./plots.js";
 import { onZoom, panelFraction, toImage, toPanel, wireZoom } from "./zoom.js";
 
 const $ = (id) => document.getElementById(id);
-const lib = { scenes: [], sensors: null, illuminants: null };
-const state = {};
 let frame = null, spectra = null, spectraKey = "", inflight = null, timer = null;
 //: the state the images show: a failed update puts the controls back to it (js/main.js restore)
 let rendered = null;
@@ -22,161 +20,10 @@ const FRAME_KEYS = ["scene", "view", "sensor", "illuminants", "intensities", "si
 let aov = null, aovKey = "";
 let hovered = null; //: [x, y] of the frame pixel under the cursor (the marker follows zoom and pan)
 
-// -- state ↔ URL (read once the lists are in: js/linkcheck.js checks every value) ----------------
-/** The link values that were replaced: one line above the images (a click shows it all; × clears it). */
-function notice(notes) {
-  $("notice").hidden = !notes.length;
-  $("notice-text").textContent = notes.length ? `Link values replaced: ${notes.join("; ")}` : "";
-  $("notice-text").title = "click to show it all";
-}
-
-/** The /sample parameters of the current view (shared by the frame request and the downloads), or of `st`. */
-function sampleParams(st = state) {
-  const p = { scene: st.scene, view: st.view, sensor: st.sensor, illuminants: st.illuminants.join(","),
-    intensities: st.intensities.join(",") };
-  if (st.size) p.size = st.size; // WxH, as /sample takes it; none: the view's own size
-  if (st.gt) p.gt = st.gt;
-  if (st.denoise) p.denoise = st.denoise; // none: the cubes as rendered; unset: the stored copies
-  return p;
-}
-
 /** The parameters of the frame on screen without gt (its spectra and noisy raw do not depend on it). */
 function shownParams() {
   const { gt, ...p } = sampleParams(rendered);
   return p;
-}
-
-function writeURL() {
-  const q = new URLSearchParams(sampleParams());
-  if (state.ev) q.set("ev", state.ev);
-  if (state.gain !== "br") q.set("gain", state.gain);
-  if (String(state.npz) !== String(DEFAULT_NPZ)) q.set("npz", state.npz.join(","));
-  if (state.aov) q.set("aov", state.aov);
-  if (state.noise) q.set("noise", state.noise);
-  history.replaceState(null, "", `?${q}`);
-}
-
-const currentScene = () => lib.scenes.find((s) => s.name === state.scene);
-const currentView = () => currentScene().views.find((v) => v.name === state.view);
-
-// -- controls ----------------------------------------------------------------------------------
-/** `groups`: [[label, [[value, text, why?], …]], …]; an item with `why` is shown disabled, `why` its tooltip. */
-function options(select, groups, selected) {
-  select.innerHTML = "";
-  for (const [label, items] of groups) {
-    if (!items.length) continue;
-    const og = document.createElement("optgroup");
-    og.label = label;
-    for (const [value, text, why] of items) {
-      const o = new Option(text, value, false, value === selected && !why);
-      if (why) Object.assign(o, { disabled: true, title: why });
-      og.append(o);
-    }
-    select.append(og);
-  }
-}
-
-function chooseScene() {
-  const scene = currentScene();
-  options($("scene"), [["scenes", lib.scenes.map((s) => [s.name, s.name])]], state.scene);
-  const thumbs = $("thumbs");
-  thumbs.innerHTML = "";
-  for (const v of scene.views) {
-    const w = 96, h = Math.max(1, Math.round((96 * v.height) / v.width));
-    const b = document.createElement("button");
-    b.className = v.name === state.view ? "thumb selected" : "thumb";
-    b.title = `${v.name}: ${v.width}×${v.height}, groups ${v.groups.map((g) => g.name).join(", ")}`;
-    const q = new URLSearchParams({ scene: scene.name, view: v.name, outputs: "srgb", format: "png", size: `${w}x${h}`, seed: "0" });
-    b.innerHTML = `<img alt="${esc(v.name)}" width="${w}" height="${h}" src="/sample?${q}"><span>${esc(v.name)}</span>`;
-    b.onclick = () => { state.view = v.name; state.size = ""; chooseScene(); chooseView(); update(); };
-    thumbs.append(b);
-  }
-}
-
-/** Per light group: an illuminant (list or CCT slider) and an intensity. */
-function chooseView() {
-  const v = currentView();
-  const n = v.groups.length;
-  state.illuminants = v.groups.map((g, k) => state.illuminants[k] || DEFAULT_LIGHTS[k % DEFAULT_LIGHTS.length]);
-  state.intensities = v.groups.map((g, k) => (Number.isFinite(state.intensities[k]) ? state.intensities[k] : 1));
-  state.illuminants.length = state.intensities.length = n;
-  const box = $("groups");
-  box.innerHTML = "";
-  v.groups.forEach((g, k) => {
-    const div = document.createElement("div");
-    div.className = "group";
-    div.innerHTML = `<div><span class="swatch" style="background:${GROUP_COLOURS[k % GROUP_COLOURS.length]}"></span>
-        <b>${esc(g.name)}</b> <span class="muted">rendered with ${esc(g.emission)} emission</span></div>
-      <select class="ill" aria-label="illuminant of ${esc(g.name)}"></select>
-      <label class="cct">CCT <input type="range"> <output></output></label>
-      <label>intensity <input class="int" type="range" min="${INTENSITY[0]}" max="${INTENSITY[1]}" step="${INTENSITY[2]}">
-        <output></output></label>`;
-    box.append(div);
-    wireGroup(div, k);
-  });
-  sizeOptions(v);
-  const denoised = v.groups.filter((g) => g.denoised).map((g) => `${g.name}: ${g.denoised}`);
-  $("denoise-note").textContent = denoised.length ? `stored copies: ${denoised.join(", ")}` : "this view has no denoised copies";
-  $("denoise").value = state.denoise;
-  downloads();
-}
-
-/** Full, half and quarter size of the view; a size from the URL that is none of them is kept. */
-function sizeOptions(v) {
-  const sizes = [1, 2, 4].map((d) => `${Math.max(1, Math.round(v.width / d))}x${Math.max(1, Math.round(v.height / d))}`);
-  if (state.size === sizes[0]) state.size = "";
-  const items = sizes.map((s, k) => [k ? s : "", `${["full", "1/2", "1/4"][k]} (${s.replace("x", "×")})`]);
-  if (state.size && !sizes.includes(state.size)) items.push([state.size, state.size.replace("x", "×")]);
-  options($("size"), [["frame size", items]], state.size);
-}
-
-function illuminantOptions(select, name) {
-  const kind = name.includes(":") ? name.split(":")[0] : name;
-  options(select, [
-    ["colour temperature (slider)", [["blackbody", "blackbody (Planck)"], ["daylight", "CIE daylight"]]],
-    ["uploaded", lib.illuminants.uploaded.map((x) => [x, x])],
-    ["CIE and measured", lib.illuminants.builtin.map((x) => [x, x])],
-    ["not usable on this service's spectral grid", Object.entries(lib.illuminants.unavailable || {})
-      .map(([x, why]) => [x, `${x} (${shortWhy(why)})`, why])],
-  ], kind);
-}
-
-/** An unusable illuminant's reason in a few words: "covers 350-690 nm only" where the reason says so. */
-function shortWhy(why) {
-  const m = /cover (\d+(?:\.\d+)?-\d+(?:\.\d+)?) nm/.exec(why);
-  return m ? `data cover ${m[1]} nm only` : "not usable here";
-}
-
-function wireGroup(div, k) {
-  const sel = div.querySelector(".ill"), cct = div.querySelector(".cct"), slider = cct.querySelector("input");
-  const int = div.querySelector(".int");
-  const show = () => {
-    const [kind, kelvin] = state.illuminants[k].split(":");
-    cct.hidden = !(kind in CCT);
-    if (kind in CCT) {
-      const [lo, hi, step, start] = CCT[kind];
-      Object.assign(slider, { min: lo, max: hi, step });
-      slider.value = kelvin || start;
-      state.illuminants[k] = `${kind}:${slider.value}`;
-      cct.querySelector("output").textContent = `${slider.value} K`;
-    }
-    int.nextElementSibling.textContent = state.intensities[k].toFixed(2);
-  };
-  illuminantOptions(sel, state.illuminants[k]);
-  int.value = state.intensities[k];
-  show();
-  sel.onchange = () => { state.illuminants[k] = sel.value; show(); update(); };
-  slider.oninput = () => { state.illuminants[k] = `${state.illuminants[k].split(":")[0]}:${slider.value}`; show(); later(); };
-  int.oninput = () => { state.intensities[k] = Number(int.value); show(); later(); };
-}
-
-function downloads() {
-  setDownloads(sampleParams(), `${state.scene}-${state.view}`, state.npz);
-}
-
-function sensorOptions() {
-  options($("sensor"), [["uploaded", lib.sensors.uploaded.map((x) => [x, x])],
-    ["built in", lib.sensors.builtin.map((x) => [x, x])]], state.sensor);
 }
 
 // -- updates -----------------------------------------------------------------------------------
@@ -411,6 +258,7 @@ async function start() {
   const nviews = lib.scenes.reduce((n, s) => n + s.views.length, 0);
   $("summary").textContent = `${lib.scenes.length} scene(s), ${nviews} view(s)`;
   $("token-row").hidden = !health.auth;
+  wireControls(update, later);
   sensorOptions();
   chooseScene();
   chooseView();
@@ -426,8 +274,8 @@ async function start() {
     fr.append(c);
     fr.addEventListener("mousemove", hover);
   }
-  wireZoom();
-  onZoom(placeCross);
+  wireZoom(link.zoom); // the link's zoom and pan, or none
+  onZoom(() => { placeCross(); writeURLSoon(); });
   wireSpectrum();
   $("noise").value = state.noise;
   $("noise").onchange = () => { state.noise = $("noise").value; writeURL(); noise(); };

@@ -43,6 +43,11 @@ export function resetZoom() {
   apply();
 }
 
+/** The view for the page link (js/link.js): null at no zoom, else {s, u, v}, (u, v) the image point at the panels' centre. */
+export function zoomLink() {
+  return view.s === 1 ? null : { s: view.s, u: (0.5 - view.ox) / view.s, v: (0.5 - view.oy) / view.s };
+}
+
 /** Panel fraction (mx, my) of a pointer event over `frame` (an element of class .frame). */
 export function panelFraction(frame, ev) {
   const r = frame.getBoundingClientRect();
@@ -55,8 +60,12 @@ export const toImage = (mx, my) => [(mx - view.ox) / view.s, (my - view.oy) / vi
 /** The panel fraction [mx, my] where image point (u, v) is shown. */
 export const toPanel = (u, v) => [view.ox + view.s * u, view.oy + view.s * v];
 
-/** Wire every .frame: wheel (zoom about the cursor), drag (pan), double-click (reset). */
-export function wireZoom() {
+/**
+ * Wire every .frame: wheel (zoom about the cursor), drag (pan), double-click (reset); the view starts at
+ * `start` ({s, u, v}: zoom s with image point (u, v) at the panels' centre, clamped as any view) or unzoomed.
+ */
+export function wireZoom(start = null) {
+  if (start) Object.assign(view, { s: start.s, ox: 0.5 - start.s * start.u, oy: 0.5 - start.s * start.v });
   let drag = null;
   for (const frame of document.querySelectorAll(".frame")) {
     frame.addEventListener("wheel", (ev) => {
