@@ -21,7 +21,7 @@ def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES
                    seed: int = 0) -> np.ndarray:
     """``(V, H, W, 3)`` float32 linear sRGB of each view with every group on."""
     from illumix.renderer_jobs.mitsuba.render import emitter_passes
-    from illumix.renderer_jobs.mitsuba.scene_dict import batch_sensor_dict, build_scene_dict
+    from illumix.renderer_jobs.mitsuba.scene_dict import batch_sensor_dict, build_scene_dict, load_padded
     from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
     mi, _ = import_mitsuba()
@@ -31,7 +31,7 @@ def preview_linear(scene, views: list[str] | None = None, resolution=PREVIEW_RES
         doc = build_scene_dict(scene, views[0], None, resolution=resolution, portals=portals)
         doc["integrator"] = {"type": "path", "max_depth": min(scene.max_depth, 5)}
         doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, spp)  # all views, one render
-        rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed), np.float32)[..., :3]
+        rgb = np.asarray(mi.render(load_padded(mi, doc), spp=spp, seed=seed), np.float32)[..., :3]
         out += np.stack(np.split(rgb, len(views), axis=1))
     return out
 

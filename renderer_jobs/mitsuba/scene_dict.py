@@ -18,6 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from illumix.renderer_jobs.mitsuba.instance_padding import pad_registry, release_padding
 from illumix.renderer_jobs.mitsuba.textures import normal_map_dict, reflectance_dict
 from illumix.renderer_jobs.mitsuba.variant import RenderError, import_mitsuba
 from illumix.scene.model import Scene
@@ -312,14 +313,32 @@ def build_scene_dict(scene: Scene, view: str, groups: list[str] | None, *,
         shape_em.update(se)
         for name, d in lights.items():
             doc[f"light_{name}"] = d
+    bsdf_ids: dict[str, str] = {}
     for s in scene.shapes:
         if scene.is_portal(s) and s.name not in shape_em:
             continue  # a portal is not geometry: present only as its own pass's emitter
         d = _shape_dict(mi, scene, s)
+        # One BSDF per material, shared by its shapes (not one per shape): fewer instances for every
+        # call to record, and a BSDF count that follows the materials, not the shapes
+        # (:mod:`.instance_padding`: scenes that differ in shapes share kernels).
+        key = s.material or ""
+        if key not in bsdf_ids:
+            bsdf_ids[key] = f"bsdf{len(bsdf_ids)}"
+            doc[bsdf_ids[key]] = d["bsdf"]
+        d["bsdf"] = {"type": "ref", "id": bsdf_ids[key]}
         if s.name in shape_em:
             d["emitter"] = shape_em[s.name]
         doc[f"shape_{s.name}"] = d
     return doc
+
+
+def load_padded(mi, doc: dict):
+    """``mi.load_dict(doc)`` with the instance registry padded (:mod:`.instance_padding`): kernels
+    recorded for this scene are the ones a scene of similar size already compiled."""
+    release_padding()
+    ms = mi.load_dict(doc)
+    pad_registry(mi)
+    return ms
 
 
 def load_mitsuba_scene(scene: Scene, view: str, groups: list[str] | None, resolution=None, radius=None,
@@ -332,7 +351,7 @@ def load_mitsuba_scene(scene: Scene, view: str, groups: list[str] | None, resolu
     if sampler is not None:
         doc["sensor"]["sampler"] = sampler
     try:
-        ms = mi.load_dict(doc)
+        ms = load_padded(mi, doc)
     except SceneError:
         raise
     except Exception as exc:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from illumix.renderer_jobs.cube import emitter_passes
-from illumix.renderer_jobs.mitsuba.scene_dict import batch_sensor_dict, build_scene_dict
+from illumix.renderer_jobs.mitsuba.scene_dict import batch_sensor_dict, build_scene_dict, load_padded
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
 
@@ -20,7 +20,7 @@ def group_luminance(scene, views: list[str], group: str, resolution: tuple[int, 
         doc["integrator"] = {"type": "path", "max_depth": min(scene.max_depth, 5)}
         # every view in one batch sensor: one kernel per group instead of one per view (3x faster)
         doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, spp)
-        rgb = np.asarray(mi.render(mi.load_dict(doc), spp=spp, seed=seed))[..., :3]
+        rgb = np.asarray(mi.render(load_padded(mi, doc), spp=spp, seed=seed))[..., :3]
         out += np.stack(np.split(rgb @ np.array([0.2126, 0.7152, 0.0722]), len(views), axis=1))
     return out
 
@@ -32,5 +32,5 @@ def view_depth(scene, views: list[str], resolution: tuple[int, int]) -> np.ndarr
     doc = build_scene_dict(scene, views[0], [], resolution=resolution)
     doc["integrator"] = {"type": "aov", "aovs": "dd:depth"}
     doc["sensor"] = batch_sensor_dict(mi, scene, views, resolution, 1)
-    img = np.asarray(mi.render(mi.load_dict(doc), spp=1))[..., 0]
+    img = np.asarray(mi.render(load_padded(mi, doc), spp=1))[..., 0]
     return np.stack(np.split(img, len(views), axis=1))
