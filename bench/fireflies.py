@@ -31,6 +31,10 @@ version-2 documents —, ``metal`` (every metal alpha ≥ 0.3), ``ceramic`` (glo
 6 cm), ``strip_away`` (strips 9 cm further from their wall), ``strip_tilt`` (facing 45° into the
 room), ``strip_both``, ``glow75`` (translucent shades carry 75 % of their lamp's power, not 50 %),
 ``all``. ``base`` is the document unchanged. Prints one JSON object last; per-cube rows go to stderr.
+
+``--ladder 64,256,1024``: instead, per cube, the first spp of the ladder at which its two renders
+are clean (:func:`is_clean`), with CPU per render at each step: what clean renders cost by more
+paths alone.
 """
 
 from __future__ import annotations
@@ -231,6 +235,47 @@ def render_room(doc: dict, res: tuple[int, int], kinds: set[str] = frozenset(), 
     return rows
 
 
+def is_clean(m: dict) -> bool:
+    """bench/SCENES.md's "clean": firefly light < 0.5 % of the cube's and < 1 % of lit pixels with d > 0.5."""
+    return m["ff_light"] < 0.005 and m["d_above_0_5"] < 0.01
+
+
+def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -> list[dict]:
+    """Per group of view 0: render it at each spp of ``ladder`` in turn (two seeds each, fresh paths)
+    until the two renders are :func:`is_clean`: the spp that got there and the CPU per render at each
+    step — what "clean before denoising" costs by more paths alone (``--ladder``)."""
+    from illumix.renderer_jobs.mitsuba.render import render_cube
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.scene.load import scene_from_dict
+
+    scene = scene_from_dict(doc, source=doc["name"])
+    view, rows = scene.views[0].name, []
+    for g in scene.group_names:
+        row: dict = {"room": doc["name"], "group": g, "steps": [], "clean_at": None}
+        for spp in ladder:
+            if spp == 64:  # the default: the renders the base measurement keeps
+                imgs, cpu = _renders(scene, view, g, res, (1, 2), tag)
+            else:
+                imgs, cpu = [], 0.0
+                for seed in (1, 2):
+                    c0 = time.process_time()
+                    r = render_cube(scene, view, g, RenderSettings(resolution=res, spp=spp, denoise=None,
+                                                                  illumination=False, seed=seed))
+                    cpu += time.process_time() - c0
+                    imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
+            if any(i is None for i in imgs) or not np.any(imgs[0]):
+                break
+            m = measure(*imgs)
+            row["steps"].append({"spp": spp, "rel": round(m["rel"], 3), "d_above_0_5": round(m["d_above_0_5"], 4),
+                                 "ff_light": round(m["ff_light"], 4), "cpu_s": round(cpu / 2, 1)})
+            if is_clean(m):
+                row["clean_at"] = spp
+                break
+        print(f"  {doc['name']} {g}: clean at {row['clean_at']} spp; {row['steps']}", file=sys.stderr, flush=True)
+        rows.append(row)
+    return rows
+
+
 def summarise(rows: list[dict]) -> dict:
     """Per group kind and pooled: noise from the pooled d, mean firefly shares, CPU."""
     out = {}
@@ -258,6 +303,7 @@ def main() -> None:
     ap.add_argument("--kinds", default="", help="only groups of these kinds (comma-separated)")
     ap.add_argument("--no-cache", action="store_true", help="regenerate the rooms")
     ap.add_argument("--rng-version", default=None, help="seed the rooms as this generator version did")
+    ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     kinds = {k for k in args.kinds.split(",") if k}
@@ -266,6 +312,17 @@ def main() -> None:
     docs = [room_doc(int(s), not args.no_cache, args.rng_version) for s in args.seeds.split(",")]
     version = f"{version}-rng{args.rng_version or version}"
     result = {"bench": "fireflies", "res": list(res), "seeds": args.seeds}
+    if args.ladder:
+        ladder = [int(v) for v in args.ladder.split(",")]
+        rows = [r for doc in docs for r in spp_to_clean(doc, res, ladder, f"v{version}-base")]
+        steps = {spp: sum(1 for r in rows if r["clean_at"] is not None and r["clean_at"] <= spp) for spp in ladder}
+        result["ladder"] = {"cubes": len(rows), "clean_by_spp": steps,
+                            "cpu_s_default": round(sum(r["steps"][0]["cpu_s"] for r in rows if r["steps"]), 1),
+                            # more paths kept where the cube is not clean yet: the last step's CPU per cube
+                            "cpu_s_until_clean": round(sum(r["steps"][-1]["cpu_s"] for r in rows if r["steps"]), 1),
+                            "rows": rows}
+        print(json.dumps(result))
+        return
     for what in args.ablate.split(","):
         print(f"ablation {what} …", file=sys.stderr, flush=True)
         rows = []
