@@ -34,7 +34,8 @@ room), ``strip_both``, ``glow75`` (translucent shades carry 75 % of their lamp's
 
 ``--ladder 64,256,1024``: instead, per cube, the first spp of the ladder at which its two renders
 are clean (:func:`is_clean`), with CPU per render at each step: what clean renders cost by more
-paths alone.
+paths alone. ``--clean-max-spp 1024``: every cube rendered with the renderer's until-clean rule
+(``RenderSettings.clean_max_spp``), two seeds, judged by the same definition.
 """
 
 from __future__ import annotations
@@ -48,9 +49,10 @@ from pathlib import Path
 
 import numpy as np
 
+from illumix.renderer_jobs.clean_check import D_TO_S, is_clean, measure  # noqa: F401 - the definitions
+
 OUT = Path(__file__).resolve().parent / "out" / "fireflies"
 SEEDS = (9102, 9106, 9108, 9110, 9122, 9125)  # every group kind, 2-4 groups each
-D_TO_S = 0.4769  # median |N(0, √2 s)| / 2 = 0.4769 s: median(d) → relative standard error
 
 
 def room_doc(seed: int, cache: bool = True, rng_version: str | None = None) -> dict:
@@ -163,34 +165,6 @@ def _flat_tubes(d: dict) -> None:
     d["shapes"] = out
 
 
-def firefly_stats(img: np.ndarray, other: np.ndarray, lit: np.ndarray) -> tuple[float, float]:
-    """``(share of lit pixels that are fireflies, share of the frame's light in their excess)`` of an
-    ``(H, W)`` render given an independent render ``other`` of the same cube: pixels above 10× their
-    5×5 median, above 4× the other render (so that what both renders show — an emitter or a highlight
-    seen directly — is not counted) and above 1 % of the 99th percentile; the excess is over the
-    larger of that median and the other render."""
-    from scipy.ndimage import median_filter
-
-    med = median_filter(img, size=5, mode="nearest")
-    floor = 0.01 * max(float(np.percentile(img, 99)), 1e-30)
-    ff = (img > 10 * med) & (img > 4 * other) & (img > floor)
-    total = float(img.sum())
-    excess = (img - np.maximum(med, other))[ff].sum()
-    return float(ff[lit].mean()) if lit.any() else 0.0, float(excess / total) if total > 0 else 0.0
-
-
-def measure(a: np.ndarray, b: np.ndarray) -> dict:
-    """Noise and firefly figures of two independent ``(H, W)`` renders (see module docstring)."""
-    mean = (a + b) / 2
-    lit = mean > 1e-3 * max(float(np.percentile(mean, 99)), 1e-30)
-    d = np.abs(a - b)[lit] / np.maximum(a + b, 1e-30)[lit]
-    fa, fb = firefly_stats(a, b, lit), firefly_stats(b, a, lit)
-    return {"lit": int(lit.sum()), "d": d, "rel": float(np.median(d) / D_TO_S) if d.size else None,
-            "rel_p95": float(np.percentile(d, 95) / D_TO_S) if d.size else None,
-            "d_above_0_5": float((d > 0.5).mean()) if d.size else None,
-            "ff_pixels": (fa[0] + fb[0]) / 2, "ff_light": (fa[1] + fb[1]) / 2}
-
-
 def kind_of(group: str) -> str:
     return group.split(":")[0]
 
@@ -235,11 +209,6 @@ def render_room(doc: dict, res: tuple[int, int], kinds: set[str] = frozenset(), 
     return rows
 
 
-def is_clean(m: dict) -> bool:
-    """bench/SCENES.md's "clean": firefly light < 0.5 % of the cube's and < 1 % of lit pixels with d > 0.5."""
-    return m["ff_light"] < 0.005 and m["d_above_0_5"] < 0.01
-
-
 def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -> list[dict]:
     """Per group of view 0: render it at each spp of ``ladder`` in turn (two seeds each, fresh paths)
     until the two renders are :func:`is_clean`: the spp that got there and the CPU per render at each
@@ -276,6 +245,35 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
     return rows
 
 
+def until_clean(doc: dict, res: tuple[int, int], max_spp: int) -> list[dict]:
+    """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
+    (the renderer adds paths until its own halves are clean): whether the two are clean by
+    :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``)."""
+    from illumix.renderer_jobs.mitsuba.render import render_cube
+    from illumix.renderer_jobs.render_settings import RenderSettings
+    from illumix.scene.load import scene_from_dict
+
+    scene = scene_from_dict(doc, source=doc["name"])
+    view, rows = scene.views[0].name, []
+    for g in scene.group_names:
+        imgs, cpu, paths = [], 0.0, []
+        for seed in (1, 2):
+            c0 = time.process_time()
+            r = render_cube(scene, view, g, RenderSettings(resolution=res, denoise=None, illumination=False,
+                                                          seed=seed, clean_max_spp=max_spp))
+            cpu += time.process_time() - c0
+            imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
+            paths.append(r.stats["paths_per_pixel"])
+        if not np.any(imgs[0]):
+            continue
+        m = measure(*imgs)
+        rows.append({"room": doc["name"], "group": g, "paths_per_pixel": paths, "rel": round(m["rel"], 3),
+                     "d_above_0_5": round(m["d_above_0_5"], 4), "ff_light": round(m["ff_light"], 4),
+                     "clean": is_clean(m), "cpu_s": round(cpu / 2, 1)})
+        print(f"  {rows[-1]}", file=sys.stderr, flush=True)
+    return rows
+
+
 def summarise(rows: list[dict]) -> dict:
     """Per group kind and pooled: noise from the pooled d, mean firefly shares, CPU."""
     out = {}
@@ -304,6 +302,7 @@ def main() -> None:
     ap.add_argument("--no-cache", action="store_true", help="regenerate the rooms")
     ap.add_argument("--rng-version", default=None, help="seed the rooms as this generator version did")
     ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
+    ap.add_argument("--clean-max-spp", type=int, default=0, help="render with the renderer's until-clean rule")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     kinds = {k for k in args.kinds.split(",") if k}
@@ -312,6 +311,13 @@ def main() -> None:
     docs = [room_doc(int(s), not args.no_cache, args.rng_version) for s in args.seeds.split(",")]
     version = f"{version}-rng{args.rng_version or version}"
     result = {"bench": "fireflies", "res": list(res), "seeds": args.seeds}
+    if args.clean_max_spp:
+        rows = [r for doc in docs for r in until_clean(doc, res, args.clean_max_spp)]
+        result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
+                                 "clean": sum(r["clean"] for r in rows),
+                                 "cpu_s": round(sum(r["cpu_s"] for r in rows), 1), "rows": rows}
+        print(json.dumps(result))
+        return
     if args.ladder:
         ladder = [int(v) for v in args.ladder.split(",")]
         rows = [r for doc in docs for r in spp_to_clean(doc, res, ladder, f"v{version}-base")]

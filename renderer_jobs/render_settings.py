@@ -59,6 +59,10 @@ class RenderSettings(BaseModel):
     noise_target: float | None = Field(None, json_schema_extra=CLI, description=(
         "With --wavelengths stratified: render each pixel to this relative noise of its spectral sum as the pilot "
         "predicts it (e.g. 0.05 = 5 %); --spp becomes the per-pixel maximum."))
+    clean_max_spp: int | None = Field(None, json_schema_extra=CLI, description=(
+        "All-bands: render each cube as two independent halves of --spp and, while they disagree as a noisy cube "
+        "does (fireflies, or > 1 % of pixels 3:1 apart: bench/SCENES.md), give both as many paths again, up to "
+        "this many per pixel in all (e.g. 1024); default: exactly --spp."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "
         "physical ground truth the service serves; --no-illumination: transport only (the formula ground truth)."))
@@ -121,9 +125,17 @@ class RenderSettings(BaseModel):
                 raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
                                  "(Mitsuba traces wavelengths in fours)")
             check_spp(self.sampler, self.spp, self.bands_per_path, DEFAULT_BANDS)
+            if self.clean_max_spp is not None:
+                if self.clean_max_spp < self.spp:
+                    raise SceneError(f"clean max spp {self.clean_max_spp} is below --spp {self.spp}: the cube starts "
+                                     "at --spp and only adds paths")
+                check_spp(self.sampler, self.spp // 2, self.bands_per_path, DEFAULT_BANDS)  # its halves
             if self.adaptive or self.noise_target is not None:
                 raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
                                  "they need wavelengths 'stratified' (all-bands paths are uniform per pixel)")
+        if self.clean_max_spp is not None and not (self.wavelengths == "all-bands" and self.backend == "mitsuba"):
+            raise SceneError("--clean-max-spp renders all-bands cubes in rounds: it needs the mitsuba backend and "
+                             "wavelengths 'all-bands'")
         if self.noise_target is not None and not 0 < self.noise_target < 1:
             raise SceneError(f"noise target {self.noise_target} must lie in (0, 1): a relative standard "
                              "deviation, e.g. 0.05 for 5 %")

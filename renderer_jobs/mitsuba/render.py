@@ -160,8 +160,14 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
         if np.shape(boost_mask) != (h, w):
             raise SceneError(f"boost mask {np.shape(boost_mask)} does not match view {view!r}'s ({h}, {w}) (H, W)")
         boost = np.flatnonzero(np.asarray(boost_mask, bool).ravel())
-    cube, illum, stats, noise = render_all_bands(scene, view, groups, passes, settings,
-                                                 np.asarray(emission, np.float64), boost)
+    e = np.asarray(emission, np.float64)
+    if settings.clean_max_spp:
+        from illumix.renderer_jobs.mitsuba.until_clean import render_until_clean  # noqa: PLC0415
+
+        cube, illum, stats, noise = render_until_clean(
+            lambda s: render_all_bands(scene, view, groups, passes, s, e, boost), settings)
+    else:
+        cube, illum, stats, noise = render_all_bands(scene, view, groups, passes, settings, e, boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})
     info = renderer_info(scene, settings, passes)
     info["settings"]["targeted_paths"] = ({"spp_factor": settings.boost_factor, "reach": settings.boost_reach,
