@@ -90,13 +90,16 @@ class Estimate:
     kernel_s: float
     executor: str = "local"
     machine: str = MACHINE
+    clean_max_factor: float = 0.0  # --clean-max-spp / --spp: the most a noisy cube's paths may grow
 
     def line(self) -> str:
         """One line for people: says it is an estimate and where it was measured."""
         slots = f"{self.workers} worker(s)" if self.executor == "local" else f"{self.workers} Ray task(s) at once"
+        clean = (f"; at --spp: --clean-max-spp adds up to {self.clean_max_factor:.3g}x the paths to noisy "
+                 "cubes (3.4x the CPU on generated rooms, bench/SCENES.md)" if self.clean_max_factor > 1 else "")
         return (f"estimate: about {duration(self.cpu_s)} CPU, {duration(self.wall_s)} wall with {slots} "
                 f"for {self.jobs} job(s) ({self.paths / 1e6:.3g} M paths; up to {duration(self.kernel_s)} "
-                f"of it building kernels) — scaled from per-path costs measured on {self.machine}; "
+                f"of it building kernels{clean}) — scaled from per-path costs measured on {self.machine}; "
                 "other machines and scenes differ")
 
     def to_json(self) -> dict:
@@ -158,8 +161,9 @@ def estimate(plan, settings, workers: int = 1, executor: str = "local") -> Estim
     threads = max(1, cores // used) if executor == "local" else 1
     ratio = WALL_PER_CPU if threads >= 2 else 1.0
     wall = max((per_process + work / used) * ratio, cpu / cores if executor == "local" else 0.0) if jobs else 0.0
+    cap = getattr(settings, "clean_max_spp", None)
     return Estimate(cpu_s=cpu, wall_s=wall, workers=workers, jobs=len(jobs), paths=paths, kernel_s=kernel,
-                    executor=executor)
+                    executor=executor, clean_max_factor=cap / float(settings.spp) if cap else 0.0)
 
 
 def weights(plan, settings) -> dict[str, float]:

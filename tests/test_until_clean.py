@@ -101,3 +101,10 @@ def test_a_real_cube_renders_in_rounds():
     uc = r.stats["until_clean"]
     assert uc["rounds"] >= 2 and 16 <= r.stats["paths_per_pixel"] <= 64
     assert np.isfinite(r.cube).all() and r.cube.shape == (24, 32, scene.spectral_grid.n_bands)
+
+
+def test_the_estimate_says_the_rule_can_add_paths():
+    from illumix.renderer_jobs.cost_model import Estimate
+    plain = Estimate(cpu_s=10, wall_s=8, workers=1, jobs=2, paths=1e6, kernel_s=3)
+    capped = Estimate(cpu_s=10, wall_s=8, workers=1, jobs=2, paths=1e6, kernel_s=3, clean_max_factor=16)
+    assert "clean-max-spp" not in plain.line() and "up to 16x the paths" in capped.line()
