@@ -48,8 +48,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from illumix.renderer_jobs.clean_check import D_TO_S, is_clean, measure  # noqa: F401 - the definitions
+from illumix.renderer_jobs.clean_check import D_TO_S, is_clean, measure
 
 OUT = Path(__file__).resolve().parent / "out" / "fireflies"
 SEEDS = (9102, 9106, 9108, 9110, 9122, 9125)  # every group kind, 2-4 groups each
@@ -209,12 +208,26 @@ def render_room(doc: dict, res: tuple[int, int], kinds: set[str] = frozenset(), 
     return rows
 
 
+def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float, list]:
+    """Band sums ``(H, W)`` of ``group``'s cube rendered with seeds 1 and 2 (no denoising, transport
+    only, ``settings`` on top), their CPU s together and each one's paths per pixel."""
+    from illumix.renderer_jobs.mitsuba.render import render_cube
+    from illumix.renderer_jobs.render_settings import RenderSettings
+
+    imgs, cpu, paths = [], 0.0, []
+    for seed in (1, 2):
+        c0 = time.process_time()
+        r = render_cube(scene, view, group, RenderSettings(denoise=None, illumination=False, seed=seed, **settings))
+        cpu += time.process_time() - c0
+        imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
+        paths.append(r.stats["paths_per_pixel"])
+    return imgs, cpu, paths
+
+
 def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -> list[dict]:
     """Per group of view 0: render it at each spp of ``ladder`` in turn (two seeds each, fresh paths)
     until the two renders are :func:`is_clean`: the spp that got there and the CPU per render at each
     step — what "clean before denoising" costs by more paths alone (``--ladder``)."""
-    from illumix.renderer_jobs.mitsuba.render import render_cube
-    from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
@@ -225,13 +238,7 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
             if spp == 64:  # the default: the renders the base measurement keeps
                 imgs, cpu = _renders(scene, view, g, res, (1, 2), tag)
             else:
-                imgs, cpu = [], 0.0
-                for seed in (1, 2):
-                    c0 = time.process_time()
-                    r = render_cube(scene, view, g, RenderSettings(resolution=res, spp=spp, denoise=None,
-                                                                  illumination=False, seed=seed))
-                    cpu += time.process_time() - c0
-                    imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
+                imgs, cpu, _ = _two_renders(scene, view, g, resolution=res, spp=spp)
             if any(i is None for i in imgs) or not np.any(imgs[0]):
                 break
             m = measure(*imgs)
@@ -249,21 +256,12 @@ def until_clean(doc: dict, res: tuple[int, int], max_spp: int) -> list[dict]:
     """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
     (the renderer adds paths until its own halves are clean): whether the two are clean by
     :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``)."""
-    from illumix.renderer_jobs.mitsuba.render import render_cube
-    from illumix.renderer_jobs.render_settings import RenderSettings
     from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
     view, rows = scene.views[0].name, []
     for g in scene.group_names:
-        imgs, cpu, paths = [], 0.0, []
-        for seed in (1, 2):
-            c0 = time.process_time()
-            r = render_cube(scene, view, g, RenderSettings(resolution=res, denoise=None, illumination=False,
-                                                          seed=seed, clean_max_spp=max_spp))
-            cpu += time.process_time() - c0
-            imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
-            paths.append(r.stats["paths_per_pixel"])
+        imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
         if not np.any(imgs[0]):
             continue
         m = measure(*imgs)

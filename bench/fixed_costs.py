@@ -129,7 +129,7 @@ def measure(tmp: Path, padding: str) -> dict:
     for r in rows:
         say(f"  [padding {padding}] {r['store']}: {r['job']} 240x180: {r['cpu_s']:.2f} CPU-s, "
             f"{r['kernels_built']} kernels built ({r['build_s']:.2f} s)")
-    cube = lambda store, group="lamp": next(r["cpu_s"] for r in rows  # noqa: E731
+    cube = lambda store, group="lamp": next(r["cpu_s"] for r in rows
                                             if r["store"] == store and r["job"].endswith("/" + group))
     firsts = [cube(f"b{k}") for k in (1, 2, 3)]
     agains = [cube(f"b{k}-again") for k in (1, 2, 3)]

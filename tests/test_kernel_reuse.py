@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from illumix.renderer_jobs.mitsuba import instance_padding as ip
 from illumix.renderer_jobs.mitsuba.scene_dict import load_padded
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
 
 def test_buckets_are_half_octaves():
-    sizes = [ip.bucket(n) for n in range(0, 3000)]
+    sizes = [ip.bucket(n) for n in range(3000)]
     assert sizes[:17] == [16] * 17 and ip.bucket(17) == 24 and ip.bucket(25) == 32 and ip.bucket(33) == 48
     assert all(b >= n for n, b in enumerate(sizes))
     assert all(b <= max(16, 1.5 * n) for n, b in enumerate(sizes))  # never more than half again

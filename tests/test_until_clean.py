@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from illumix.renderer_jobs.clean_check import is_clean, measure
 from illumix.renderer_jobs.mitsuba.until_clean import render_until_clean
 from illumix.renderer_jobs.render_settings import RenderSettings
@@ -52,7 +51,7 @@ def test_a_clean_cube_costs_its_spp():
 
 def test_fireflies_buy_more_paths_up_to_the_cap():
     render, calls = _fake(firefly_rate=0.01)
-    cube, _, stats, _ = render_until_clean(render, RenderSettings(spp=64, clean_max_spp=1024))
+    _, _, stats, _ = render_until_clean(render, RenderSettings(spp=64, clean_max_spp=1024))
     spps = [c[0] for c in calls]
     assert spps[:2] == [32, 32] and sum(spps) <= 1024 and len(spps) > 2
     assert len({c[1] for c in calls}) == len(calls)  # every round its own paths
@@ -71,7 +70,7 @@ def test_the_rounds_average_to_an_unbiased_cube():
         c = np.full((H, W, B), 0.5, np.float32)
         c[0, 0] = 1e3 if s.seed % 2 else 0.5  # one firefly in every other round keeps it "not clean"
         return c, None, stats, None
-    cube, illum, stats, noise = render_until_clean(flat, RenderSettings(spp=64, clean_max_spp=256))
+    cube, illum, _, noise = render_until_clean(flat, RenderSettings(spp=64, clean_max_spp=256))
     assert illum is None and noise is None
     np.testing.assert_allclose(cube[1:, 1:], 0.5)
 

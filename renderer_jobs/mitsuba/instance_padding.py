@@ -49,7 +49,7 @@ def _id_bound_query():
     try:
         import drjit
         lib = ctypes.CDLL(os.path.join(os.path.dirname(drjit.__file__), "libdrjit-core.so"))
-        fn = getattr(lib, "_Z21jit_registry_id_boundPKcS0_")
+        fn = lib._Z21jit_registry_id_boundPKcS0_  # the C++ symbol: no Python binding exposes it
     except (ImportError, OSError, AttributeError):
         return None
     fn.restype = ctypes.c_uint32

@@ -12,7 +12,6 @@ at once costs what ``spp`` costs. bench/SCENES.md measures on generated rooms wh
 from __future__ import annotations
 
 import numpy as np
-
 from illumix.renderer_jobs.clean_check import is_clean, measure
 
 SEED_STEP = 1_000_003  # round k renders with seed + k·SEED_STEP: independent paths
