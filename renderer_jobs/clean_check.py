@@ -33,17 +33,15 @@ def firefly_stats(img: np.ndarray, other: np.ndarray, lit: np.ndarray) -> tuple[
     return float(ff[lit].mean()) if lit.any() else 0.0, float(excess / total) if total > 0 else 0.0
 
 
-def measure(a: np.ndarray, b: np.ndarray, d_scale: float = 1.0) -> dict:
-    """Noise and firefly figures of two independent ``(H, W)`` renders. ``d_scale`` divides ``d``
-    before it is compared with :data:`BIG_DIFFERENCE`: √2 for two half-budget renders judged as
-    two full ones (independent noise in ``d`` goes as 1/√spp)."""
+def measure(a: np.ndarray, b: np.ndarray) -> dict:
+    """Noise and firefly figures of two independent ``(H, W)`` renders."""
     mean = (a + b) / 2
     lit = mean > 1e-3 * max(float(np.percentile(mean, 99)), 1e-30)
     d = np.abs(a - b)[lit] / np.maximum(a + b, 1e-30)[lit]
     fa, fb = firefly_stats(a, b, lit), firefly_stats(b, a, lit)
     return {"lit": int(lit.sum()), "d": d, "rel": float(np.median(d) / D_TO_S) if d.size else None,
             "rel_p95": float(np.percentile(d, 95) / D_TO_S) if d.size else None,
-            "d_above_0_5": float((d / d_scale > BIG_DIFFERENCE).mean()) if d.size else 0.0,
+            "d_above_0_5": float((d > BIG_DIFFERENCE).mean()) if d.size else 0.0,
             "ff_pixels": (fa[0] + fb[0]) / 2, "ff_light": (fa[1] + fb[1]) / 2}
 
 

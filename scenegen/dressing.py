@@ -156,18 +156,10 @@ def walls(rng, plan, placer, mats) -> list[dict]:
     for wi, w in enumerate(plan.walls):
         if w.length < 0.9 or w.openings or placer.wall_spans.get(wi):
             continue
-        want = 2 if w.length > 3.2 else 1
-        order = rng.permutation(len(WALL_TRIES))
-        for j in order:
-            kind, yr = WALL_TRIES[int(j)]
-            name = f"{kind.replace('_', '-')}{n}"
-            got = placer.hang(CLUTTER[kind](rng, mats, name), name, yr, tries=12, walls=[wi])
-            if got:
-                out += [dict(s, name=f"d{n}_{s['name']}") for s in got]
-                n += 1
-                want -= 1
-                if want == 0:
-                    break
+        tries = (WALL_TRIES[int(j)] for j in rng.permutation(len(WALL_TRIES)))
+        n = _place_some(tries, 2 if w.length > 3.2 else 1, "d", n, out,
+                        lambda t, name: placer.hang(CLUTTER[t[0]](rng, mats, name), name, t[1], tries=12, walls=[wi]),
+                        kind=lambda t: t[0])
     return out
 
 
@@ -180,17 +172,26 @@ def tops(rng, placer, mats) -> list[dict]:
         if s.taken:
             continue
         want = 1 + int(s.size[0] * s.size[1] > 0.5) + int(rng.random() < 0.5)
-        for _ in range(want * 3):
-            kind = TABLETOP[int(rng.integers(len(TABLETOP)))]
-            name = f"{kind.replace('_', '-')}{n}"
-            got = placer.on_surface(CLUTTER[kind](rng, mats, name), name, tries=6, only=s)
-            if got:
-                out += [dict(sh, name=f"t{n}_{sh['name']}") for sh in got]
-                n += 1
-                want -= 1
-                if want == 0:
-                    break
+        kinds = (TABLETOP[int(rng.integers(len(TABLETOP)))] for _ in range(want * 3))  # drawn as tried
+        n = _place_some(kinds, want, "t", n, out,
+                        lambda kind, name, s=s: placer.on_surface(CLUTTER[kind](rng, mats, name), name, tries=6, only=s))
     return out
+
+
+def _place_some(tries, want: int, prefix: str, n: int, out: list, place, kind=lambda t: t) -> int:
+    """Place up to ``want`` things, trying ``tries`` in order (lazily: a try's random numbers are drawn
+    only when it is reached); ``place(try, name)`` returns the shapes or nothing. Placed shapes are
+    renamed ``{prefix}{n}_…`` and appended to ``out``; returns the next ``n``."""
+    for t in tries:
+        name = f"{kind(t).replace('_', '-')}{n}"
+        got = place(t, name)
+        if got:
+            out += [dict(sh, name=f"{prefix}{n}_{sh['name']}") for sh in got]
+            n += 1
+            want -= 1
+            if want == 0:
+                break
+    return n
 
 
 def _quad(x0: float, z0: float, x1: float, z1: float, y: float = 0.0) -> M.Mesh:

@@ -56,7 +56,7 @@ def test_fireflies_buy_more_paths_up_to_the_cap():
     assert spps[:2] == [32, 32] and sum(spps) <= 1024 and len(spps) > 2
     assert len({c[1] for c in calls}) == len(calls)  # every round its own paths
     assert stats["paths_per_pixel"] == sum(spps) and stats["until_clean"]["rounds"] == len(spps)
-    capped, calls = _fake(firefly_rate=0.01)[0], None
+    capped, _ = _fake(firefly_rate=0.01)
     _, _, small, _ = render_until_clean(capped, RenderSettings(spp=64, clean_max_spp=128))
     assert small["paths_per_pixel"] <= 128 and not small["until_clean"]["clean"]
 
