@@ -35,7 +35,10 @@ room), ``strip_both``, ``glow75`` (translucent shades carry 75 % of their lamp's
 ``--ladder 64,256,1024``: instead, per cube, the first spp of the ladder at which its two renders
 are clean (:func:`is_clean`), with CPU per render at each step: what clean renders cost by more
 paths alone. ``--clean-max-spp 1024``: every cube rendered with the renderer's until-clean rule
-(``RenderSettings.clean_max_spp``), two seeds, judged by the same definition.
+(``RenderSettings.clean_max_spp``), two seeds, judged by the same definition, against the two plain
+64-spp renders rendered in the same run (CPU ratio); ``--clean-max-spp
+default``: the renderer's default settings (generated rooms get the rule, capped at 1024). The other
+modes render exactly the spp (``clean_max_spp = 0``).
 """
 
 from __future__ import annotations
@@ -181,7 +184,8 @@ def _renders(scene, view: str, group: str, res, seeds, tag: str) -> tuple[list, 
     imgs, cpu = [], 0.0
     for s in seeds:
         c0 = time.process_time()
-        r = render_cube(scene, view, group, RenderSettings(resolution=res, denoise=None, illumination=False, seed=s))
+        r = render_cube(scene, view, group, RenderSettings(resolution=res, denoise=None, illumination=False, seed=s,
+                                                           clean_max_spp=0))  # exactly the spp (no rule)
         cpu += time.process_time() - c0
         imgs.append(None if r.cube is None else np.asarray(r.cube, np.float64).sum(axis=-1))
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -217,7 +221,8 @@ def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float,
     imgs, cpu, paths = [], 0.0, []
     for seed in (1, 2):
         c0 = time.process_time()
-        r = render_cube(scene, view, group, RenderSettings(denoise=None, illumination=False, seed=seed, **settings))
+        st = {"clean_max_spp": 0, **settings}  # exactly the spp unless the rule is asked for
+        r = render_cube(scene, view, group, RenderSettings(denoise=None, illumination=False, seed=seed, **st))
         cpu += time.process_time() - c0
         imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
         paths.append(r.stats["paths_per_pixel"])
@@ -252,9 +257,9 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
     return rows
 
 
-def until_clean(doc: dict, res: tuple[int, int], max_spp: int) -> list[dict]:
+def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None) -> list[dict]:
     """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
-    (the renderer adds paths until its own halves are clean): whether the two are clean by
+    (None: unset, the renderer's default; the renderer adds paths until its own halves are clean): whether the two are clean by
     :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``)."""
     from illumix.scene.load import scene_from_dict
 
@@ -264,10 +269,12 @@ def until_clean(doc: dict, res: tuple[int, int], max_spp: int) -> list[dict]:
         imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
         if not np.any(imgs[0]):
             continue
-        m = measure(*imgs)
+        plain, plain_cpu, _ = _two_renders(scene, view, g, resolution=res)  # the baseline, same run
+        m, mp = measure(*imgs), measure(*plain)
         rows.append({"room": doc["name"], "group": g, "paths_per_pixel": paths, "rel": round(m["rel"], 3),
                      "d_above_0_5": round(m["d_above_0_5"], 4), "ff_light": round(m["ff_light"], 4),
-                     "clean": is_clean(m), "cpu_s": round(cpu / 2, 1)})
+                     "clean": is_clean(m), "cpu_s": round(cpu / 2, 1),
+                     "plain": {"clean": is_clean(mp), "rel": round(mp["rel"], 3), "cpu_s": round(plain_cpu / 2, 1)}})
         print(f"  {rows[-1]}", file=sys.stderr, flush=True)
     return rows
 
@@ -300,7 +307,8 @@ def main() -> None:
     ap.add_argument("--no-cache", action="store_true", help="regenerate the rooms")
     ap.add_argument("--rng-version", default=None, help="seed the rooms as this generator version did")
     ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
-    ap.add_argument("--clean-max-spp", type=int, default=0, help="render with the renderer's until-clean rule")
+    ap.add_argument("--clean-max-spp", default="", help="render with the renderer's until-clean rule up to this "
+                    "many spp; 'default': the renderer's default settings (the rule's default cap on generated rooms)")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     kinds = {k for k in args.kinds.split(",") if k}
@@ -310,10 +318,15 @@ def main() -> None:
     version = f"{version}-rng{args.rng_version or version}"
     result = {"bench": "fireflies", "res": list(res), "seeds": args.seeds}
     if args.clean_max_spp:
-        rows = [r for doc in docs for r in until_clean(doc, res, args.clean_max_spp)]
+        cap = None if args.clean_max_spp == "default" else int(args.clean_max_spp)
+        rows = [r for doc in docs for r in until_clean(doc, res, cap)]
         result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
                                  "clean": sum(r["clean"] for r in rows),
-                                 "cpu_s": round(sum(r["cpu_s"] for r in rows), 1), "rows": rows}
+                                 "cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
+                                 "plain_clean": sum(r["plain"]["clean"] for r in rows),
+                                 "plain_cpu_s": round(sum(r["plain"]["cpu_s"] for r in rows), 1), "rows": rows}
+        result["until_clean"]["cpu_ratio"] = round(result["until_clean"]["cpu_s"]
+                                                   / max(result["until_clean"]["plain_cpu_s"], 1e-9), 2)
         print(json.dumps(result))
         return
     if args.ladder:

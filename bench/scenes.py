@@ -14,7 +14,9 @@ Parts (``--parts``; default ``corpus,render,sheet``):
 
 ``render`` — view 0 of the first ``--render-rooms`` (2) corpus rooms, every group, rendered by
   ``renderer_jobs.mitsuba.render.render_cube`` at ``--render-res`` (160×120) with the default settings
-  (64 spp, all bands; no targeted extra paths, no denoising): CPU seconds per cube and per room, and
+  (64 spp, all bands, the until-clean rule up to 1024 spp that generated rooms get since 2026-11-28 — the
+  figures in bench/SCENES.md before that date are without it; no targeted extra paths, no denoising):
+  CPU seconds per cube and per room, and
   the noise before denoising from the renderer's own per-pixel variance of the band sum
   (``CubeResult.noise``): median and 95th percentile of the relative standard error over lit pixels,
   and the share of lit pixels above 0.5 (fireflies).

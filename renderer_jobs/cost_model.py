@@ -10,6 +10,8 @@ lights nothing is probed and skipped), and so do machines. The model, per job, i
   ``paths = pixels · spp · (1 + boost)``, ``boost`` the targeted extra paths' share
   (:func:`boost_extra`: ``(boost_factor − 1)`` × the share of pixels boosted, which falls with the
   resolution); the illumination cube and the denoised copies are included (the defaults make them);
+  where the until-clean rule applies (generated rooms by default), ``paths`` × :data:`CLEAN_PATHS_FACTOR`
+  (at most ``clean_max_spp / spp``): what the rule averaged, not what one noisy cube can take;
 - once per worker process: building the kernels, ``KERNEL_BUILD_S`` per light group kind (counted
   as distinct group names, at most ``MAX_KINDS``) when Dr.Jit's kernel cache (``~/.drjit``) is cold,
   as on a fresh machine or Ray worker image; a warm cache makes it a few seconds.
@@ -53,6 +55,9 @@ CUBE_PER_PIXEL_S = 1.9e-4  # … per pixel (guides, boost mask, denoising, writi
 PER_MPATH_S = 3.2  # CPU s per million paths (each up to 16 bands; the illumination cube included)
 KERNEL_BUILD_S = 3.1  # CPU s per light group kind, once per worker process, cold kernel cache
 MAX_KINDS = 4
+#: the until-clean rule's mean paths per cube / spp (spp 64, cap 1024) on 28 cubes of 10 generated rooms it was
+#: not calibrated on (1.9x on rooms 9102–9125, 4.9x on 9140–9143: bench/fireflies.py --clean-max-spp default)
+CLEAN_PATHS_FACTOR = 3.1
 WALL_PER_CPU = 0.75  # wall s per CPU s of a worker with >= 2 threads (measured 0.68-0.9; 1 thread: 1)
 #: the share of pixels the boost targets, measured at (pixels, share): it falls with the resolution
 BOOST_SHARE = ((3072, 0.146), (19200, 0.064), (76800, 0.034))
@@ -95,8 +100,9 @@ class Estimate:
     def line(self) -> str:
         """One line for people: says it is an estimate and where it was measured."""
         slots = f"{self.workers} worker(s)" if self.executor == "local" else f"{self.workers} Ray task(s) at once"
-        clean = (f"; at --spp: --clean-max-spp adds up to {self.clean_max_factor:.3g}x the paths to noisy "
-                 "cubes (3.4x the CPU on generated rooms, bench/SCENES.md)" if self.clean_max_factor > 1 else "")
+        clean = (f"; generated rooms' cubes counted at {CLEAN_PATHS_FACTOR}x the paths, what the until-clean rule "
+                 f"(--clean-max-spp) averaged on held-out rooms; one noisy cube can take up to "
+                 f"{self.clean_max_factor:.3g}x, bench/SCENES.md" if self.clean_max_factor > 1 else "")
         return (f"estimate: about {duration(self.cpu_s)} CPU, {duration(self.wall_s)} wall with {slots} "
                 f"for {self.jobs} job(s) ({self.paths / 1e6:.3g} M paths; up to {duration(self.kernel_s)} "
                 f"of it building kernels{clean}) — scaled from per-path costs measured on {self.machine}; "
@@ -124,12 +130,19 @@ def _pixels(plan, job) -> int:
     return int(v.resolution[0]) * int(v.resolution[1])
 
 
+def clean_factor(plan, job, settings) -> float:
+    """The paths the until-clean rule adds to a cube, on average, as a factor of ``spp``
+    (:data:`CLEAN_PATHS_FACTOR` where it applies, capped by ``clean_max_spp / spp``; 1 elsewhere)."""
+    cap = settings.clean_cap(plan.scenes[job.scene]) if hasattr(settings, "clean_cap") else 0
+    return min(CLEAN_PATHS_FACTOR, cap / float(settings.spp)) if cap else 1.0
+
+
 def job_paths(plan, job, settings) -> float:
     """The paths a job traces (0 for a view job's AOVs, which are counted in its time)."""
     if job.group is None:
         return 0.0
     px = _pixels(plan, job)
-    return px * float(settings.spp) * (1.0 + boost_extra(settings, px))
+    return px * float(settings.spp) * (1.0 + boost_extra(settings, px)) * clean_factor(plan, job, settings)
 
 
 def job_cpu_s(plan, job, settings) -> float:
@@ -161,9 +174,9 @@ def estimate(plan, settings, workers: int = 1, executor: str = "local") -> Estim
     threads = max(1, cores // used) if executor == "local" else 1
     ratio = WALL_PER_CPU if threads >= 2 else 1.0
     wall = max((per_process + work / used) * ratio, cpu / cores if executor == "local" else 0.0) if jobs else 0.0
-    cap = getattr(settings, "clean_max_spp", None)
+    caps = [settings.clean_cap(plan.scenes[j.scene]) for j in jobs if j.group] if hasattr(settings, "clean_cap") else []
     return Estimate(cpu_s=cpu, wall_s=wall, workers=workers, jobs=len(jobs), paths=paths, kernel_s=kernel,
-                    executor=executor, clean_max_factor=cap / float(settings.spp) if cap else 0.0)
+                    executor=executor, clean_max_factor=max(caps, default=0) / float(settings.spp))
 
 
 def weights(plan, settings) -> dict[str, float]:

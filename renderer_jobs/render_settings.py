@@ -20,6 +20,7 @@ from illumix.retarget.denoise_methods import DEFAULT_METHOD
 from illumix.retarget.errors import UnknownName
 
 DEFAULT_BOOST_FACTOR = 8  # bench/DENOISE.md: 8x the spp where reach > 0.6 brings front's p99.3 under 2.5 %
+GENERATED_CLEAN_MAX_SPP = 1024  # bench/SCENES.md: every held-out generated cube clean by 1024 spp
 DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
 CLI = {"cli": True}  # a field offered as an `illumix render` option (--name, or --name/--no-name)
 # json_schema_extra keys: "note" (more help text), "cli_unset" (the option's default is unset: None)
@@ -59,10 +60,10 @@ class RenderSettings(BaseModel):
     noise_target: float | None = Field(None, json_schema_extra=CLI, description=(
         "With --wavelengths stratified: render each pixel to this relative noise of its spectral sum as the pilot "
         "predicts it (e.g. 0.05 = 5 %); --spp becomes the per-pixel maximum."))
-    clean_max_spp: int | None = Field(None, json_schema_extra=CLI, description=(
+    clean_max_spp: int | None = Field(None, ge=0, json_schema_extra=CLI, description=(
         "All-bands: render each cube as two independent halves of --spp and, while they disagree as a noisy cube "
-        "does (fireflies, or > 1 % of pixels 3:1 apart: bench/SCENES.md), give both as many paths again, up to "
-        "this many per pixel in all (e.g. 1024); default: exactly --spp."))
+        "does (bench/SCENES.md), give both as many paths again, up to this many per pixel in all (e.g. 1024); "
+        "0: exactly --spp; default: 1024 for generated rooms (illumix.scenegen), 0 for other scenes."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "
         "physical ground truth the service serves; --no-illumination: transport only (the formula ground truth)."))
@@ -125,7 +126,7 @@ class RenderSettings(BaseModel):
                 raise SceneError(f"bands per path {self.bands_per_path} must be a positive multiple of 4 "
                                  "(Mitsuba traces wavelengths in fours)")
             check_spp(self.sampler, self.spp, self.bands_per_path, DEFAULT_BANDS)
-            if self.clean_max_spp is not None:
+            if self.clean_max_spp:
                 if self.clean_max_spp < self.spp:
                     raise SceneError(f"clean max spp {self.clean_max_spp} is below --spp {self.spp}: the cube starts "
                                      "at --spp and only adds paths")
@@ -133,7 +134,7 @@ class RenderSettings(BaseModel):
             if self.adaptive or self.noise_target is not None:
                 raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
                                  "they need wavelengths 'stratified' (all-bands paths are uniform per pixel)")
-        if self.clean_max_spp is not None and not (self.wavelengths == "all-bands" and self.backend == "mitsuba"):
+        if self.clean_max_spp and not (self.wavelengths == "all-bands" and self.backend == "mitsuba"):
             raise SceneError("--clean-max-spp renders all-bands cubes in rounds: it needs the mitsuba backend and "
                              "wavelengths 'all-bands'")
         if self.noise_target is not None and not 0 < self.noise_target < 1:
@@ -148,6 +149,24 @@ class RenderSettings(BaseModel):
                              "'dt-irradiance' (the extra paths go where that filter cannot reach): use --boost-factor 1 "
                              "(render.boost_factor: 1 in a dataset config)")
         return self
+
+    def clean_cap(self, scene) -> int:
+        """The until-clean cap this render applies to ``scene`` (0: none): ``clean_max_spp`` when
+        given; unset, :data:`GENERATED_CLEAN_MAX_SPP` for a generated room (``scene.generator`` names
+        illumix.scenegen) rendered all-bands on Mitsuba at an spp whose halves the sampler takes,
+        else 0 — generated rooms are clean at the default settings (issue 39, bench/SCENES.md)."""
+        if self.clean_max_spp is not None:
+            return self.clean_max_spp
+        generated = (getattr(scene, "generator", None) or {}).get("name") == "illumix.scenegen"
+        if not generated or self.backend != "mitsuba" or self.wavelengths != "all-bands":
+            return 0
+        from illumix.renderer_jobs.mitsuba.band_render import check_spp  # noqa: PLC0415
+
+        try:  # halves the sampler cannot split into band sets: exactly --spp
+            check_spp(self.sampler, self.spp // 2, self.bands_per_path, DEFAULT_BANDS)
+        except SceneError:
+            return 0
+        return max(GENERATED_CLEAN_MAX_SPP, self.spp)
 
     def to_dict(self) -> dict:
         """What a job carries between processes (JSON-able; ``RenderSettings(**d)`` gives it back)."""

@@ -68,10 +68,17 @@ def band_sets(live: np.ndarray, max_quads: int) -> list[np.ndarray]:
     return [live[j::k] for j in range(k)]
 
 
+def sets_give_halves(emission: np.ndarray, bands_per_path: int) -> bool:
+    """Whether a cube of this emission renders in an even number of band sets, so that
+    :func:`render_all_bands` returns its two halves."""
+    n = len(band_sets(live_bands(emission), max(1, bands_per_path // 4)))
+    return n >= 2 and n % 2 == 0
+
+
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
-                     emission: np.ndarray, boost: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None]:
-    """``(cube (H, W, n_bands), illumination cube or None, stats, noise)`` float32 of ``view`` lit by ``groups``
+                     emission: np.ndarray, boost: np.ndarray | None = None, loaded: dict | None = None
+                     ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None, np.ndarray | None]:
+    """``(cube (H, W, n_bands), illumination cube or None, stats, noise, halves)`` of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba.render.emitter_passes`), with ``settings``
     (a :class:`renderer_jobs.mitsuba.render.RenderSettings`).
 
@@ -84,7 +91,13 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     ``noise`` ``(H, W, 2)``: the cube's band sum weighted by the emission and its variance, from the
     spread of the band sets' own estimates of it (each set spans the spectrum with its own paths:
     :func:`set_noise`); None with one set. The denoiser reads it to weigh its bias against the noise
-    (:func:`retarget.denoise.relative_noise`). Fewer bands per path make a path cheaper (raw
+    (:func:`retarget.denoise.relative_noise`). ``halves`` ``(H, W, 2)`` float64: two independent
+    estimates of that band sum, the even band sets' and the odd ones', each from half the paths (the
+    until-clean rule's halves, free: :mod:`renderer_jobs.mitsuba.until_clean`); None unless the sets
+    are an even number. ``loaded``: a dict the caller keeps between calls
+    for the same view and groups (:mod:`renderer_jobs.mitsuba.until_clean`'s rounds): each pass's
+    loaded Mitsuba scene is kept there and reused, its sampler set to this call's spp, instead of
+    loading the scene again (the same pixels as a fresh load: tests/test_until_clean.py). Fewer bands per path make a path cheaper (raw
     noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
@@ -100,13 +113,16 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
     e_live = np.where(np.asarray(emission, np.float64) > 0, emission, 0.0) if flat else np.ones(scene.spectral_grid.n_bands)
     noise = np.zeros((2,), np.float64) if len(sets) > 1 else None
+    halves = 0.0 if sets_give_halves(emission, settings.bands_per_path) else None
     run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
     for k, portals in enumerate(passes):
-        ms, sensor = run.load_pass(view, groups, portals)
+        ms, sensor = run.load_pass(view, groups, portals, loaded, k)
         # this pass's band sets' estimates of the band sum
         estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
         if noise is not None:
             noise = noise + set_noise(np.stack(estimates))
+        if halves is not None:  # the passes add up, as the cube's do
+            halves = halves + np.stack([np.mean(estimates[0::2], 0), np.mean(estimates[1::2], 0)], -1)
     cube, illum = run.cube, run.illum
     if flat:
         cube *= emission
@@ -114,7 +130,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             illum *= emission
     stats = run.stats(t0, len(passes), boosting)
     return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats,
-            None if noise is None else noise.astype(np.float32))
+            None if noise is None else noise.astype(np.float32), halves)
 
 
 class _Run:
@@ -132,12 +148,19 @@ class _Run:
         self.n_quads = self.n_film = 0
         self.shape = (0, 0)
 
-    def load_pass(self, view: str, groups: list[str], portals):
-        """The Mitsuba scene and sensor of one emitter pass (the film allocated on the first)."""
+    def load_pass(self, view: str, groups: list[str], portals, loaded: dict | None, k: int):
+        """The Mitsuba scene and sensor of emitter pass ``k`` (the film allocated on the first): from
+        ``loaded`` when it holds them, else loaded (and kept there)."""
         t1 = time.perf_counter()
         st = self.settings
-        ms, sensor = load_mitsuba_scene(self.scene, view, groups, st.resolution, portals=portals,
-                                        flat_emission=self.flat, sampler={"type": st.sampler, "sample_count": self.spp})
+        if loaded is not None and k in loaded:
+            ms, sensor = loaded[k]
+            sensor.sampler().set_sample_count(self.spp)
+        else:
+            ms, sensor = load_mitsuba_scene(self.scene, view, groups, st.resolution, portals=portals, flat_emission=self.flat,
+                                            sampler={"type": st.sampler, "sample_count": self.spp})
+            if loaded is not None:
+                loaded[k] = ms, sensor
         w, h = (int(x) for x in sensor.film().crop_size())
         # the film's paths per pixel, which weight its estimate against the extra paths': what the sampler
         # renders (multijitter rounds some counts up, e.g. 32 -> 35: the stats state both)

@@ -98,6 +98,7 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
                          "rr_depth": RR_DEPTH, "mis": "power heuristic", "rfilter": "box",
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
+                         "clean_max_spp": settings.clean_cap(scene),
                          "passes": passes, "libllvm": libllvm_path()}}
     if bands:
         # No material of the scene model disperses (dielectrics take one scalar IOR): every band
@@ -150,7 +151,7 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
 
 def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
                       settings: RenderSettings, boost_mask: np.ndarray | None = None) -> CubeResult:
-    from illumix.renderer_jobs.mitsuba.band_render import render_all_bands  # noqa: PLC0415
+    from illumix.renderer_jobs.mitsuba.band_render import render_all_bands, sets_give_halves  # noqa: PLC0415
 
     nb = scene.spectral_grid.n_bands
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
@@ -161,13 +162,16 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
             raise SceneError(f"boost mask {np.shape(boost_mask)} does not match view {view!r}'s ({h}, {w}) (H, W)")
         boost = np.flatnonzero(np.asarray(boost_mask, bool).ravel())
     e = np.asarray(emission, np.float64)
+    settings = settings.model_copy(update={"clean_max_spp": settings.clean_cap(scene)})  # unset → per scene
     if settings.clean_max_spp:
         from illumix.renderer_jobs.mitsuba.until_clean import render_until_clean  # noqa: PLC0415
 
+        loaded: dict = {}  # the rounds share the loaded scene
         cube, illum, stats, noise = render_until_clean(
-            lambda s: render_all_bands(scene, view, groups, passes, s, e, boost), settings)
+            lambda s: render_all_bands(scene, view, groups, passes, s, e, boost, loaded), settings,
+            sets_give_halves(e, settings.bands_per_path))
     else:
-        cube, illum, stats, noise = render_all_bands(scene, view, groups, passes, settings, e, boost)
+        cube, illum, stats, noise, _ = render_all_bands(scene, view, groups, passes, settings, e, boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})
     info = renderer_info(scene, settings, passes)
     info["settings"]["targeted_paths"] = ({"spp_factor": settings.boost_factor, "reach": settings.boost_reach,
