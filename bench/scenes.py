@@ -153,8 +153,10 @@ def part_render(docs: list[dict], rooms: int, res: tuple[int, int]) -> dict:
             rel = np.sqrt(np.maximum(var[lit], 0)) / total[lit]
             rel_all.append(rel)
             bright.append(rel[total[lit] >= np.median(total[lit])] if rel.size else rel)
+            uc = res_.stats.get("until_clean") or {}
             cubes.append({"room": doc["name"], "group": g, "cpu_s": round(cpu, 1),
-                          "rel_noise_median": round(float(np.median(rel)), 4) if rel.size else None})
+                          "rel_noise_median": round(float(np.median(rel)), 4) if rel.size else None,
+                          "paths_per_pixel": res_.stats.get("paths_per_pixel"), "until_clean": uc.get("clean")})
             print(f"  cube {doc['name']}/{view}/{g}: {cpu:.1f} CPU s", file=sys.stderr, flush=True)
         per_room.append(room_cpu)
     rel = np.concatenate(rel_all) if rel_all else np.zeros(1)
