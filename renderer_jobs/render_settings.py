@@ -129,7 +129,7 @@ class RenderSettings(BaseModel):
             if self.clean_max_spp:
                 if self.clean_max_spp < self.spp:
                     raise SceneError(f"clean max spp {self.clean_max_spp} is below --spp {self.spp}: the cube starts "
-                                     "at --spp and only adds paths")
+                                     "at --spp and only adds paths: use a cap >= --spp, or 0 for exactly --spp")
                 check_spp(self.sampler, self.spp // 2, self.bands_per_path, DEFAULT_BANDS)  # its halves
             if self.adaptive or self.noise_target is not None:
                 raise SceneError("adaptive spp and noise targets spread paths by a pilot of 4-wavelength paths: "
