@@ -37,7 +37,8 @@ cubes feel: 9.8 s estimated against 17.9 s measured at 64×48, 46.7 against 48.2
 ``CUBE_S`` 0.3 → 1.9 s, ``CUBE_PER_PIXEL_S`` 2.6e-4 → 1.9e-4 s. On a scene it was not fitted on — a
 generated room (generator 3, seed 8102, ~100 shapes), view and ``ceiling`` cube at 240×180 × 64 spp — it
 estimates 32 CPU s against 52–58 s measured: a room's cube costs more per path than the demo's,
-so take the estimate as a lower bound for furnished rooms. Timings of identical work move by ±15 % on that machine.
+so generated rooms' jobs are counted at ``GENERATED_COST_FACTOR`` × (fitted on whole renders of two rooms,
+checked on three more: 1.8–2.7 measured); other furnished scenes may cost as much. Timings of identical work move by ±15 % on that machine.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ MAX_KINDS = 4
 #: the until-clean rule's mean paths per cube / spp (spp 64, cap 1024) on 28 cubes of 10 generated rooms it was
 #: not calibrated on (1.9x on rooms 9102–9125, 4.9x on 9140–9143: bench/fireflies.py --clean-max-spp default)
 CLEAN_PATHS_FACTOR = 3.1
+#: a generated room's jobs cost this many times the demo's per pixel and path: whole `illumix render --views
+#: view0 --clean-max-spp 0` runs (process CPU less ~8 s of start-up) against the estimate, fitted on rooms 7
+#: and 8 at 160×120 (2.55, 2.43); checked on rooms 9 and 10 at 160×120 and room 7 at 240×180: 1.8, 2.7, 2.1
+GENERATED_COST_FACTOR = 2.5
 WALL_PER_CPU = 0.75  # wall s per CPU s of a worker with >= 2 threads (measured 0.68-0.9; 1 thread: 1)
 #: the share of pixels the boost targets, measured at (pixels, share): it falls with the resolution
 BOOST_SHARE = ((3072, 0.146), (19200, 0.064), (76800, 0.034))
@@ -146,11 +151,14 @@ def job_paths(plan, job, settings) -> float:
 
 
 def job_cpu_s(plan, job, settings) -> float:
-    """Estimated CPU seconds of one job with warm kernels."""
+    """Estimated CPU seconds of one job with warm kernels (× :data:`GENERATED_COST_FACTOR` in a generated room)."""
+    from illumix.renderer_jobs.render_settings import generated_room  # noqa: PLC0415 (progress imports this module)
+
     px = _pixels(plan, job)
+    room = GENERATED_COST_FACTOR if generated_room(plan.scenes[job.scene]) else 1.0
     if job.group is None:
-        return VIEW_S + VIEW_PER_PIXEL_S * px * float(getattr(settings, "aov_spp", 16)) / 16
-    return CUBE_S + CUBE_PER_PIXEL_S * px + PER_MPATH_S * job_paths(plan, job, settings) / 1e6
+        return room * (VIEW_S + VIEW_PER_PIXEL_S * px * float(getattr(settings, "aov_spp", 16)) / 16)
+    return room * (CUBE_S + CUBE_PER_PIXEL_S * px + PER_MPATH_S * job_paths(plan, job, settings) / 1e6)
 
 
 def estimate(plan, settings, workers: int = 1, executor: str = "local") -> Estimate | None:

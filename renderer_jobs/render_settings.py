@@ -26,6 +26,11 @@ CLI = {"cli": True}  # a field offered as an `illumix render` option (--name, or
 # json_schema_extra keys: "note" (more help text), "cli_unset" (the option's default is unset: None)
 
 
+def generated_room(scene) -> bool:
+    """Whether ``scene`` was made by the room generator (its ``generator`` names illumix.scenegen)."""
+    return (getattr(scene, "generator", None) or {}).get("name") == "illumix.scenegen"
+
+
 class RenderSettings(BaseModel):
     """Every option of a render (field descriptions). Frozen; any accepted spelling of a registry
     name (``"Stratified"``, ``"blender"``) becomes its canonical name; an invalid combination raises
@@ -158,8 +163,7 @@ class RenderSettings(BaseModel):
         make them so (issue 39, bench/SCENES.md)."""
         if self.clean_max_spp is not None:
             return self.clean_max_spp
-        generated = (getattr(scene, "generator", None) or {}).get("name") == "illumix.scenegen"
-        if not generated or self.backend != "mitsuba" or self.wavelengths != "all-bands":
+        if not generated_room(scene) or self.backend != "mitsuba" or self.wavelengths != "all-bands":
             return 0
         from illumix.renderer_jobs.mitsuba.band_render import check_spp  # noqa: PLC0415
 
