@@ -165,7 +165,7 @@ def test_the_estimate_says_the_rule_can_add_paths():
 
 def test_the_estimate_counts_the_rule_on_generated_rooms_only():
     from types import SimpleNamespace as NS
-    from illumix.renderer_jobs.cost_model import CLEAN_PATHS_FACTOR, estimate
+    from illumix.renderer_jobs.cost_model import CLEAN_PATHS_FACTOR, GENERATED_COST_FACTOR, estimate
 
     def plan(generator):
         view = NS(resolution=(160, 120))
@@ -176,3 +176,6 @@ def test_the_estimate_counts_the_rule_on_generated_rooms_only():
     assert estimate(room, st).paths == pytest.approx(CLEAN_PATHS_FACTOR * estimate(other, st).paths)
     assert estimate(room, RenderSettings(clean_max_spp=0)).paths == estimate(other, st).paths
     assert "up to 16x" in estimate(room, st).line() and "until-clean" not in estimate(other, st).line()
+    plain = RenderSettings(clean_max_spp=0)  # a generated room's jobs cost more per path: counted as measured
+    a, b = estimate(room, plain), estimate(other, plain)
+    assert a.cpu_s - a.kernel_s == pytest.approx(GENERATED_COST_FACTOR * (b.cpu_s - b.kernel_s))
