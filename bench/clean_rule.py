@@ -31,7 +31,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from illumix.renderer_jobs.clean_check import BIG_DIFFERENCE, BIG_DIFFERENCE_SHARE_MAX, HALVES_BIG_DIFFERENCE_SHARE_MAX, measure
+from illumix.renderer_jobs.clean_check import (BIG_DIFFERENCE, BIG_DIFFERENCE_SHARE_MAX, HALVES_BIG_DIFFERENCE_SHARE_MAX,
+                                               is_clean, measure)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fireflies import kind_of, room_doc  # noqa: E402
@@ -84,18 +85,12 @@ def cube_rows(doc: dict, res) -> list[dict]:
         row = {"room": doc["name"], "group": g, "kind": kind_of(g), "cpu_s_512_spp": round(cpu, 1), "at": {}}
         for i, n in enumerate(TOTALS):  # halves: index i (N/2); truth: index i + 1 (N)
             half, full = measure(a[i], b[i]), measure(a[i + 1], b[i + 1])
-            row["at"][n] = {"half_d": half["d"], "half_ff": half["ff_light"], "clean": _clean(full),
+            row["at"][n] = {"half_d": half["d"], "half_ff": half["ff_light"], "clean": bool(is_clean(full)),
                             "full": {"d_above_0_5": round(full["d_above_0_5"], 4), "ff_light": round(full["ff_light"], 4)}}
         print(f"  {doc['name']} {g}: clean at " + ", ".join(f"{n}: {row['at'][n]['clean']}" for n in TOTALS)
               + f"; cpu {cpu:.0f} s", file=sys.stderr, flush=True)
         rows.append(row)
     return rows
-
-
-def _clean(m: dict) -> bool:
-    from illumix.renderer_jobs.clean_check import is_clean
-
-    return bool(is_clean(m))
 
 
 def beyond(doc: dict, rows: list[dict], res, spp: int) -> None:
@@ -113,7 +108,7 @@ def beyond(doc: dict, rows: list[dict], res, spp: int) -> None:
             imgs, cpu, _ = _two_renders(scene, scene.views[0].name, row["group"], resolution=res, spp=spp)
             np.savez(path, imgs=np.stack(imgs), cpu=cpu)
         m = measure(*imgs)
-        row["beyond"] = {"spp": spp, "clean": _clean(m), "d_above_0_5": round(m["d_above_0_5"], 4),
+        row["beyond"] = {"spp": spp, "clean": bool(is_clean(m)), "d_above_0_5": round(m["d_above_0_5"], 4),
                          "ff_light": round(m["ff_light"], 4), "rel": round(m["rel"], 3), "cpu_s": round(cpu / 2, 1)}
         print(f"  {doc['name']} {row['group']} at {spp}: {row['beyond']}", file=sys.stderr, flush=True)
 

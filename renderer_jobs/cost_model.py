@@ -138,7 +138,7 @@ def _pixels(plan, job) -> int:
 def clean_factor(plan, job, settings) -> float:
     """The paths the until-clean rule adds to a cube, on average, as a factor of ``spp``
     (:data:`CLEAN_PATHS_FACTOR` where it applies, capped by ``clean_max_spp / spp``; 1 elsewhere)."""
-    cap = settings.clean_cap(plan.scenes[job.scene]) if hasattr(settings, "clean_cap") else 0
+    cap = settings.clean_cap(plan.scenes[job.scene])
     return min(CLEAN_PATHS_FACTOR, cap / float(settings.spp)) if cap else 1.0
 
 
@@ -182,7 +182,7 @@ def estimate(plan, settings, workers: int = 1, executor: str = "local") -> Estim
     threads = max(1, cores // used) if executor == "local" else 1
     ratio = WALL_PER_CPU if threads >= 2 else 1.0
     wall = max((per_process + work / used) * ratio, cpu / cores if executor == "local" else 0.0) if jobs else 0.0
-    caps = [settings.clean_cap(plan.scenes[j.scene]) for j in jobs if j.group] if hasattr(settings, "clean_cap") else []
+    caps = [settings.clean_cap(plan.scenes[j.scene]) for j in jobs if j.group]
     return Estimate(cpu_s=cpu, wall_s=wall, workers=workers, jobs=len(jobs), paths=paths, kernel_s=kernel,
                     executor=executor, clean_max_factor=max(caps, default=0) / float(settings.spp))
 

@@ -7,8 +7,9 @@ where those tables sit in the call-data buffer (``getelementptr … i64 32`` aga
 bench/RENDER_PERF.md). A new scene in a warm worker therefore paid ~1 CPU-s of LLVM builds for
 kernels it already had.
 
-:func:`pad_registry` registers inert instances (spheres sharing one diffuse BSDF, diffuse BSDFs,
-point lights — objects in no scene, so never hit or sampled) until each class's ID bound reaches
+:func:`pad_registry` registers inert instances (spheres sharing one ``null`` BSDF, ``null`` BSDFs,
+point lights — objects in no scene, so never hit or sampled; inert *diffuse* BSDFs cost 20 % of the
+warm demo in call recording, ``null`` ones nothing measurable: bench/RENDER_PERF.md) until each class's ID bound reaches
 the next size in :func:`bucket` (16, 24, 32, 48, 64, …): scenes whose bounds fall in the same buckets, and
 whose materials and shapes are of the same kinds, then share every kernel. Each load replaces the padding
 (:func:`release_padding` before it). Its cost is the inert instances' share of recording each call

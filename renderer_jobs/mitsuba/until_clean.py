@@ -67,16 +67,14 @@ def _weighted(results: list[tuple], pick) -> np.ndarray:
 
 
 def _combine(results: list[tuple], m: dict, clean: bool) -> tuple:
-    w = np.array([r[2]["samples_per_band_rendered"] for r in results], np.float64)
-    w /= w.sum()
-    cube = sum(wi * r[0].astype(np.float64) for wi, r in zip(w, results)).astype(np.float32)
-    illum = (None if results[0][1] is None
-             else sum(wi * r[1].astype(np.float64) for wi, r in zip(w, results)).astype(np.float32))
+    cube = _weighted(results, lambda r: r[0]).astype(np.float32)
+    illum = None if results[0][1] is None else _weighted(results, lambda r: r[1]).astype(np.float32)
     noise = None
-    if results[0][3] is not None:  # the mean of estimates and the variance of that mean
-        n0 = sum(wi * r[3][..., 0].astype(np.float64) for wi, r in zip(w, results))
+    if results[0][3] is not None:  # the mean of estimates and the variance of that mean (weights squared)
+        w = np.array([r[2]["samples_per_band_rendered"] for r in results], np.float64)
+        w /= w.sum()
         n1 = sum(wi * wi * r[3][..., 1].astype(np.float64) for wi, r in zip(w, results))
-        noise = np.stack([n0, n1], -1).astype(np.float32)
+        noise = np.stack([_weighted(results, lambda r: r[3][..., 0]), n1], -1).astype(np.float32)
     stats = dict(results[0][2])
     for key in ("load_s", "trace_s", "total_s"):
         stats[key] = round(sum(r[2][key] for r in results), 4)
