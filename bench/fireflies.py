@@ -36,9 +36,11 @@ room), ``strip_both``, ``glow75`` (translucent shades carry 75 % of their lamp's
 are clean (:func:`is_clean`), with CPU per render at each step: what clean renders cost by more
 paths alone. ``--clean-max-spp 1024``: every cube rendered with the renderer's until-clean rule
 (``RenderSettings.clean_max_spp``), two seeds, judged by the same definition, against the two plain
-64-spp renders rendered in the same run (CPU ratio); ``--clean-max-spp
-default``: the renderer's default settings (generated rooms get the rule, capped at 1024). The other
-modes render exactly the spp (``clean_max_spp = 0``).
+64-spp renders rendered in the same run (CPU ratio) and the same rule without path guiding
+(``guide_paths=False``, the ``unguided_*`` figures; ``--no-unguided`` skips it); ``--clean-max-spp
+default``: the renderer's default settings (generated rooms get the rule, capped at 1024, its extra
+rounds guided). ``mean_ratio_to_plain``: the rule's image mean over the plain renders' (a bias
+check: 1 within noise). The other modes render exactly the spp (``clean_max_spp = 0``).
 """
 
 from __future__ import annotations
@@ -257,24 +259,36 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
     return rows
 
 
-def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None) -> list[dict]:
+def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, unguided: bool = True) -> list[dict]:
     """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
     (None: unset, the renderer's default; the renderer adds paths until its own halves are clean): whether the two are clean by
-    :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``)."""
+    :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``). In the same run, as
+    baselines: two plain 64-spp renders (``plain``) and, with ``unguided``, the rule without path
+    guiding (``unguided``: ``guide_paths=False``)."""
     from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
     view, rows = scene.views[0].name, []
+
+    def judged(imgs, cpu, paths=None) -> dict:
+        m = measure(*imgs)
+        out = {"clean": is_clean(m), "rel": round(m["rel"], 3), "d_above_0_5": round(m["d_above_0_5"], 4),
+               "ff_light": round(m["ff_light"], 4), "cpu_s": round(cpu / 2, 1)}
+        return out if paths is None else {"paths_per_pixel": paths, **out}
+
     for g in scene.group_names:
-        imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
-        if not np.any(imgs[0]):
-            continue
         plain, plain_cpu, _ = _two_renders(scene, view, g, resolution=res)  # the baseline, same run
-        m, mp = measure(*imgs), measure(*plain)
-        rows.append({"room": doc["name"], "group": g, "paths_per_pixel": paths, "rel": round(m["rel"], 3),
-                     "d_above_0_5": round(m["d_above_0_5"], 4), "ff_light": round(m["ff_light"], 4),
-                     "clean": is_clean(m), "cpu_s": round(cpu / 2, 1),
-                     "plain": {"clean": is_clean(mp), "rel": round(mp["rel"], 3), "cpu_s": round(plain_cpu / 2, 1)}})
+        if not np.any(plain[0]):
+            continue
+        row = {"room": doc["name"], "group": g}
+        if unguided:
+            row["unguided"] = judged(*_two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp,
+                                                   guide_paths=False))
+        imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
+        row.update(judged(imgs, cpu, paths))
+        row["mean_ratio_to_plain"] = round(float(np.mean(imgs) / max(np.mean(plain), 1e-30)), 4)
+        row["plain"] = judged(plain, plain_cpu)
+        rows.append(row)
         print(f"  {rows[-1]}", file=sys.stderr, flush=True)
     return rows
 
@@ -309,6 +323,8 @@ def main() -> None:
     ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
     ap.add_argument("--clean-max-spp", default="", help="render with the renderer's until-clean rule up to this "
                     "many spp; 'default': the renderer's default settings (the rule's default cap on generated rooms)")
+    ap.add_argument("--no-unguided", action="store_true", help="with --clean-max-spp: skip the baseline of the "
+                    "rule without path guiding")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     kinds = {k for k in args.kinds.split(",") if k}
@@ -319,14 +335,22 @@ def main() -> None:
     result = {"bench": "fireflies", "res": list(res), "seeds": args.seeds}
     if args.clean_max_spp:
         cap = None if args.clean_max_spp == "default" else int(args.clean_max_spp)
-        rows = [r for doc in docs for r in until_clean(doc, res, cap)]
-        result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
-                                 "clean": sum(r["clean"] for r in rows),
-                                 "cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
-                                 "plain_clean": sum(r["plain"]["clean"] for r in rows),
-                                 "plain_cpu_s": round(sum(r["plain"]["cpu_s"] for r in rows), 1), "rows": rows}
-        result["until_clean"]["cpu_ratio"] = round(result["until_clean"]["cpu_s"]
-                                                   / max(result["until_clean"]["plain_cpu_s"], 1e-9), 2)
+        rows = [r for doc in docs for r in until_clean(doc, res, cap, not args.no_unguided)]
+        u = result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
+                                     "clean": sum(r["clean"] for r in rows),
+                                     "cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
+                                     "plain_clean": sum(r["plain"]["clean"] for r in rows),
+                                     "plain_cpu_s": round(sum(r["plain"]["cpu_s"] for r in rows), 1)}
+        u["cpu_ratio"] = round(u["cpu_s"] / max(u["plain_cpu_s"], 1e-9), 2)
+        u["mean_paths_ratio"] = round(float(np.mean([np.mean(r["paths_per_pixel"]) / 64 for r in rows])), 2)
+        u["mean_ratio_to_plain"] = round(float(np.mean([r["mean_ratio_to_plain"] for r in rows])), 4)
+        if not args.no_unguided:
+            u["unguided_clean"] = sum(r["unguided"]["clean"] for r in rows)
+            u["unguided_cpu_s"] = round(sum(r["unguided"]["cpu_s"] for r in rows), 1)
+            u["unguided_cpu_ratio"] = round(u["unguided_cpu_s"] / max(u["plain_cpu_s"], 1e-9), 2)
+            u["unguided_mean_paths_ratio"] = round(float(np.mean([np.mean(r["unguided"]["paths_per_pixel"]) / 64
+                                                                  for r in rows])), 2)
+        u["rows"] = rows
         print(json.dumps(result))
         return
     if args.ladder:

@@ -69,6 +69,10 @@ class RenderSettings(BaseModel):
         "All-bands: while a cube's two independent halves (its even and odd band sets) disagree as a noisy cube "
         "does (bench/SCENES.md), give it as many paths again, up to this many per pixel in all (e.g. 1024); "
         "0: exactly --spp; default: 1024 for generated rooms (illumix.scenegen), 0 for other scenes."))
+    guide_paths: bool = Field(True, json_schema_extra=CLI, description=(
+        "With the until-clean rule: the extra rounds learn where light comes from (a short training render) and "
+        "take half their bounces from that path guide (unbiased: MIS with the BSDF); --no-guide-paths: plain "
+        "paths only (bench/SCENES.md, \"Path guiding\")."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "
         "physical ground truth the service serves; --no-illumination: transport only (the formula ground truth)."))

@@ -17,6 +17,8 @@ import numpy as np
 from illumix.renderer_jobs.band_schedule import live_bands, mix_seed
 from illumix.renderer_jobs.mitsuba.boost_paths import extra_path_sums
 from illumix.renderer_jobs.mitsuba.bands import band_quadruples, make_integrator
+from illumix.renderer_jobs.mitsuba.guide_learning import learn_guide
+from illumix.renderer_jobs.mitsuba.path_guide import GuideArrays
 from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 from illumix.scene.model import EnvMapSky, Scene
@@ -76,8 +78,8 @@ def sets_give_halves(emission: np.ndarray, bands_per_path: int) -> bool:
 
 
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
-                     emission: np.ndarray, boost: np.ndarray | None = None, loaded: dict | None = None
-                     ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None, np.ndarray | None]:
+                     emission: np.ndarray, boost: np.ndarray | None = None, loaded: dict | None = None,
+                     guided: bool = False) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None, np.ndarray | None]:
     """``(cube (H, W, n_bands), illumination cube or None, stats, noise, halves)`` of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba.render.emitter_passes`), with ``settings``
     (a :class:`renderer_jobs.mitsuba.render.RenderSettings`).
@@ -97,7 +99,9 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     are an even number. ``loaded``: a dict the caller keeps between calls
     for the same view and groups (:mod:`renderer_jobs.mitsuba.until_clean`'s rounds): each pass's
     loaded Mitsuba scene is kept there and reused, its sampler set to this call's spp, instead of
-    loading the scene again (the same pixels as a fresh load: tests/test_until_clean.py). Fewer bands per path make a path cheaper (raw
+    loading the scene again (the same pixels as a fresh load: tests/test_until_clean.py). ``guided``: the
+    paths take some bounces from a path guide learnt for each pass (:mod:`renderer_jobs.mitsuba.path_guide`;
+    learnt once and kept in ``loaded`` when given). Fewer bands per path make a path cheaper (raw
     noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
     ``bench/RENDER_PERF.md`` ("Bands per path") measures both."""
     mi, dr = import_mitsuba()
@@ -117,6 +121,7 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
     for k, portals in enumerate(passes):
         ms, sensor = run.load_pass(view, groups, portals, loaded, k)
+        run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if guided else None
         # this pass's band sets' estimates of the band sum
         estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
         if noise is not None:
@@ -147,6 +152,19 @@ class _Run:
         self.t_load = self.t_render = self.t_boost = 0.0
         self.n_quads = self.n_film = 0
         self.shape = (0, 0)
+        self.guide, self.guides = None, []  # this pass's GuideArrays; each pass's learning stats
+
+    def guide_of(self, ms, sensor, loaded: dict | None, k: int, live: np.ndarray):
+        """The path guide of pass ``k`` on the Dr.Jit side: from ``loaded``, else learnt (and kept)."""
+        mi, dr = import_mitsuba()
+        key = ("guide", k)
+        if loaded is None or key not in loaded:
+            field, info = learn_guide(self.scene, ms, sensor, live, self.flat, self.settings.seed)
+            self.guides.append(info)
+            if loaded is not None:
+                loaded[key] = field
+        field = field if loaded is None else loaded[key]
+        return GuideArrays(mi, dr, field)
 
     def load_pass(self, view: str, groups: list[str], portals, loaded: dict | None, k: int):
         """The Mitsuba scene and sensor of emitter pass ``k`` (the film allocated on the first): from
@@ -179,7 +197,7 @@ class _Run:
         grid, st = self.scene.spectral_grid, self.settings
         quads, lanes = band_quadruples(grid.edges, bands)
         self.n_quads += len(quads)
-        integrator = make_integrator(quads, grid.step, self.scene.max_depth, st.illumination, self.flat)
+        integrator = make_integrator(quads, grid.step, self.scene.max_depth, st.illumination, self.flat, self.guide)
         n_aov = len(integrator.aov_names())
         seed = mix_seed(st.seed, k, j)
         t2 = time.perf_counter()
@@ -219,6 +237,9 @@ class _Run:
                  # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
                  "paths_per_pixel_rendered": self.n_film * len(sets), "samples_per_band_rendered": self.n_film,
                  "flat_emission_scaled": self.flat}
+        if self.guide is not None:
+            stats["guided"] = {"learnt": self.guides,
+                               "learn_s": round(sum(g["learn_s"] for g in self.guides), 4)}
         if boosting:
             b = self.boost
             stats["targeted_paths"] = {"pixels": int(b.size), "pixel_fraction": round(b.size / (h * w), 5),

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from illumix.renderer_jobs.mitsuba.path_guide import GuidedBounce, add_record, empty_records, light_of
 from illumix.renderer_jobs.mitsuba.scene_dict import band_guard
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
@@ -73,18 +74,20 @@ FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists)
 
 
 def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
-                    flat_emission: bool = False):
+                    flat_emission: bool = False, guide=None, record: bool = False):
     """A ``BandPathIntegrator`` carrying the bands whose lower edges are ``quads`` (nm; width
     ``step``), for Mitsuba's ``mi.render``. The class is made here, not at import: it subclasses
     Mitsuba's, which needs the variant selected (its methods are :class:`_BandPath`'s, copied in:
     nanobind classes take a single base, so no mixin). Mitsuba's loop runs every sample of the film in
     one symbolic-loop kernel: the per-lane state lives in registers, the memory is the film's.
     ``flat_emission``: every emitter's spectrum is flat (the caller scales the bands by the emission
-    after), so emitters are evaluated once per vertex, not once per quadruple."""
+    after), so emitters are evaluated once per vertex, not once per quadruple. ``guide``: a
+    :class:`renderer_jobs.mitsuba.path_guide.GuideArrays` whose learnt directions some bounces
+    take; ``record``: :meth:`_BandPath.learn` returns the training records of its paths (same module)."""
     mi, _ = import_mitsuba()
     methods = {k: v for k, v in vars(_BandPath).items() if k not in ("__dict__", "__weakref__", "__qualname__")}
     cls = type("BandPathIntegrator", (mi.SamplingIntegrator,), methods)
-    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission)
+    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission, guide, record)
 
 
 class _BandPath:
@@ -97,7 +100,7 @@ class _BandPath:
     ``dr.while_loop``: they update the per-quadruple lists ``paths = (beta, L, beta_u, U)`` (and
     ``rho``) in place and return the other loop values they change."""
 
-    def __init__(self, props, quads, step, max_depth, illumination, flat_emission):
+    def __init__(self, props, quads, step, max_depth, illumination, flat_emission, guide=None, record=False):
         mi, dr = import_mitsuba()
         mi.SamplingIntegrator.__init__(self, props)
         # opaque: the band set's wavelengths are the kernel's inputs, not literals in its code, so
@@ -112,6 +115,7 @@ class _BandPath:
         self.flat = bool(flat_emission)
         self.max_depth = int(max_depth)
         self.illumination = bool(illumination)
+        self.guide, self.record = guide, bool(record)
 
     def aov_names(self):
         names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
@@ -134,15 +138,16 @@ class _BandPath:
         state = (sampler, mi.Ray3f(ray), mi.UInt32(0), [mi.Spectrum(1.0) for _ in range(nq)], list(zeros),
                  list(zeros), list(zeros), list(zeros),
                  mi.Bool(False), mi.Bool(False), mi.Bool(False), dr.zeros(mi.Interaction3f), mi.Float(1.0),
-                 mi.Bool(True), mi.Bool(active))
+                 mi.Bool(True), mi.Bool(active), empty_records(mi, self.max_depth if self.record else 0))
 
         def cond(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                 prev_delta, active):
+                 prev_delta, active, rec):
             return active
 
         def body(sampler, ray, depth, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                 prev_delta, active):
+                 prev_delta, active, rec):
             paths = (beta, L, beta_u, U)  # per quadruple, updated in place by the steps below
+            before = light_of(dr, L) if self.record else None
             si = scene.ray_intersect(ray, mi.RayFlags.All, coherent=depth == 0, active=active)
             white = white0 & (depth == 0)
             first = active & (depth == 0) & si.is_valid()
@@ -159,13 +164,17 @@ class _BandPath:
             go, wo, pdf, delta = self._direction_and_roulette(sampler, bs, side, s2, white, u_first, go, depth,
                                                               paths, split)
             ray = si.spawn_ray(si.to_world(wo))
+            if self.record:  # this vertex's light goes to the bounces before it; this bounce is one
+                add_record(mi, dr, self.guide, rec, depth, light_of(dr, L) - before, si, ray.d, pdf, go & ~delta, beta)
             prev = dr.select(go, mi.Interaction3f(si), prev)
             prev_pdf = dr.select(go, pdf, prev_pdf)
             prev_delta = dr.select(go, delta, prev_delta)
             return (sampler, ray, depth + 1, beta, L, beta_u, U, rho, hit0, diffuse0, mixed0, prev, prev_pdf,
-                    prev_delta, go)
+                    prev_delta, go, rec)
 
         out = dr.while_loop(state, cond, body, label="illumix band path")
+        if self.record:
+            return out[-1]
         return out[4], out[6], out[7], out[8], out[9], out[10]
 
     def _classify_first(self, si, bsdf, flags, first, rho, diffuse0, mixed0):
@@ -227,6 +236,8 @@ class _BandPath:
         side = dr.select(mi.Frame3f.cos_theta(si.wi) < 0.0, -1.0, 1.0)
         cos_em = dr.maximum(side * mi.Frame3f.cos_theta(wo_em), 0.0)
         s1, s2 = sampler.next_1d(go), sampler.next_2d(go)
+        g = None if self.guide is None else GuidedBounce(mi, dr, self.guide, sampler, si, bsdf, ctx, flags,
+                                                         go & ~white, ds_em.d, em_on)
         if self.flat:
             le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
         bs = None
@@ -236,6 +247,8 @@ class _BandPath:
                 le = scene.eval_emitter_direction(si, ds_em, em_on) / ds_em.pdf
             f, f_pdf, bs_q, w_q = bsdf.eval_pdf_sample(ctx, si, wo_em, s1, s2, go)
             bs = bs_q if bs is None else bs
+            if g is not None:  # the bounce drawn from the guide/BSDF mixture: its weight and MIS pdf
+                w_q, f_pdf = g.weight(bs, w_q), g.mixture_pdf_em(f_pdf)
             f = dr.select(white, cos_em / dr.pi, f)
             f_pdf = dr.select(white, cos_em / dr.pi, f_pdf)
             mis_em = dr.select(ds_em.delta, 1.0, _power_heuristic(dr, ds_em.pdf, f_pdf))
@@ -246,6 +259,8 @@ class _BandPath:
             beta[q] = beta[q] * w_q
             if split:
                 beta_u[q] = beta_u[q] * w_q
+        if g is not None:
+            g.chosen(bs)  # the direction taken and its mixture pdf, as the steps after read them
         return bs, side, s2
 
     def _direction_and_roulette(self, sampler, bs, side, s2, white, u_first, go, depth, paths, split):
@@ -280,6 +295,13 @@ class _BandPath:
             if split:
                 beta_u[q] = dr.select(rr, beta_u[q] / q_rr, beta_u[q])
         return go, wo, pdf, delta
+
+    def learn(self, scene, sampler, ray, active=True) -> tuple:
+        """Training paths (``record``): their records (:func:`path_guide.add_record`), per bounce slot."""
+        mi, _ = import_mitsuba()
+        offset = self.guard + self.width * sampler.next_1d(active)
+        self.quads = [low + offset for low in self.lows]
+        return self._path(scene, sampler, ray, active, mi.Bool(False), False)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         mi, _ = import_mitsuba()

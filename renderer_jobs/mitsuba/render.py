@@ -99,6 +99,7 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
                          "wavelength_sampling": settings.wavelengths, "denoiser": None, "clamp": None,
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
                          "clean_max_spp": settings.clean_cap(scene),
+                         "guide_paths": bool(bands and settings.clean_cap(scene) and settings.guide_paths),
                          "passes": passes, "libllvm": libllvm_path()}}
     if bands:
         # No material of the scene model disperses (dielectrics take one scalar IOR): every band
@@ -168,8 +169,8 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
 
         loaded: dict = {}  # the rounds share the loaded scene
         cube, illum, stats, noise = render_until_clean(
-            lambda s: render_all_bands(scene, view, groups, passes, s, e, boost, loaded), settings,
-            sets_give_halves(e, settings.bands_per_path))
+            lambda s, guided: render_all_bands(scene, view, groups, passes, s, e, boost, loaded, guided), settings,
+            sets_give_halves(e, settings.bands_per_path), settings.guide_paths)
     else:
         cube, illum, stats, noise, _ = render_all_bands(scene, view, groups, passes, settings, e, boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})

@@ -9,9 +9,17 @@ calibrated by bench/clean_rule.py so that the halves pass where two full renders
 first be clean), the cube gets as many paths again (other seeds), up to ``clean_max_spp`` per pixel in
 all; the rounds share one loaded scene. A cube that is clean at once costs exactly what ``spp`` costs.
 Where the band sets are not an even number (a group emitting in few bands), the halves are rendered
-as two renders of ``spp / 2`` instead. The cube is the average of every round weighted by its
-rendered samples: each round is an unbiased estimate, so the result is too. bench/SCENES.md measures
-on generated rooms what the rule buys.
+as two renders of ``spp / 2`` instead.
+
+``guided``: the extra rounds take some bounces from a path guide learnt for the cube
+(:mod:`renderer_jobs.mitsuba.path_guide`): light that only rare paths find (a lamp in the next room)
+is what keeps a cube from being clean, and that is what guiding finds more often.
+
+Combining: within the plain rounds and within the guided rounds, each round weighs by its rendered
+samples. Between the two kinds the weights are inverse to each kind's variance, measured from its own
+halves over the whole frame (one number per kind, from thousands of pixels, so the weights hardly
+depend on any pixel's own noise): each kind is an unbiased estimate, so the result is too.
+bench/SCENES.md measures on generated rooms what the rule buys.
 """
 
 from __future__ import annotations
@@ -22,16 +30,19 @@ from illumix.renderer_jobs.clean_check import halves_clean, measure
 SEED_STEP = 1_000_003  # round k renders with seed + k·SEED_STEP: independent paths
 
 
-def render_until_clean(render_once, settings, halves: bool = True
+def render_until_clean(render_once, settings, halves: bool = True, guided: bool = False
                        ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None]:
-    """``render_once(settings) -> (cube, illum, stats, noise, halves)`` (band_render.render_all_bands
+    """``render_once(settings, guided) -> (cube, illum, stats, noise, halves)`` (band_render.render_all_bands
     bound to the scene) called in rounds as above; returns the combined ``(cube, illum, stats, noise)``.
-    ``halves``: whether render_once returns them (band_render.sets_give_halves); else two renders."""
+    ``halves``: whether render_once returns them (band_render.sets_give_halves); else two renders.
+    ``guided``: the rounds after the first are guided (module docstring)."""
     rounds: list[tuple] = []
+    kinds: list[bool] = []  # whether each round was guided
 
-    def one(spp: int) -> tuple:
+    def one(spp: int, guide: bool = False) -> tuple:
         seed = (settings.seed + len(rounds) * SEED_STEP) % 2**32
-        rounds.append(render_once(settings.model_copy(update={"spp": spp, "seed": seed})))
+        rounds.append(render_once(settings.model_copy(update={"spp": spp, "seed": seed}), guide))
+        kinds.append(guide)
         return rounds[-1]
 
     if not halves:
@@ -39,11 +50,12 @@ def render_until_clean(render_once, settings, halves: bool = True
     one(settings.spp)
     total = settings.spp
     while True:
-        m = measure(*np.moveaxis(_weighted(rounds, lambda r: r[4]), -1, 0))
+        w = round_weights(rounds, kinds)
+        m = measure(*np.moveaxis(_weighted(rounds, w, lambda r: r[4]), -1, 0))
         clean = halves_clean(m)
         if clean or 2 * total > settings.clean_max_spp:
-            return _combine(rounds, m, clean)
-        one(total)
+            return _combine(rounds, w, m, clean, kinds)
+        one(total, guided)
         total *= 2
 
 
@@ -52,29 +64,56 @@ def _by_two_renders(one, settings) -> tuple:
     per_side = settings.spp // 2
     sides = ([one(per_side)], [one(per_side)])
     while True:
-        m = measure(*(_weighted(side, lambda r: r[0].sum(axis=-1, dtype=np.float64)) for side in sides))
+        m = measure(*(_weighted(side, _by_samples(side), lambda r: r[0].sum(axis=-1, dtype=np.float64))
+                      for side in sides))
         clean = halves_clean(m)
         if clean or 4 * per_side > settings.clean_max_spp:
-            return _combine(sides[0] + sides[1], m, clean)
+            results = sides[0] + sides[1]
+            return _combine(results, _by_samples(results), m, clean, [False] * len(results))
         for side in sides:
             side.append(one(per_side))
         per_side *= 2
 
 
-def _weighted(results: list[tuple], pick) -> np.ndarray:
+def _by_samples(results: list[tuple]) -> np.ndarray:
     w = np.array([r[2]["samples_per_band_rendered"] for r in results], np.float64)
-    return sum(wi * np.asarray(pick(r), np.float64) for wi, r in zip(w / w.sum(), results))
+    return w / w.sum()
 
 
-def _combine(results: list[tuple], m: dict, clean: bool) -> tuple:
-    cube = _weighted(results, lambda r: r[0]).astype(np.float32)
-    illum = None if results[0][1] is None else _weighted(results, lambda r: r[1]).astype(np.float32)
+def round_weights(results: list[tuple], kinds: list[bool]) -> np.ndarray:
+    """Each round's weight (module docstring): by samples within its kind, and the two kinds
+    inverse to the variance of each kind's estimate, from the spread of its halves over the frame."""
+    kinds = np.asarray(kinds, bool)
+    if kinds.all() or not kinds.any():
+        return _by_samples(results)
+    w = np.zeros(len(results))
+    inv_var = {}
+    for kind in (False, True):
+        idx = np.flatnonzero(kinds == kind)
+        share = _by_samples([results[i] for i in idx])
+        h = sum(s * np.asarray(results[i][4], np.float64) for s, i in zip(share, idx))
+        var = float(np.mean((h[..., 0] - h[..., 1]) ** 2)) / 4  # of the mean of the two halves
+        inv_var[kind] = 1.0 / var if var > 0 else 0.0
+        w[idx] = share
+    if not inv_var[False] and not inv_var[True]:
+        return _by_samples(results)
+    total = inv_var[False] + inv_var[True]
+    for kind in (False, True):
+        w[kinds == kind] *= inv_var[kind] / total
+    return w
+
+
+def _weighted(results: list[tuple], w: np.ndarray, pick) -> np.ndarray:
+    return sum(wi * np.asarray(pick(r), np.float64) for wi, r in zip(w, results))
+
+
+def _combine(results: list[tuple], w: np.ndarray, m: dict, clean: bool, kinds: list[bool]) -> tuple:
+    cube = _weighted(results, w, lambda r: r[0]).astype(np.float32)
+    illum = None if results[0][1] is None else _weighted(results, w, lambda r: r[1]).astype(np.float32)
     noise = None
     if results[0][3] is not None:  # the mean of estimates and the variance of that mean (weights squared)
-        w = np.array([r[2]["samples_per_band_rendered"] for r in results], np.float64)
-        w /= w.sum()
         n1 = sum(wi * wi * r[3][..., 1].astype(np.float64) for wi, r in zip(w, results))
-        noise = np.stack([_weighted(results, lambda r: r[3][..., 0]), n1], -1).astype(np.float32)
+        noise = np.stack([_weighted(results, w, lambda r: r[3][..., 0]), n1], -1).astype(np.float32)
     stats = dict(results[0][2])
     for key in ("load_s", "trace_s", "total_s"):
         stats[key] = round(sum(r[2][key] for r in results), 4)
@@ -83,4 +122,9 @@ def _combine(results: list[tuple], m: dict, clean: bool) -> tuple:
         stats[key] = int(sum(r[2][key] for r in results))
     stats["until_clean"] = {"rounds": len(results), "clean": bool(clean), "rel_noise": m["rel"],
                             "d_above_0_5": round(m["d_above_0_5"], 5), "firefly_light": round(m["ff_light"], 5)}
+    guided = [r[2]["guided"] for r, k in zip(results, kinds) if k and "guided" in r[2]]
+    if guided:
+        stats["until_clean"]["guided_rounds"] = int(sum(kinds))
+        stats["until_clean"]["guided_weight"] = round(float(w[np.asarray(kinds, bool)].sum()), 4)
+        stats["until_clean"]["guide"] = guided[0]["learnt"]
     return cube, illum, stats, noise
