@@ -11,9 +11,11 @@ all; the rounds share one loaded scene. A cube that is clean at once costs exact
 Where the band sets are not an even number (a group emitting in few bands), the halves are rendered
 as two renders of ``spp / 2`` instead.
 
-``guided``: the extra rounds take some bounces from a path guide learnt for the cube
-(:mod:`renderer_jobs.mitsuba.path_guide`): light that only rare paths find (a lamp in the next room)
-is what keeps a cube from being clean, and that is what guiding finds more often.
+``guided``: the rounds from the ``GUIDE_FROM_ROUND``-th on take some bounces from a path guide learnt
+for the cube (:mod:`renderer_jobs.mitsuba.path_guide`): light that only rare paths find (a lamp in the
+next room) is what keeps a cube from being clean at 2 × spp, and that is what guiding finds more often.
+A cube clean by its second round never pays for the guide (its training and its dearer paths cost
+about as much as that round: bench/SCENES.md, "Path guiding").
 
 Combining: within the plain rounds and within the guided rounds, each round weighs by its rendered
 samples. Between the two kinds the weights are inverse to each kind's variance, measured from its own
@@ -28,6 +30,7 @@ import numpy as np
 from illumix.renderer_jobs.clean_check import halves_clean, measure
 
 SEED_STEP = 1_000_003  # round k renders with seed + k·SEED_STEP: independent paths
+GUIDE_FROM_ROUND = 3  # rounds 1 and 2 (spp, then as many again) plain; guided after
 
 
 def render_until_clean(render_once, settings, halves: bool = True, guided: bool = False
@@ -35,7 +38,7 @@ def render_until_clean(render_once, settings, halves: bool = True, guided: bool 
     """``render_once(settings, guided) -> (cube, illum, stats, noise, halves)`` (band_render.render_all_bands
     bound to the scene) called in rounds as above; returns the combined ``(cube, illum, stats, noise)``.
     ``halves``: whether render_once returns them (band_render.sets_give_halves); else two renders.
-    ``guided``: the rounds after the first are guided (module docstring)."""
+    ``guided``: the rounds from ``GUIDE_FROM_ROUND`` on are guided (module docstring)."""
     rounds: list[tuple] = []
     kinds: list[bool] = []  # whether each round was guided
 
@@ -55,7 +58,7 @@ def render_until_clean(render_once, settings, halves: bool = True, guided: bool 
         clean = halves_clean(m)
         if clean or 2 * total > settings.clean_max_spp:
             return _combine(rounds, w, m, clean, kinds)
-        one(total, guided)
+        one(total, guided and len(rounds) + 1 >= GUIDE_FROM_ROUND)
         total *= 2
 
 
