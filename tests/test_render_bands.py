@@ -104,6 +104,25 @@ def test_same_cube_whatever_the_thread_count(box):
     assert np.array_equal(a.cube, b.cube) and np.array_equal(a.illumination, b.illumination)
 
 
+def test_a_scene_of_many_shapes_loads_in_the_same_order_every_time():
+    """Light sampling picks emitters by their order in the loaded scene: Mitsuba's ``optimize`` step
+    merged shapes in an order that changed per load (a different cube per load); illumix loads
+    without it, so the order, and the cube, are the same on every load."""
+    from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
+
+    doc = box_scene()
+    doc["shapes"] += [{"name": f"ball{i}", "type": "sphere", "material": "white", "center": (0.1 * i - 0.9, 0.1, 0.3),
+                       "radius": 0.04} for i in range(24)]
+    doc["shapes"] += [{"name": f"lamp{i}", "type": "sphere", "center": (0.15 * i - 0.6, 1.6, -0.5), "radius": 0.03,
+                       "emitter": {"group": "lamp", "strength": 1.0 + i}} for i in range(8)]
+    scene = scene_from_dict(doc)
+    orders = {tuple(s.id() for s in load_mitsuba_scene(scene, "cam", ["lamp"])[0].shapes()) for _ in range(4)}
+    assert len(orders) == 1
+    st = mr.RenderSettings(spp=8, seed=3, illumination=False)
+    a, b = (mr.render_cube(scene, "cam", "lamp", st) for _ in range(2))
+    assert np.array_equal(a.cube, b.cube)
+
+
 @pytest.mark.parametrize("kwargs, needle", [
     ({"sampler": "ldsampler", "spp": 48}, "a power of 2"),
     ({"sampler": "orthogonal", "spp": 49}, "a prime squared"),
