@@ -11,7 +11,9 @@ spectral radiance reaching pixel ``x`` (box pixel filter) when only ``g``'s emit
 emitting ``strength × Ē_g(λ)`` with ``Ē_g`` the group's emission (flat, value 1, by default) held
 constant over each band; every other group's emitters are removed (their geometry and materials
 stay). Unidirectional path tracing with next-event estimation and MIS, emitter selection weighted
-by approximate power via ``sampling_weight``, no denoiser, no clamping, emitters visible. Portal
+by approximate power via ``sampling_weight``, no denoiser, no clamping, emitters visible; the
+until-clean rule's rounds from the third on draw half their bounces from a learnt path guide
+(:mod:`renderer_jobs.mitsuba.path_guide`, unbiased by its MIS weights). Portal
 emitters (``emitter.portal``, e.g. the sky filling a window) are not geometry: they are traced in
 a second pass with the same schedule and added (linearity), so they never shadow the group's other
 emitters. Non-finite samples (none seen so far) are dropped and counted in the cube's stats.
