@@ -27,7 +27,7 @@ def test_a_voxel_learns_where_its_light_came_from_and_an_unvisited_one_keeps_to_
     assert f.pmf[5, 17] == pytest.approx(1 - pg.UNIFORM_SHARE + pg.UNIFORM_SHARE / pg.N_BINS, rel=1e-5)
     assert f.pmf[5].min() == pytest.approx(pg.UNIFORM_SHARE / pg.N_BINS, rel=1e-5)  # no bin starved
     assert f.alpha[5] == pg.ALPHA and f.alpha[9] == pg.ALPHA
-    assert f.alpha[11] == 0 and f.alpha[0] == 0 and f.guided_voxels == 2  # too few records / none
+    assert f.alpha[11] == 0 and f.alpha[0] == 0 and f.guided_cells == 2  # too few records / none
 
 
 mi = pytest.importorskip("mitsuba", reason="rendering needs the optional extra illumix[render]")
@@ -133,7 +133,7 @@ def test_guided_renders_agree_with_plain_ones_within_noise_cube_and_illumination
         a = np.mean([r[k] for r in plain], axis=0)
         b = np.mean([r[k] for r in guided], axis=0)
         assert_same_within_noise(a, b)
-    assert guided[0][2]["guided"]["learnt"][0]["guided_voxels"] > 0
+    assert guided[0][2]["guided"]["learnt"][0]["guided_cells"] > 0
     assert "guided" not in plain[0][2]
     assert guided[0][2]["nonfinite_samples"] == 0
 

@@ -177,7 +177,7 @@ def test_extra_rounds_are_guided_by_default_and_weighed_by_their_noise():
     r = render_cube(scene, scene.views[0].name, "desk", st)
     uc = r.stats["until_clean"]
     assert uc["rounds"] == 3 and uc["guided_rounds"] == 1 and 0 < uc["guided_weight"] < 1  # the third round
-    assert uc["guide"][0]["guided_voxels"] > 0 and uc["guide"][0]["learn_s"] > 0
+    assert uc["guide"][0]["guided_cells"] > 0 and uc["guide"][0]["learn_s"] > 0
     assert r.renderer["settings"]["guide_paths"] is True
     off = render_cube(scene, scene.views[0].name, "desk", st.model_copy(update={"guide_paths": False}))
     assert "guided_rounds" not in off.stats["until_clean"] and off.renderer["settings"]["guide_paths"] is False

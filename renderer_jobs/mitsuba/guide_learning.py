@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from illumix.renderer_jobs.mitsuba.bands import band_quadruples, make_integrator
-from illumix.renderer_jobs.mitsuba.path_guide import GuideArrays, GuideField, field_from_records, grid_for
+from illumix.renderer_jobs.mitsuba.path_guide import N_SIDES, GuideArrays, GuideField, field_from_records, grid_for
 from illumix.renderer_jobs.mitsuba.scene_dict import scene_bounds
 from illumix.renderer_jobs.mitsuba.trace import camera_rays
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
@@ -47,7 +47,8 @@ def learn_guide(scene: Scene, ms, sensor, live: np.ndarray, flat: bool, seed: in
         field = field_from_records(lo, cell, dims, np.concatenate(index), np.concatenate(value))
     n_rec = int(sum(int(np.count_nonzero(i >= 0)) for i in index))
     return field, {"learn_s": round(time.perf_counter() - t0, 4), "training_paths_per_pixel": int(sum(iterations)),
-                   "records": n_rec, "voxels": int(np.prod(dims)), "guided_voxels": field.guided_voxels}
+                   "records": n_rec, "voxels": int(np.prod(dims)),
+                   "cells": int(np.prod(dims)) * N_SIDES, "guided_cells": field.guided_cells}
 
 
 def _records(mi, dr, integrator, ms, sensor, paths: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
