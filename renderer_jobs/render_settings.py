@@ -20,7 +20,7 @@ from illumix.retarget.denoise_methods import DEFAULT_METHOD
 from illumix.retarget.errors import UnknownName
 
 DEFAULT_BOOST_FACTOR = 8  # bench/DENOISE.md: 8x the spp where reach > 0.6 brings front's p99.3 under 2.5 %
-GENERATED_CLEAN_MAX_SPP = 1024  # bench/SCENES.md: 27 of 28 held-out generated cubes clean by it, 2.9x the CPU
+GENERATED_CLEAN_MAX_SPP = 1024  # bench/SCENES.md: 27 of 28 held-out generated cubes clean by it, 3.2x the CPU
 DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
 CLI = {"cli": True}  # a field offered as an `illumix render` option (--name, or --name/--no-name)
 # json_schema_extra keys: "note" (more help text), "cli_unset" (the option's default is unset: None)
@@ -70,8 +70,8 @@ class RenderSettings(BaseModel):
         "does (bench/SCENES.md), give it as many paths again, up to this many per pixel in all (e.g. 1024); "
         "0: exactly --spp; default: 1024 for generated rooms (illumix.scenegen), 0 for other scenes."))
     guide_paths: bool = Field(True, json_schema_extra=CLI, description=(
-        "With the until-clean rule: the extra rounds learn where light comes from (a short training render) and "
-        "take half their bounces from that path guide (unbiased: MIS with the BSDF); --no-guide-paths: plain "
+        "With the until-clean rule: its rounds from the third on learn where light comes from (a short training "
+        "render) and take half their bounces from that path guide (unbiased: MIS with the BSDF); --no-guide-paths: plain "
         "paths only (bench/SCENES.md, \"Path guiding\")."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "

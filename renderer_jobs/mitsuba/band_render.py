@@ -158,12 +158,12 @@ class _Run:
         """The path guide of pass ``k`` on the Dr.Jit side: from ``loaded``, else learnt (and kept)."""
         mi, dr = import_mitsuba()
         key = ("guide", k)
-        if loaded is None or key not in loaded:
-            field, info = learn_guide(self.scene, ms, sensor, live, self.flat, self.settings.seed)
-            self.guides.append(info)
-            if loaded is not None:
-                loaded[key] = field
-        field = field if loaded is None else loaded[key]
+        if loaded is not None and key in loaded:
+            return GuideArrays(mi, dr, loaded[key])
+        field, info = learn_guide(self.scene, ms, sensor, live, self.flat, self.settings.seed)
+        self.guides.append(info)
+        if loaded is not None:
+            loaded[key] = field
         return GuideArrays(mi, dr, field)
 
     def load_pass(self, view: str, groups: list[str], portals, loaded: dict | None, k: int):
