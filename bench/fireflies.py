@@ -36,10 +36,12 @@ room), ``strip_both``, ``glow75`` (translucent shades carry 75 % of their lamp's
 are clean (:func:`is_clean`), with CPU per render at each step: what clean renders cost by more
 paths alone. ``--clean-max-spp 1024``: every cube rendered with the renderer's until-clean rule
 (``RenderSettings.clean_max_spp``), two seeds, judged by the same definition, against the two plain
-64-spp renders rendered in the same run (CPU ratio) and the same rule without path guiding
-(``guide_paths=False``, the ``unguided_*`` figures; ``--no-unguided`` skips it); ``--clean-max-spp
-default``: the renderer's default settings (generated rooms get the rule, capped at 1024, its extra
-rounds guided). ``mean_ratio_to_plain``: the rule's image mean over the plain renders' (a bias
+64-spp renders rendered in the same run (CPU ratio) and the same rule with ``--baseline``'s settings
+(``no-light``: without light paths, rendered only for cubes that reached a third round — before it
+both rules render the same paths; ``unguided``: without guiding or light paths; ``none``, or
+``--no-unguided``: no baseline), the ``baseline_*`` figures; ``--clean-max-spp default``: the
+renderer's default settings (generated rooms get the rule, capped at 1024, its late rounds light
+paths or guided). ``mean_ratio_to_plain``: the rule's image mean over the plain renders' (a bias
 check: 1 within noise). The other modes render exactly the spp (``clean_max_spp = 0``).
 """
 
@@ -216,7 +218,8 @@ def render_room(doc: dict, res: tuple[int, int], kinds: set[str] = frozenset(), 
 
 def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float, list]:
     """Band sums ``(H, W)`` of ``group``'s cube rendered with seeds 1 and 2 (no denoising, transport
-    only, ``settings`` on top), their CPU s together and each one's paths per pixel."""
+    only, ``settings`` on top), their CPU s together and each one's paths per pixel (and, in
+    ``_LAST_STATS``, each one's render stats)."""
     from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
 
@@ -228,7 +231,15 @@ def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float,
         cpu += time.process_time() - c0
         imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
         paths.append(r.stats["paths_per_pixel"])
+        _LAST_STATS.append(r.stats)
+    del _LAST_STATS[:-2]
     return imgs, cpu, paths
+
+
+_LAST_STATS: list[dict] = []
+# --baseline: the rule with these settings, in the same run (bench/SCENES.md); "no-light" is rendered
+# only for cubes whose rule reached a third round (before it, the two rules render the same paths)
+BASELINES = {"unguided": {"guide_paths": False, "light_paths": False}, "no-light": {"light_paths": False}}
 
 
 def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -> list[dict]:
@@ -259,12 +270,12 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
     return rows
 
 
-def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, unguided: bool = True) -> list[dict]:
+def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, baseline: str | None = "no-light") -> list[dict]:
     """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
     (None: unset, the renderer's default; the renderer adds paths until its own halves are clean): whether the two are clean by
-    :func:`is_clean`, the paths each used and CPU per render (``--clean-max-spp``). In the same run, as
-    baselines: two plain 64-spp renders (``plain``) and, with ``unguided``, the rule without path
-    guiding (``unguided``: ``guide_paths=False``)."""
+    :func:`is_clean`, the paths each used, the kinds of its rounds and CPU per render (``--clean-max-spp``).
+    In the same run, as baselines: two plain 64-spp renders (``plain``) and the rule with ``baseline``'s
+    settings (:data:`BASELINES`; ``"baseline"`` in the row)."""
     from illumix.scene.load import scene_from_dict
 
     scene = scene_from_dict(doc, source=doc["name"])
@@ -281,11 +292,16 @@ def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, unguided: 
         if not np.any(plain[0]):
             continue
         row = {"room": doc["name"], "group": g}
-        if unguided:
-            row["unguided"] = judged(*_two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp,
-                                                   guide_paths=False))
         imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
-        row.update(judged(imgs, cpu, paths))
+        mine = judged(imgs, cpu, paths)
+        row.update(mine)
+        row["kinds"] = [st.get("until_clean", {}).get("kinds") for st in _LAST_STATS]
+        row["light_weight"] = [st.get("until_clean", {}).get("light_weight") for st in _LAST_STATS]
+        if baseline == "no-light" and all(k is None or len(k) <= 2 for k in row["kinds"]):
+            row["baseline"] = {**mine, "same_renders": True}
+        elif baseline:
+            row["baseline"] = judged(*_two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp,
+                                                   **BASELINES[baseline]))
         row["mean_ratio_to_plain"] = round(float(np.mean(imgs) / max(np.mean(plain), 1e-30)), 4)
         row["plain"] = judged(plain, plain_cpu)
         rows.append(row)
@@ -323,8 +339,10 @@ def main() -> None:
     ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
     ap.add_argument("--clean-max-spp", default="", help="render with the renderer's until-clean rule up to this "
                     "many spp; 'default': the renderer's default settings (the rule's default cap on generated rooms)")
-    ap.add_argument("--no-unguided", action="store_true", help="with --clean-max-spp: skip the baseline of the "
-                    "rule without path guiding")
+    ap.add_argument("--baseline", default="no-light", choices=[*BASELINES, "none"], help="with --clean-max-spp: "
+                    "the rule also rendered without light paths (no-light) or without guiding and light paths "
+                    "(unguided), or not (none)")
+    ap.add_argument("--no-unguided", action="store_true", help="the same as --baseline none")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     kinds = {k for k in args.kinds.split(",") if k}
@@ -335,7 +353,8 @@ def main() -> None:
     result = {"bench": "fireflies", "res": list(res), "seeds": args.seeds}
     if args.clean_max_spp:
         cap = None if args.clean_max_spp == "default" else int(args.clean_max_spp)
-        rows = [r for doc in docs for r in until_clean(doc, res, cap, not args.no_unguided)]
+        baseline = None if args.no_unguided or args.baseline == "none" else args.baseline
+        rows = [r for doc in docs for r in until_clean(doc, res, cap, baseline)]
         u = result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
                                      "clean": sum(r["clean"] for r in rows),
                                      "cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
@@ -344,11 +363,12 @@ def main() -> None:
         u["cpu_ratio"] = round(u["cpu_s"] / max(u["plain_cpu_s"], 1e-9), 2)
         u["mean_paths_ratio"] = round(float(np.mean([np.mean(r["paths_per_pixel"]) / 64 for r in rows])), 2)
         u["mean_ratio_to_plain"] = round(float(np.mean([r["mean_ratio_to_plain"] for r in rows])), 4)
-        if not args.no_unguided:
-            u["unguided_clean"] = sum(r["unguided"]["clean"] for r in rows)
-            u["unguided_cpu_s"] = round(sum(r["unguided"]["cpu_s"] for r in rows), 1)
-            u["unguided_cpu_ratio"] = round(u["unguided_cpu_s"] / max(u["plain_cpu_s"], 1e-9), 2)
-            u["unguided_mean_paths_ratio"] = round(float(np.mean([np.mean(r["unguided"]["paths_per_pixel"]) / 64
+        if baseline:
+            u["baseline"] = baseline
+            u["baseline_clean"] = sum(r["baseline"]["clean"] for r in rows)
+            u["baseline_cpu_s"] = round(sum(r["baseline"]["cpu_s"] for r in rows), 1)
+            u["baseline_cpu_ratio"] = round(u["baseline_cpu_s"] / max(u["plain_cpu_s"], 1e-9), 2)
+            u["baseline_mean_paths_ratio"] = round(float(np.mean([np.mean(r["baseline"]["paths_per_pixel"]) / 64
                                                                   for r in rows])), 2)
         u["rows"] = rows
         print(json.dumps(result))

@@ -58,7 +58,8 @@ def _ensure_rendered(store: str, resolution: str, spp: int, workers: int) -> Non
     render(config=None, rules=None, store=store, demo=True, demo_seed=0, resolution=resolution, spp=spp, seed=0,
            wavelengths=d.wavelengths, sampler=d.sampler, bands_per_path=d.bands_per_path, views=None,
            groups=None, workers=workers, executor="local", address=None, skip_dark=True, adaptive=d.adaptive,
-           noise_target=None, clean_max_spp=None, guide_paths=d.guide_paths, illumination=True,
+           noise_target=None, clean_max_spp=None, guide_paths=d.guide_paths, light_paths=d.light_paths,
+           illumination=True,
            denoise=DEFAULT_METHOD, backend="mitsuba", boost_factor=None, boost_reach=None, overwrite=False,
            dry_run=False, as_json=False)
 

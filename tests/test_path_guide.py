@@ -80,11 +80,11 @@ def test_guided_and_inverse_variance_weights():
         return (None, None, {"samples_per_band_rendered": spp}, None, h)
 
     rounds = [fake(64, 0.2), fake(64, 0.2 / np.sqrt(8)), fake(128, 0.2 / np.sqrt(8))]
-    w = round_weights(rounds, [False, True, True])
+    w = round_weights(rounds, ["plain", "guided", "guided"])
     assert w.sum() == pytest.approx(1)
     assert w[1] / w[2] == pytest.approx(0.5)  # by samples within the guided kind
     assert w[0] == pytest.approx(5 / 77, abs=0.01)
-    assert round_weights(rounds[:1], [False]).tolist() == [1.0]
+    assert round_weights(rounds[:1], ["plain"]).tolist() == [1.0]
 
 
 def _uplit_scene() -> dict:
@@ -112,7 +112,8 @@ def _render(scene, group: str, guided: bool, seed: int, spp: int = 32):
 
     e = np.asarray(group_emission(scene, group)[0], np.float64)
     st = RenderSettings(denoise=None, seed=seed, spp=spp, clean_max_spp=0)
-    return render_all_bands(scene, scene.views[0].name, [group], emitter_passes(scene, [group]), st, e, None, None, guided)
+    return render_all_bands(scene, scene.views[0].name, [group], emitter_passes(scene, [group]), st, e, None, None,
+                            "guided" if guided else "plain")
 
 
 @pytest.fixture(scope="module")

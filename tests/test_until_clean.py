@@ -24,7 +24,7 @@ def _fake(firefly_rate: float, halves: bool = True):
     paths each) when ``halves``, as the band sets give them; records the calls."""
     calls = []
 
-    def render_once(s, guided=False):
+    def render_once(s, kind="plain"):
         calls.append((s.spp, s.seed))
         rng, t, n = np.random.default_rng(s.seed), _truth(), s.spp / 2
 
@@ -81,7 +81,7 @@ def test_fireflies_buy_more_paths_up_to_the_cap():
 
 def test_the_rounds_average_to_an_unbiased_cube():
     """Each round is weighted by its samples: a constant scene comes back exactly."""
-    def flat(s, guided=False):
+    def flat(s, kind="plain"):
         stats = {k: 0.0 for k in ("load_s", "trace_s", "total_s")}
         stats.update({k: s.spp for k in ("nonfinite_samples", "paths_per_pixel", "samples_per_band",
                                          "paths_per_pixel_rendered", "samples_per_band_rendered")})
@@ -150,8 +150,8 @@ def test_rounds_reuse_the_loaded_scene_with_the_same_pixels():
     st = RenderSettings(spp=8, clean_max_spp=32, denoise=None, illumination=True)
     loaded: dict = {}
     loaded: dict = {}
-    shared = render_until_clean(lambda s, g: render_all_bands(scene, view, groups, passes, s, e, None, loaded, g), st)
-    fresh = render_until_clean(lambda s, g: render_all_bands(scene, view, groups, passes, s, e, None, None, g), st)
+    shared = render_until_clean(lambda s, k: render_all_bands(scene, view, groups, passes, s, e, None, loaded, k), st)
+    fresh = render_until_clean(lambda s, k: render_all_bands(scene, view, groups, passes, s, e, None, None, k), st)
     assert loaded and shared[2]["until_clean"]["rounds"] == fresh[2]["until_clean"]["rounds"] >= 2
     for a, b in zip(shared[:2] + shared[3:], fresh[:2] + fresh[3:]):
         np.testing.assert_array_equal(a, b)
@@ -161,19 +161,20 @@ def test_rounds_reuse_the_loaded_scene_with_the_same_pixels():
     for _ in range(2):
         loaded = {}
         runs.append(render_until_clean(
-            lambda s, g: render_all_bands(scene, view, groups, passes, s, e, None, loaded, g), st, guided=True))
+            lambda s, k: render_all_bands(scene, view, groups, passes, s, e, None, loaded, k), st, guided=True))
         assert ("guide", 0) in loaded and runs[-1][2]["until_clean"]["guided_rounds"] == 1  # the third round
     for a, b in zip(runs[0][:2] + runs[0][3:], runs[1][:2] + runs[1][3:]):
         np.testing.assert_array_equal(a, b)
 
 
-def test_extra_rounds_are_guided_by_default_and_weighed_by_their_noise():
-    """Through the renderer: rounds from the third on learn a guide (its cost and cells in the stats),
-    the plain and guided rounds weigh by their measured variance; --no-guide-paths renders plain."""
+def test_extra_camera_path_rounds_are_guided_and_weighed_by_their_noise():
+    """Through the renderer, light paths off: rounds from the third on learn a guide (its cost and
+    cells in the stats), the plain and guided rounds weigh by their measured variance;
+    --no-guide-paths renders plain."""
     from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.scene.demo import demo_room
     scene = demo_room(0, (32, 24))
-    st = RenderSettings(spp=16, clean_max_spp=64, denoise=None, illumination=False)
+    st = RenderSettings(spp=16, clean_max_spp=64, denoise=None, illumination=False, light_paths=False)
     r = render_cube(scene, scene.views[0].name, "desk", st)
     uc = r.stats["until_clean"]
     assert uc["rounds"] == 3 and uc["guided_rounds"] == 1 and 0 < uc["guided_weight"] < 1  # the third round

@@ -18,6 +18,7 @@ from illumix.renderer_jobs.band_schedule import live_bands, mix_seed
 from illumix.renderer_jobs.mitsuba.boost_paths import extra_path_sums
 from illumix.renderer_jobs.mitsuba.bands import band_quadruples, make_integrator
 from illumix.renderer_jobs.mitsuba.guide_learning import learn_guide
+from illumix.renderer_jobs.mitsuba.light_paths import light_paths_reach, light_set_aovs
 from illumix.renderer_jobs.mitsuba.path_guide import GuideArrays
 from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
@@ -79,7 +80,7 @@ def sets_give_halves(emission: np.ndarray, bands_per_path: int) -> bool:
 
 def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str], settings,
                      emission: np.ndarray, boost: np.ndarray | None = None, loaded: dict | None = None,
-                     guided: bool = False) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None, np.ndarray | None]:
+                     kind: str = "plain") -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None, np.ndarray | None]:
     """``(cube (H, W, n_bands), illumination cube or None, stats, noise, halves)`` of ``view`` lit by ``groups``
     (emitter ``passes`` from :func:`renderer_jobs.mitsuba.render.emitter_passes`), with ``settings``
     (a :class:`renderer_jobs.mitsuba.render.RenderSettings`).
@@ -96,10 +97,12 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     (:func:`retarget.denoise.relative_noise`). ``halves`` ``(H, W, 2)`` float64: two independent
     estimates of that band sum, the even band sets' and the odd ones', each from half the paths (the
     until-clean rule's halves, free: :mod:`renderer_jobs.mitsuba.until_clean`); None unless the sets
-    are an even number. ``loaded``: a dict the caller keeps between calls
+    are an even number. ``kind``: ``"plain"`` camera paths, ``"guided"`` (below) or ``"light"``: light
+    paths (:mod:`renderer_jobs.mitsuba.light_paths`; one group of flat emission only,
+    :func:`light_paths_apply`). ``loaded``: a dict the caller keeps between calls
     for the same view and groups (:mod:`renderer_jobs.mitsuba.until_clean`'s rounds): each pass's
     loaded Mitsuba scene is kept there and reused, its sampler set to this call's spp, instead of
-    loading the scene again (the same pixels as a fresh load: tests/test_until_clean.py). ``guided``: the
+    loading the scene again (the same pixels as a fresh load: tests/test_until_clean.py). ``"guided"``: the
     paths take some bounces from a path guide learnt for each pass (:mod:`renderer_jobs.mitsuba.path_guide`;
     learnt once and kept in ``loaded`` when given). Fewer bands per path make a path cheaper (raw
     noise per CPU second falls), more make a band sample cheaper (band noise per CPU second falls):
@@ -108,10 +111,9 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     t0 = time.perf_counter()
     sets = band_sets(live_bands(emission), max(1, settings.bands_per_path // 4))
     spp = set_spp(settings.sampler, settings.spp, len(sets))
-    # One group without an envmap: every emitter emits strength × the group's emission, so the bands
-    # render with flat emission (emitters evaluated once per vertex, not per quadruple) and are
-    # scaled by the emission after — the relighting identity, exact per band.
-    flat = len(groups) == 1 and not any(isinstance(e, EnvMapSky) for e in scene.emitters_of(groups[0]))
+    flat = light_paths_apply(scene, groups)
+    if kind == "light" and not flat:
+        raise ValueError("light paths need one group of flat emission (light_paths_apply)")
     boosting = boost is not None
     boost = np.asarray([] if boost is None else boost, np.int64)
     extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
@@ -119,9 +121,10 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     noise = np.zeros((2,), np.float64) if len(sets) > 1 else None
     halves = 0.0 if sets_give_halves(emission, settings.bands_per_path) else None
     run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
+    run.light = kind == "light"
     for k, portals in enumerate(passes):
         ms, sensor = run.load_pass(view, groups, portals, loaded, k)
-        run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if guided else None
+        run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if kind == "guided" else None
         # this pass's band sets' estimates of the band sum
         estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
         if noise is not None:
@@ -136,6 +139,14 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     stats = run.stats(t0, len(passes), boosting)
     return (cube.astype(np.float32), None if illum is None else illum.astype(np.float32), stats,
             None if noise is None else noise.astype(np.float32), halves)
+
+
+def light_paths_apply(scene: Scene, groups: list[str]) -> bool:
+    """Whether the cube of ``groups`` renders with flat emission — one group without an envmap: every
+    emitter emits strength × the group's emission, so the bands render with emission 1 (emitters
+    evaluated once per vertex, not per quadruple) and are scaled by the emission after, the
+    relighting identity, exact per band — and so may take light paths."""
+    return len(groups) == 1 and not any(isinstance(e, EnvMapSky) for e in scene.emitters_of(groups[0]))
 
 
 class _Run:
@@ -153,6 +164,8 @@ class _Run:
         self.n_quads = self.n_film = 0
         self.shape = (0, 0)
         self.guide, self.guides = None, []  # this pass's GuideArrays; each pass's learning stats
+        self.light = False  # light paths (with their camera-path complement) instead of camera paths
+        self.light_sets = 0  # band sets (over passes) that took them: not passes with a sun or sky
 
     def guide_of(self, ms, sensor, loaded: dict | None, k: int, live: np.ndarray):
         """The path guide of pass ``k`` on the Dr.Jit side: from ``loaded``, else learnt (and kept)."""
@@ -201,14 +214,18 @@ class _Run:
         n_aov = len(integrator.aov_names())
         seed = mix_seed(st.seed, k, j)
         t2 = time.perf_counter()
-        out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=self.spp, seed=seed))
+        if self.light and light_paths_reach(ms):
+            self.light_sets += 1
+            aov = light_set_aovs(quads, grid.step, self.scene.max_depth, st.illumination, ms, sensor, self.spp, seed)
+        else:
+            out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=self.spp, seed=seed))
+            aov = out[..., out.shape[-1] - n_aov:]
         self.t_render += time.perf_counter() - t2
-        aov = out[..., out.shape[-1] - n_aov:]
         if self.illum is not None:  # every set sees the same first hits: count them once (the film's paths)
             part = aov[..., 2 * len(lanes):2 * len(lanes) + 3].sum(axis=(0, 1), dtype=np.float64)
             self.kinds += part * self.n_film / len(self.sets)
         self.bad += float(aov[..., -1].sum(dtype=np.float64)) * self.n_film  # per-pixel means -> counts
-        if self.extra:
+        if self.extra and not self.light:
             aov = self._boosted(ms, sensor, integrator, aov, seed, quads, n_aov)
         on = lanes >= 0
         self.cube[..., lanes[on]] += aov[..., :len(lanes)][..., on]
@@ -236,7 +253,8 @@ class _Run:
                  "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": self.settings.sampler,
                  # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
                  "paths_per_pixel_rendered": self.n_film * len(sets), "samples_per_band_rendered": self.n_film,
-                 "flat_emission_scaled": self.flat}
+                 "flat_emission_scaled": self.flat, "light_paths": self.light,
+                 "light_path_sets": self.light_sets}
         if self.guide is not None:
             stats["guided"] = {"learnt": self.guides,
                                "learn_s": round(sum(g["learn_s"] for g in self.guides), 4)}

@@ -74,7 +74,7 @@ FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists)
 
 
 def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
-                    flat_emission: bool = False, guide=None, record: bool = False):
+                    flat_emission: bool = False, guide=None, record: bool = False, delta_first: bool = False):
     """A ``BandPathIntegrator`` carrying the bands whose lower edges are ``quads`` (nm; width
     ``step``), for Mitsuba's ``mi.render``. The class is made here, not at import: it subclasses
     Mitsuba's, which needs the variant selected (its methods are :class:`_BandPath`'s, copied in:
@@ -83,11 +83,14 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
     ``flat_emission``: every emitter's spectrum is flat (the caller scales the bands by the emission
     after), so emitters are evaluated once per vertex, not once per quadruple. ``guide``: a
     :class:`renderer_jobs.mitsuba.path_guide.GuideArrays` whose learnt directions some bounces
-    take; ``record``: :meth:`_BandPath.learn` returns the training records of its paths (same module)."""
+    take; ``record``: :meth:`_BandPath.learn` returns the training records of its paths (same module).
+    ``delta_first``: only what light paths cannot give (:mod:`renderer_jobs.mitsuba.light_paths`): the
+    first vertex's emission, and paths whose first bounce is drawn from a delta lobe (no light sample
+    at the first vertex, no other continuation)."""
     mi, _ = import_mitsuba()
     methods = {k: v for k, v in vars(_BandPath).items() if k not in ("__dict__", "__weakref__", "__qualname__")}
     cls = type("BandPathIntegrator", (mi.SamplingIntegrator,), methods)
-    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission, guide, record)
+    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission, guide, record, delta_first)
 
 
 class _BandPath:
@@ -100,7 +103,8 @@ class _BandPath:
     ``dr.while_loop``: they update the per-quadruple lists ``paths = (beta, L, beta_u, U)`` (and
     ``rho``) in place and return the other loop values they change."""
 
-    def __init__(self, props, quads, step, max_depth, illumination, flat_emission, guide=None, record=False):
+    def __init__(self, props, quads, step, max_depth, illumination, flat_emission, guide=None, record=False,
+                 delta_first=False):
         mi, dr = import_mitsuba()
         mi.SamplingIntegrator.__init__(self, props)
         # opaque: the band set's wavelengths are the kernel's inputs, not literals in its code, so
@@ -116,6 +120,7 @@ class _BandPath:
         self.max_depth = int(max_depth)
         self.illumination = bool(illumination)
         self.guide, self.record = guide, bool(record)
+        self.delta_first = bool(delta_first)
 
     def aov_names(self):
         names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
@@ -160,7 +165,7 @@ class _BandPath:
             self._add_emission(scene, si, prev, prev_pdf, prev_delta, active, white, paths, split)
             go = active & si.is_valid() & (depth + 1 < self.max_depth)
             bs, side, s2 = self._light_and_continue(scene, sampler, si, bsdf, flags, white, u_first, go, paths,
-                                                    split)
+                                                    split, depth)
             go, wo, pdf, delta = self._direction_and_roulette(sampler, bs, side, s2, white, u_first, go, depth,
                                                               paths, split)
             ray = si.spawn_ray(si.to_world(wo))
@@ -218,7 +223,7 @@ class _BandPath:
             if split:
                 U[q] = dr.select(count, U[q] + beta_u[q] * le, U[q])
 
-    def _light_and_continue(self, scene, sampler, si, bsdf, flags, white, u_first, go, paths, split):
+    def _light_and_continue(self, scene, sampler, si, bsdf, flags, white, u_first, go, paths, split, depth):
         """The light sample: drawn once (hero quadruple), valued at every quadruple and added to ``L``
         (and ``U``); and the continuation: one direction (s1, s2), every quadruple's throughput weight,
         from the same call. Updates ``paths`` in place; returns the BSDF sample ``bs``, the side the
@@ -228,6 +233,8 @@ class _BandPath:
         ctx = mi.BSDFContext()
         si.wavelengths = self.quads[0]
         em_on = go & (white | mi.has_flag(flags, mi.BSDFFlags.Smooth))
+        if self.delta_first:  # light paths give the first vertex's light sample
+            em_on &= depth > 0
         ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
         em_on &= ds_em.pdf != 0.0
         em_on &= ~scene.ray_test(si.spawn_ray_to(ds_em.p), em_on)
@@ -275,6 +282,8 @@ class _BandPath:
         wo = dr.select(white, wo_white, bs.wo)
         pdf = dr.select(white, pdf_white, bs.pdf)
         delta = ~white & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
+        if self.delta_first:  # light paths give every first bounce but a delta one
+            go &= (depth > 0) | delta
         if split:  # white surface, BSDF-sampled direction: weight (cos/π)/pdf
             cos_u = dr.maximum(side * mi.Frame3f.cos_theta(bs.wo), 0.0)
             w_u = dr.select(bs.pdf > 0.0, cos_u / (dr.pi * bs.pdf), 0.0)

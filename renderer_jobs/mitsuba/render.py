@@ -102,6 +102,7 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
                          "emitter_sampling": "power", "spp": settings.spp, "seed": settings.seed,
                          "clean_max_spp": settings.clean_cap(scene),
                          "guide_paths": bool(bands and settings.clean_cap(scene) and settings.guide_paths),
+                         "light_paths": bool(bands and settings.clean_cap(scene) and settings.light_paths),
                          "passes": passes, "libllvm": libllvm_path()}}
     if bands:
         # No material of the scene model disperses (dielectrics take one scalar IOR): every band
@@ -154,7 +155,8 @@ def render_cube(scene: Scene, view: str, group: str | list[str] | None,
 
 def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[str],
                       settings: RenderSettings, boost_mask: np.ndarray | None = None) -> CubeResult:
-    from illumix.renderer_jobs.mitsuba.band_render import render_all_bands, sets_give_halves  # noqa: PLC0415
+    from illumix.renderer_jobs.mitsuba.band_render import (light_paths_apply, render_all_bands,  # noqa: PLC0415
+                                                          sets_give_halves)
 
     nb = scene.spectral_grid.n_bands
     emission, name = (group_emission(scene, groups[0]) if len(groups) == 1 else (np.ones(nb), "flat"))
@@ -171,8 +173,9 @@ def _render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[s
 
         loaded: dict = {}  # the rounds share the loaded scene
         cube, illum, stats, noise = render_until_clean(
-            lambda s, guided: render_all_bands(scene, view, groups, passes, s, e, boost, loaded, guided), settings,
-            sets_give_halves(e, settings.bands_per_path), settings.guide_paths)
+            lambda s, kind: render_all_bands(scene, view, groups, passes, s, e, boost, loaded, kind), settings,
+            sets_give_halves(e, settings.bands_per_path), settings.guide_paths,
+            settings.light_paths and light_paths_apply(scene, groups))
     else:
         cube, illum, stats, noise, _ = render_all_bands(scene, view, groups, passes, settings, e, boost)
     stats.update({"mean": float(cube.mean()), "max": float(cube.max()), "min": float(cube.min())})

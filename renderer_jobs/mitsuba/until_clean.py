@@ -11,14 +11,20 @@ all; the rounds share one loaded scene. A cube that is clean at once costs exact
 Where the band sets are not an even number (a group emitting in few bands), the halves are rendered
 as two renders of ``spp / 2`` instead.
 
-``guided``: the rounds from the ``GUIDE_FROM_ROUND``-th on take some bounces from a path guide learnt
-for the cube (:mod:`renderer_jobs.mitsuba.path_guide`): light that only rare paths find (a lamp in the
-next room) is what keeps a cube from being clean at 2 × spp, and that is what guiding finds more often.
-A cube clean by its second round never pays for the guide (its training and its dearer paths cost
-about as much as that round: bench/SCENES.md, "Path guiding").
+Late rounds (from the ``GUIDE_FROM_ROUND``-th on) are where a cube is noisy because its light
+arrives by rare camera paths (a lamp lighting the ceiling, a lamp in the next room). With ``light``
+(one group of flat emission: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
+late round is split in two: half its paths traced from the lights (**light paths**,
+:mod:`renderer_jobs.mitsuba.light_paths`), half from the camera; each later round is of the kind —
+plain, guided or light — that has so far given the least variance per CPU second (each kind's
+variance from its own halves over the frame, :func:`next_kind`): a cube lit by bounces goes on
+tracing from its light, one whose camera paths do better goes back to them, having spent half a
+round to find out. Camera paths in late rounds are ``guided`` when allowed: some bounces from a path
+guide learnt for the cube (:mod:`renderer_jobs.mitsuba.path_guide`). A cube clean by its second round never pays for either
+(bench/SCENES.md, "Light paths" and "Path guiding").
 
-Combining: within the plain rounds and within the guided rounds, each round weighs by its rendered
-samples. Between the two kinds the weights are inverse to each kind's variance, measured from its own
+Combining: within each kind of round (plain, guided, light), each round weighs by its rendered
+samples. Between the kinds the weights are inverse to each kind's variance, measured from its own
 halves over the whole frame (one number per kind, from thousands of pixels, so the weights hardly
 depend on any pixel's own noise): each kind is an unbiased estimate, so the result is too.
 bench/SCENES.md measures on generated rooms what the rule buys.
@@ -26,26 +32,33 @@ bench/SCENES.md measures on generated rooms what the rule buys.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from illumix.renderer_jobs.clean_check import halves_clean, measure
 
 SEED_STEP = 1_000_003  # round k renders with seed + k·SEED_STEP: independent paths
-GUIDE_FROM_ROUND = 3  # rounds 1 and 2 (spp, then as many again) plain; guided after
+GUIDE_FROM_ROUND = 3  # rounds 1 and 2 (spp, then as many again) plain; guided or light paths after
+KINDS = ("plain", "guided", "light")
 
 
-def render_until_clean(render_once, settings, halves: bool = True, guided: bool = False
+def render_until_clean(render_once, settings, halves: bool = True, guided: bool = False, light: bool = False
                        ) -> tuple[np.ndarray, np.ndarray | None, dict, np.ndarray | None]:
-    """``render_once(settings, guided) -> (cube, illum, stats, noise, halves)`` (band_render.render_all_bands
-    bound to the scene) called in rounds as above; returns the combined ``(cube, illum, stats, noise)``.
-    ``halves``: whether render_once returns them (band_render.sets_give_halves); else two renders.
-    ``guided``: the rounds from ``GUIDE_FROM_ROUND`` on are guided (module docstring)."""
+    """``render_once(settings, kind) -> (cube, illum, stats, noise, halves)`` (band_render.render_all_bands
+    bound to the scene; ``kind`` one of :data:`KINDS`) called in rounds as above; returns the combined
+    ``(cube, illum, stats, noise)``. ``halves``: whether render_once returns them
+    (band_render.sets_give_halves); else two renders. ``guided``, ``light``: the kinds the rounds from
+    ``GUIDE_FROM_ROUND`` on may take (module docstring; neither: plain)."""
     rounds: list[tuple] = []
-    kinds: list[bool] = []  # whether each round was guided
+    kinds: list[str] = []
+    cpu: list[float] = []
 
-    def one(spp: int, guide: bool = False) -> tuple:
+    def one(spp: int, kind: str = "plain") -> tuple:
         seed = (settings.seed + len(rounds) * SEED_STEP) % 2**32
-        rounds.append(render_once(settings.model_copy(update={"spp": spp, "seed": seed}), guide))
-        kinds.append(guide)
+        c0 = time.process_time()
+        rounds.append(render_once(settings.model_copy(update={"spp": spp, "seed": seed}), kind))
+        cpu.append(time.process_time() - c0)
+        kinds.append(kind)
         return rounds[-1]
 
     if not halves:
@@ -57,9 +70,27 @@ def render_until_clean(render_once, settings, halves: bool = True, guided: bool 
         m = measure(*np.moveaxis(_weighted(rounds, w, lambda r: r[4]), -1, 0))
         clean = halves_clean(m)
         if clean or 2 * total > settings.clean_max_spp:
-            return _combine(rounds, w, m, clean, kinds)
-        one(total, guided and len(rounds) + 1 >= GUIDE_FROM_ROUND)
+            return _combine(rounds, w, m, clean, kinds, cpu)
+        camera = "guided" if guided else "plain"
+        if len(rounds) + 1 < GUIDE_FROM_ROUND:
+            one(total)
+        elif light and "light" not in kinds:  # the first late round: half light, half camera paths
+            one(total // 2, "light")
+            one(total - total // 2, camera)
+        else:
+            one(total, next_kind(rounds, kinds, cpu) if light else camera)
         total *= 2
+
+
+def next_kind(rounds: list[tuple], kinds: list[str], cpu: list[float]) -> str:
+    """The kind of round that has given the least variance per CPU second so far: each kind's
+    variance from its own halves over the frame (:func:`kind_variance`), times its CPU seconds."""
+    eff = {}
+    for kind in dict.fromkeys(kinds):
+        idx = [i for i, k in enumerate(kinds) if k == kind]
+        var = kind_variance(rounds, idx)
+        eff[kind] = 1.0 / (var * sum(cpu[i] for i in idx)) if var > 0 else np.inf
+    return max(eff, key=eff.get)
 
 
 def _by_two_renders(one, settings) -> tuple:
@@ -72,7 +103,7 @@ def _by_two_renders(one, settings) -> tuple:
         clean = halves_clean(m)
         if clean or 4 * per_side > settings.clean_max_spp:
             results = sides[0] + sides[1]
-            return _combine(results, _by_samples(results), m, clean, [False] * len(results))
+            return _combine(results, _by_samples(results), m, clean, ["plain"] * len(results), None)
         for side in sides:
             side.append(one(per_side))
         per_side *= 2
@@ -83,26 +114,32 @@ def _by_samples(results: list[tuple]) -> np.ndarray:
     return w / w.sum()
 
 
-def round_weights(results: list[tuple], kinds: list[bool]) -> np.ndarray:
-    """Each round's weight (module docstring): by samples within its kind, and the two kinds
-    inverse to the variance of each kind's estimate, from the spread of its halves over the frame."""
-    kinds = np.asarray(kinds, bool)
-    if kinds.all() or not kinds.any():
+def kind_variance(results: list[tuple], idx: list[int]) -> float:
+    """The frame-mean variance of the estimate that rounds ``idx`` make together (weighted by samples):
+    from the spread of its two halves, ``mean((h0 − h1)²) / 4`` (of the mean of the two)."""
+    share = _by_samples([results[i] for i in idx])
+    h = sum(s * np.asarray(results[i][4], np.float64) for s, i in zip(share, idx))
+    return float(np.mean((h[..., 0] - h[..., 1]) ** 2)) / 4
+
+
+def round_weights(results: list[tuple], kinds: list[str]) -> np.ndarray:
+    """Each round's weight (module docstring): by samples within its kind, and the kinds inverse to
+    the variance of each kind's estimate (:func:`kind_variance`)."""
+    present = sorted(set(kinds))
+    if len(present) == 1:
         return _by_samples(results)
     w = np.zeros(len(results))
     inv_var = {}
-    for kind in (False, True):
-        idx = np.flatnonzero(kinds == kind)
-        share = _by_samples([results[i] for i in idx])
-        h = sum(s * np.asarray(results[i][4], np.float64) for s, i in zip(share, idx))
-        var = float(np.mean((h[..., 0] - h[..., 1]) ** 2)) / 4  # of the mean of the two halves
+    for kind in present:
+        idx = [i for i, k in enumerate(kinds) if k == kind]
+        var = kind_variance(results, idx)
         inv_var[kind] = 1.0 / var if var > 0 else 0.0
-        w[idx] = share
-    if not inv_var[False] and not inv_var[True]:
+        w[idx] = _by_samples([results[i] for i in idx])
+    total = sum(inv_var.values())
+    if not total:
         return _by_samples(results)
-    total = inv_var[False] + inv_var[True]
-    for kind in (False, True):
-        w[kinds == kind] *= inv_var[kind] / total
+    for kind in present:
+        w[[k == kind for k in kinds]] *= inv_var[kind] / total
     return w
 
 
@@ -110,7 +147,7 @@ def _weighted(results: list[tuple], w: np.ndarray, pick) -> np.ndarray:
     return sum(wi * np.asarray(pick(r), np.float64) for wi, r in zip(w, results))
 
 
-def _combine(results: list[tuple], w: np.ndarray, m: dict, clean: bool, kinds: list[bool]) -> tuple:
+def _combine(results: list[tuple], w: np.ndarray, m: dict, clean: bool, kinds: list[str], cpu) -> tuple:
     cube = _weighted(results, w, lambda r: r[0]).astype(np.float32)
     illum = None if results[0][1] is None else _weighted(results, w, lambda r: r[1]).astype(np.float32)
     noise = None
@@ -124,10 +161,17 @@ def _combine(results: list[tuple], w: np.ndarray, m: dict, clean: bool, kinds: l
                 "samples_per_band_rendered"):
         stats[key] = int(sum(r[2][key] for r in results))
     stats["until_clean"] = {"rounds": len(results), "clean": bool(clean), "rel_noise": m["rel"],
-                            "d_above_0_5": round(m["d_above_0_5"], 5), "firefly_light": round(m["ff_light"], 5)}
-    guided = [r[2]["guided"] for r, k in zip(results, kinds) if k and "guided" in r[2]]
+                            "d_above_0_5": round(m["d_above_0_5"], 5), "firefly_light": round(m["ff_light"], 5),
+                            "kinds": list(kinds)}
+    if cpu is not None:
+        stats["until_clean"]["cpu_s"] = [round(c, 3) for c in cpu]
+    is_kind = {k: np.array([x == k for x in kinds]) for k in KINDS}
+    guided = [r[2]["guided"] for r, k in zip(results, kinds) if k == "guided" and "guided" in r[2]]
     if guided:
-        stats["until_clean"]["guided_rounds"] = int(sum(kinds))
-        stats["until_clean"]["guided_weight"] = round(float(w[np.asarray(kinds, bool)].sum()), 4)
+        stats["until_clean"]["guided_rounds"] = int(is_kind["guided"].sum())
+        stats["until_clean"]["guided_weight"] = round(float(w[is_kind["guided"]].sum()), 4)
         stats["until_clean"]["guide"] = guided[0]["learnt"]
+    if is_kind["light"].any():
+        stats["until_clean"]["light_rounds"] = int(is_kind["light"].sum())
+        stats["until_clean"]["light_weight"] = round(float(w[is_kind["light"]].sum()), 4)
     return cube, illum, stats, noise
