@@ -74,10 +74,11 @@ class RenderSettings(BaseModel):
         "render) and take half their bounces from that path guide (unbiased: MIS with the BSDF); --no-guide-paths: plain "
         "paths only (bench/SCENES.md, \"Path guiding\")."))
     light_paths: bool = Field(True, json_schema_extra=CLI, description=(
-        "With the until-clean rule: its third round traces paths from the lights to the camera (a cube of one group "
-        "lit by bounces: a lamp on the ceiling, a lamp next door), and each later round takes whichever of light and "
-        "camera paths has given less noise per CPU second (unbiased: both estimate the same cube); --no-light-paths: "
-        "camera paths only (bench/SCENES.md, \"Light paths\")."))
+        "With the until-clean rule (a cube of one group): half its third round's paths are traced from the lights "
+        "to the camera, and each later round takes whichever kind of path (plain, guided, light) has given the least "
+        "noise per CPU second; light paths find light that arrives by bounces (a lamp lighting the ceiling, a lamp "
+        "next door). Unbiased: every kind estimates the same cube. --no-light-paths: camera paths only "
+        "(bench/SCENES.md, \"Light paths\")."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "
         "physical ground truth the service serves; --no-illumination: transport only (the formula ground truth)."))

@@ -173,8 +173,9 @@ class _Run:
         key = ("guide", k)
         if loaded is not None and key in loaded:
             return GuideArrays(mi, dr, loaded[key])
+        c0 = time.process_time()
         field, info = learn_guide(self.scene, ms, sensor, live, self.flat, self.settings.seed)
-        self.guides.append(info)
+        self.guides.append({**info, "learn_cpu_s": round(time.process_time() - c0, 4)})
         if loaded is not None:
             loaded[key] = field
         return GuideArrays(mi, dr, field)
@@ -257,7 +258,8 @@ class _Run:
                  "light_path_sets": self.light_sets}
         if self.guide is not None:
             stats["guided"] = {"learnt": self.guides,
-                               "learn_s": round(sum(g["learn_s"] for g in self.guides), 4)}
+                               "learn_s": round(sum(g["learn_s"] for g in self.guides), 4),
+                               "learn_cpu_s": round(sum(g["learn_cpu_s"] for g in self.guides), 4)}
         if boosting:
             b = self.boost
             stats["targeted_paths"] = {"pixels": int(b.size), "pixel_fraction": round(b.size / (h * w), 5),

@@ -94,7 +94,9 @@ def renderer_info(scene: Scene, settings: RenderSettings, passes: list[str]) -> 
     bands = settings.wavelengths == "all-bands"
     info = {"name": "mitsuba", "backend": "mitsuba", "version": str(mi.__version__), "variant": select_variant(),
             "method": (f"path tracing, up to {settings.bands_per_path} bands on every path (interleaved band sets "
-                       f"sharing the spp), {settings.sampler} pixel samples, Mitsuba's render loop" if bands else
+                       f"sharing the spp), {settings.sampler} pixel samples, Mitsuba's render loop"
+                       + ("; until clean, late rounds light tracing or path-guided, by measured variance per CPU s"
+                          if settings.clean_cap(scene) and settings.light_paths else "") if bands else
                        f"path tracing, 4 {settings.wavelengths} wavelengths per path (illumix sampling)"),
             "settings": {"integrator": "illumix band path" if bands else "path", "max_depth": scene.max_depth,
                          "rr_depth": RR_DEPTH, "mis": "power heuristic", "rfilter": "box",

@@ -16,7 +16,7 @@ arrives by rare camera paths (a lamp lighting the ceiling, a lamp in the next ro
 (one group of flat emission: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
 late round is split in two: half its paths traced from the lights (**light paths**,
 :mod:`renderer_jobs.mitsuba.light_paths`), half from the camera; each later round is of the kind —
-plain, guided or light — that has so far given the least variance per CPU second (each kind's
+light or camera paths — whose late rounds have given the least variance per CPU second (each kind's
 variance from its own halves over the frame, :func:`next_kind`): a cube lit by bounces goes on
 tracing from its light, one whose camera paths do better goes back to them, having spent half a
 round to find out. Camera paths in late rounds are ``guided`` when allowed: some bounces from a path
@@ -57,7 +57,8 @@ def render_until_clean(render_once, settings, halves: bool = True, guided: bool 
         seed = (settings.seed + len(rounds) * SEED_STEP) % 2**32
         c0 = time.process_time()
         rounds.append(render_once(settings.model_copy(update={"spp": spp, "seed": seed}), kind))
-        cpu.append(time.process_time() - c0)
+        # what a further round of this kind would cost: a guide is learnt once, not every round
+        cpu.append(time.process_time() - c0 - rounds[-1][2].get("guided", {}).get("learn_cpu_s", 0.0))
         kinds.append(kind)
         return rounds[-1]
 
@@ -78,19 +79,22 @@ def render_until_clean(render_once, settings, halves: bool = True, guided: bool 
             one(total // 2, "light")
             one(total - total // 2, camera)
         else:
-            one(total, next_kind(rounds, kinds, cpu) if light else camera)
+            one(total, next_kind(rounds, kinds, cpu, camera) if light else camera)
         total *= 2
 
 
-def next_kind(rounds: list[tuple], kinds: list[str], cpu: list[float]) -> str:
-    """The kind of round that has given the least variance per CPU second so far: each kind's
-    variance from its own halves over the frame (:func:`kind_variance`), times its CPU seconds."""
+def next_kind(rounds: list[tuple], kinds: list[str], cpu: list[float], camera: str) -> str:
+    """``"light"`` or ``camera``: the one whose late rounds (from ``GUIDE_FROM_ROUND``, where the two
+    started on equal paths) have given the least variance per CPU second — each kind's variance from
+    its own halves over the frame (:func:`kind_variance`), times its CPU seconds. The first two rounds
+    do not count: from fewer paths, a variance misses more of the rare large paths, which would
+    flatter them."""
     eff = {}
-    for kind in dict.fromkeys(kinds):
-        idx = [i for i, k in enumerate(kinds) if k == kind]
+    for kind in ("light", camera):
+        idx = [i for i, k in enumerate(kinds) if k == kind and i >= GUIDE_FROM_ROUND - 1]
         var = kind_variance(rounds, idx)
-        eff[kind] = 1.0 / (var * sum(cpu[i] for i in idx)) if var > 0 else np.inf
-    return max(eff, key=eff.get)
+        eff[kind] = 1.0 / (var * max(sum(cpu[i] for i in idx), 1e-9)) if var > 0 else np.inf
+    return "light" if eff["light"] > eff[camera] else camera
 
 
 def _by_two_renders(one, settings) -> tuple:
