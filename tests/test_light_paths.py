@@ -131,6 +131,12 @@ def test_later_rounds_take_the_kind_with_the_least_variance_per_cpu_second():
     loud = base + [_fake(64, 0.8), _fake(64, 0.2)]
     assert next_kind(loud, kinds, cpu, "guided") == "guided"
     assert next_kind(quiet + [_fake(128, 0.5)], kinds + ["light"], cpu + [2.0], "guided") == "guided"
+    # light paths with fireflies in their halves are not taken, however small their variance
+    spiky = [r for r in quiet]
+    h = spiky[2][4].copy()
+    h[3, 5, 0] = 1e3  # one path worth a thousand pixels in one half
+    spiky[2] = (None, None, {"samples_per_band_rendered": 64}, None, h)
+    assert next_kind(spiky, kinds, [1.0, 1.0, 1e-6, 1.0], "guided") == "guided"
 
 
 def test_three_kinds_weigh_inversely_to_their_variance():
