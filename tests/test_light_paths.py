@@ -189,3 +189,20 @@ def test_a_suns_caustics_are_left_out_as_camera_paths_leave_them_and_its_pass_ke
     camera = [_render(sunny, "plain", s, 128)[0][..., bands].mean() for s in (1, 2, 3)]
     se = np.sqrt(np.var(light, ddof=1) / 3 + np.var(camera, ddof=1) / 3)
     assert abs(np.mean(light) - np.mean(camera)) < 3 * se, (light, camera)  # the caustic: 8 s.e.
+
+
+def test_light_paths_are_for_lamps_not_daylight():
+    """A group of sky portals and a sun keeps to camera paths (light_paths_apply); lamps, a spot
+    light included, may take light paths; so may no cube of two groups (not flat emission)."""
+    from illumix.renderer_jobs.mitsuba.band_render import light_paths_apply
+    from illumix.scene.demo import demo_room
+
+    scene = demo_room(0, (32, 24))
+    assert not light_paths_apply(scene, ["daylight"])
+    assert light_paths_apply(scene, ["ceiling"]) and light_paths_apply(scene, ["desk"])
+    assert not light_paths_apply(scene, ["ceiling", "desk"])
+    st = RenderSettings(spp=16, clean_max_spp=64, denoise=None, illumination=False)
+    from illumix.renderer_jobs.mitsuba.render import render_cube
+
+    r = render_cube(scene, scene.views[0].name, "daylight", st)
+    assert "light" not in r.stats["until_clean"]["kinds"]

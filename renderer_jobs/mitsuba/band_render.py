@@ -22,7 +22,7 @@ from illumix.renderer_jobs.mitsuba.light_paths import light_paths_reach, light_s
 from illumix.renderer_jobs.mitsuba.path_guide import GuideArrays
 from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
-from illumix.scene.model import EnvMapSky, Scene
+from illumix.scene.model import ConstantSky, DirectionalLight, EnvMapSky, Scene
 from illumix.scene.schema import SceneError
 
 # spp Mitsuba's samplers can take without rounding it up (they would, with a warning): the settings
@@ -111,9 +111,9 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     t0 = time.perf_counter()
     sets = band_sets(live_bands(emission), max(1, settings.bands_per_path // 4))
     spp = set_spp(settings.sampler, settings.spp, len(sets))
-    flat = light_paths_apply(scene, groups)
-    if kind == "light" and not flat:
-        raise ValueError("light paths need one group of flat emission (light_paths_apply)")
+    flat = flat_emission(scene, groups)
+    if kind == "light" and not light_paths_apply(scene, groups):
+        raise ValueError("light paths need one group of flat emission with a lamp in it (light_paths_apply)")
     boosting = boost is not None
     boost = np.asarray([] if boost is None else boost, np.int64)
     extra = (int(settings.boost_factor) - 1) * spp if boost.size else 0  # extra paths per boosted pixel and set
@@ -121,9 +121,10 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     noise = np.zeros((2,), np.float64) if len(sets) > 1 else None
     halves = 0.0 if sets_give_halves(emission, settings.bands_per_path) else None
     run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
-    run.light = kind == "light"
     for k, portals in enumerate(passes):
         ms, sensor = run.load_pass(view, groups, portals, loaded, k)
+        # light paths for lamps: a portal pass, or one with a sun or sky, keeps to camera paths
+        run.light = kind == "light" and portals != "only" and light_paths_reach(ms)
         run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if kind == "guided" else None
         # this pass's band sets' estimates of the band sum
         estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
@@ -141,12 +142,24 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
             None if noise is None else noise.astype(np.float32), halves)
 
 
-def light_paths_apply(scene: Scene, groups: list[str]) -> bool:
+def flat_emission(scene: Scene, groups: list[str]) -> bool:
     """Whether the cube of ``groups`` renders with flat emission — one group without an envmap: every
     emitter emits strength × the group's emission, so the bands render with emission 1 (emitters
     evaluated once per vertex, not per quadruple) and are scaled by the emission after, the
-    relighting identity, exact per band — and so may take light paths."""
+    relighting identity, exact per band."""
     return len(groups) == 1 and not any(isinstance(e, EnvMapSky) for e in scene.emitters_of(groups[0]))
+
+
+def light_paths_apply(scene: Scene, groups: list[str]) -> bool:
+    """Whether the cube of ``groups`` may take light paths (:mod:`renderer_jobs.mitsuba.light_paths`):
+    flat emission and a lamp among its emitters — one that is neither a sky portal nor at infinity (a
+    sun, a sky). Light paths from a window's portal did worse than camera paths on every daylight cube
+    measured, and on room 9135's, where their halves looked quiet, they were taken and left the
+    cube 1.4 % dark and noisier (bench/SCENES.md, "Light paths"); a sun's start on a disk as wide as
+    the scene (:func:`~renderer_jobs.mitsuba.light_paths.light_paths_reach`)."""
+    return flat_emission(scene, groups) and any(
+        not scene.is_portal(e) and not isinstance(e, (DirectionalLight, ConstantSky, EnvMapSky))
+        for e in scene.emitters_of(groups[0]))
 
 
 class _Run:
@@ -164,8 +177,8 @@ class _Run:
         self.n_quads = self.n_film = 0
         self.shape = (0, 0)
         self.guide, self.guides = None, []  # this pass's GuideArrays; each pass's learning stats
-        self.light = False  # light paths (with their camera-path complement) instead of camera paths
-        self.light_sets = 0  # band sets (over passes) that took them: not passes with a sun or sky
+        self.light = False  # this pass: light paths (with their camera-path complement), not camera paths
+        self.light_sets = 0  # band sets (over passes) that took them: not portal passes, none with a sun or sky
 
     def guide_of(self, ms, sensor, loaded: dict | None, k: int, live: np.ndarray):
         """The path guide of pass ``k`` on the Dr.Jit side: from ``loaded``, else learnt (and kept)."""
@@ -215,7 +228,7 @@ class _Run:
         n_aov = len(integrator.aov_names())
         seed = mix_seed(st.seed, k, j)
         t2 = time.perf_counter()
-        if self.light and light_paths_reach(ms):
+        if self.light:
             self.light_sets += 1
             aov = light_set_aovs(quads, grid.step, self.scene.max_depth, st.illumination, ms, sensor, self.spp, seed)
         else:
@@ -254,7 +267,7 @@ class _Run:
                  "paths_per_pixel": spp * len(sets), "samples_per_band": spp, "sampler": self.settings.sampler,
                  # what the sampler rendered: multijitter renders ⌊√n⌋·⌈n/⌊√n⌋⌉ of n asked (32 -> 35)
                  "paths_per_pixel_rendered": self.n_film * len(sets), "samples_per_band_rendered": self.n_film,
-                 "flat_emission_scaled": self.flat, "light_paths": self.light,
+                 "flat_emission_scaled": self.flat, "light_paths": self.light_sets > 0,
                  "light_path_sets": self.light_sets}
         if self.guide is not None:
             stats["guided"] = {"learnt": self.guides,

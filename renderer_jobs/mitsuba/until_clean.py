@@ -13,7 +13,7 @@ as two renders of ``spp / 2`` instead.
 
 Late rounds (from the ``GUIDE_FROM_ROUND``-th on) are where a cube is noisy because its light
 arrives by rare camera paths (a lamp lighting the ceiling, a lamp in the next room). With ``light``
-(one group of flat emission: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
+(a lamp's cube: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
 late round is split in two: half its paths traced from the lights (**light paths**,
 :mod:`renderer_jobs.mitsuba.light_paths`), half from the camera; each later round is of the kind —
 light or camera paths — whose late rounds have given the least variance per CPU second (each kind's
