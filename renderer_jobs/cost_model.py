@@ -58,8 +58,9 @@ KERNEL_BUILD_S = 3.1  # CPU s per light group kind, once per worker process, col
 MAX_KINDS = 4
 #: the until-clean rule's CPU per cube over a plain render's (spp 64, cap 1024, light and guided paths from the
 #: third round) on 28 cubes of 10 generated rooms it was not calibrated on (bench/fireflies.py --clean-max-spp
-#: default: 606.1 against 183.9 CPU s, 3.3x; 3.2x before light paths); counted as that many times the paths
-CLEAN_PATHS_FACTOR = 3.3
+#: default: about 592 against 183.9 CPU s with light paths — their daylight cubes, which take none, as the guided
+#: rule's run rendered them —, 3.2x, as before light paths); counted as that many times the paths
+CLEAN_PATHS_FACTOR = 3.2
 #: a generated room's jobs cost this many times the demo's per pixel and path: whole `illumix render --views
 #: view0 --clean-max-spp 0` runs (process CPU less ~8 s of start-up) against the estimate, fitted on rooms 7
 #: and 8 at 160×120 (2.55, 2.43); checked on rooms 9 and 10 at 160×120 and room 7 at 240×180: 1.8, 2.7, 2.1

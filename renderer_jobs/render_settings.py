@@ -20,7 +20,7 @@ from illumix.retarget.denoise_methods import DEFAULT_METHOD
 from illumix.retarget.errors import UnknownName
 
 DEFAULT_BOOST_FACTOR = 8  # bench/DENOISE.md: 8x the spp where reach > 0.6 brings front's p99.3 under 2.5 %
-GENERATED_CLEAN_MAX_SPP = 1024  # bench/SCENES.md: 27 of 28 held-out generated cubes clean by it, 3.3x the CPU
+GENERATED_CLEAN_MAX_SPP = 1024  # bench/SCENES.md: 27 of 28 held-out generated cubes clean by it, 3.2x the CPU
 DEFAULT_BANDS = 63  # the default grid's bands (395–705 nm): the spp checks assume a group emitting in all
 CLI = {"cli": True}  # a field offered as an `illumix render` option (--name, or --name/--no-name)
 # json_schema_extra keys: "note" (more help text), "cli_unset" (the option's default is unset: None)
