@@ -45,7 +45,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from illumix.renderer_jobs.mitsuba.bands import RR_DEPTH
+from illumix.renderer_jobs.band_schedule import mix_seed
+from illumix.renderer_jobs.mitsuba.bands import RR_DEPTH, make_integrator
 from illumix.renderer_jobs.mitsuba.scene_dict import band_guard
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
@@ -196,9 +197,6 @@ def light_set_aovs(quads, step: float, max_depth: int, illumination: bool, ms, s
     """One band set's ``(H, W, n_aov)`` in the band integrator's AOV layout (bands, illumination
     bands, the three first-hit kinds — 0 here —, non-finite values): ``spp`` light paths per pixel
     plus the camera-path complement (``delta_first``) at ``spp`` per pixel on the film's sampler."""
-    from illumix.renderer_jobs.band_schedule import mix_seed
-    from illumix.renderer_jobs.mitsuba.bands import make_integrator
-
     mi, _ = import_mitsuba()
     tracer = LightTracer(quads, step, max_depth, illumination)
     rad, ill, bad = tracer.render(ms, sensor, spp, mix_seed(seed, 0x4C54))
