@@ -1,4 +1,5 @@
-"""Path guiding at equal paths (issue 39; figures in ``bench/SCENES.md``, "Path guiding").
+"""Path guiding, or light paths, at equal paths (issue 39; figures in ``bench/SCENES.md``, "Path
+guiding" and "Light paths").
 
 What :mod:`renderer_jobs.mitsuba.path_guide` buys per path and per CPU second, apart from the
 until-clean rule that uses it (``bench/fireflies.py --clean-max-spp default`` measures the rule).
@@ -10,8 +11,10 @@ render seeds 1 and 2. Per cube: relative noise (``rel``, from the two renders' d
 :func:`renderer_jobs.clean_check.measure`), share of lit pixels 3:1 apart, firefly light, CPU per
 render, whether the two are clean, the image mean's ratio guided / plain (a bias check), and the
 efficiency ``(rel_plain / rel_guided)² / (cpu_guided / cpu_plain)``: how many times fewer CPU
-seconds the guided cube needs for the same noise. Prints one JSON object last; per-cube rows go to
-stderr.
+seconds the guided cube needs for the same noise. ``--kind light``: light paths
+(:mod:`renderer_jobs.mitsuba.light_paths`, with their camera-path complement) in place of guided
+ones, on the cubes that may take them (lamps: ``band_render.light_paths_apply``). Prints one JSON
+object last; per-cube rows go to stderr.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fireflies import room_doc  # noqa: E402
 
 
-def _pair(scene, view: str, group: str, res, spp: int, guided: bool) -> tuple[list, float]:
+def _pair(scene, view: str, group: str, res, spp: int, kind: str) -> tuple[list, float]:
     """Band sums ``(H, W)`` of the cube rendered with seeds 1 and 2, and CPU s per render."""
     from illumix.renderer_jobs.mitsuba.band_render import render_all_bands
     from illumix.renderer_jobs.mitsuba.render import emitter_passes, group_emission
@@ -40,24 +43,28 @@ def _pair(scene, view: str, group: str, res, spp: int, guided: bool) -> tuple[li
     for seed in (1, 2):
         st = RenderSettings(resolution=res, spp=spp, seed=seed, denoise=None, illumination=False, clean_max_spp=0)
         c0 = time.process_time()
-        cube = render_all_bands(scene, view, [group], emitter_passes(scene, [group]), st, e, None, None, guided)[0]
+        cube = render_all_bands(scene, view, [group], emitter_passes(scene, [group]), st, e, None, None, kind)[0]
         cpu += time.process_time() - c0
         imgs.append(np.asarray(cube, np.float64).sum(axis=-1))
     return imgs, cpu / 2
 
 
-def cube_row(scene, group: str, res, spp: int) -> dict | None:
+def cube_row(scene, group: str, res, spp: int, other: str = "guided") -> dict | None:
+    from illumix.renderer_jobs.mitsuba.band_render import light_paths_apply
+
     view = scene.views[0].name
     row: dict = {"room": scene.name, "group": group}
-    for kind in ("plain", "guided"):
-        imgs, cpu = _pair(scene, view, group, res, spp, kind == "guided")
+    if other == "light" and not light_paths_apply(scene, [group]):
+        return None
+    for kind in ("plain", other):
+        imgs, cpu = _pair(scene, view, group, res, spp, kind)
         if not np.any(imgs[0]):
             return None
         m = measure(*imgs)
         row[kind] = {"rel": round(m["rel"], 4), "d_above_0_5": round(m["d_above_0_5"], 4),
                      "ff_light": round(m["ff_light"], 4), "clean": is_clean(m), "cpu_s": round(cpu, 2),
                      "mean": float(np.mean(imgs))}
-    p, g = row["plain"], row["guided"]
+    p, g = row["plain"], row[other]
     row["mean_ratio"] = round(g["mean"] / p["mean"], 4)
     row["efficiency"] = round((p["rel"] / g["rel"]) ** 2 / (g["cpu_s"] / p["cpu_s"]), 3)
     return row
@@ -68,6 +75,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="9140,9141,9142,9143")
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--res", default="160x120")
+    ap.add_argument("--kind", default="guided", choices=["guided", "light"], help="what is compared with plain paths")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     from illumix.scene.load import scene_from_dict
@@ -77,18 +85,19 @@ def main() -> None:
         doc = room_doc(int(seed))
         scene = scene_from_dict(doc, source=doc["name"])
         for g in scene.group_names:
-            row = cube_row(scene, g, res, args.spp)
+            row = cube_row(scene, g, res, args.spp, args.kind)
             if row:
                 rows.append(row)
                 print(f"  {row}", file=sys.stderr, flush=True)
     eff = np.array([r["efficiency"] for r in rows])
-    out = {"bench": "path_guiding", "seeds": args.seeds, "spp": args.spp, "res": list(res), "cubes": len(rows),
+    k = args.kind
+    out = {"bench": "path_guiding", "kind": k, "seeds": args.seeds, "spp": args.spp, "res": list(res), "cubes": len(rows),
            "efficiency_median": round(float(np.median(eff)), 3),
            "efficiency_geomean": round(float(np.exp(np.mean(np.log(eff)))), 3),
            "efficiency_min": round(float(eff.min()), 3), "efficiency_max": round(float(eff.max()), 3),
-           "clean_plain": sum(r["plain"]["clean"] for r in rows), "clean_guided": sum(r["guided"]["clean"] for r in rows),
+           "clean_plain": sum(r["plain"]["clean"] for r in rows), f"clean_{k}": sum(r[k]["clean"] for r in rows),
            "cpu_s_plain": round(sum(r["plain"]["cpu_s"] for r in rows), 1),
-           "cpu_s_guided": round(sum(r["guided"]["cpu_s"] for r in rows), 1),
+           f"cpu_s_{k}": round(sum(r[k]["cpu_s"] for r in rows), 1),
            "mean_ratio_mean": round(float(np.mean([r["mean_ratio"] for r in rows])), 4), "rows": rows}
     print(json.dumps(out))
 
