@@ -105,7 +105,7 @@ def beyond(doc: dict, rows: list[dict], res, spp: int) -> None:
             z = np.load(path)
             imgs, cpu = list(z["imgs"]), float(z["cpu"])
         else:
-            imgs, cpu, _ = _two_renders(scene, scene.views[0].name, row["group"], resolution=res, spp=spp)
+            imgs, cpu, _, _ = _two_renders(scene, scene.views[0].name, row["group"], resolution=res, spp=spp)
             np.savez(path, imgs=np.stack(imgs), cpu=cpu)
         m = measure(*imgs)
         row["beyond"] = {"spp": spp, "clean": bool(is_clean(m)), "d_above_0_5": round(m["d_above_0_5"], 4),

@@ -216,14 +216,13 @@ def render_room(doc: dict, res: tuple[int, int], kinds: set[str] = frozenset(), 
     return rows
 
 
-def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float, list]:
+def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float, list, list]:
     """Band sums ``(H, W)`` of ``group``'s cube rendered with seeds 1 and 2 (no denoising, transport
-    only, ``settings`` on top), their CPU s together and each one's paths per pixel (and, in
-    ``_LAST_STATS``, each one's render stats)."""
+    only, ``settings`` on top), their CPU s together, each one's paths per pixel and render stats."""
     from illumix.renderer_jobs.mitsuba.render import render_cube
     from illumix.renderer_jobs.render_settings import RenderSettings
 
-    imgs, cpu, paths = [], 0.0, []
+    imgs, cpu, paths, stats = [], 0.0, [], []
     for seed in (1, 2):
         c0 = time.process_time()
         st = {"clean_max_spp": 0, **settings}  # exactly the spp unless the rule is asked for
@@ -231,12 +230,10 @@ def _two_renders(scene, view: str, group: str, **settings) -> tuple[list, float,
         cpu += time.process_time() - c0
         imgs.append(np.asarray(r.cube, np.float64).sum(axis=-1))
         paths.append(r.stats["paths_per_pixel"])
-        _LAST_STATS.append(r.stats)
-    del _LAST_STATS[:-2]
-    return imgs, cpu, paths
+        stats.append(r.stats)
+    return imgs, cpu, paths, stats
 
 
-_LAST_STATS: list[dict] = []
 # --baseline: the rule with these settings, in the same run (bench/SCENES.md); "no-light" is rendered
 # only for cubes whose rule reached a third round (before it, the two rules render the same paths)
 BASELINES = {"unguided": {"guide_paths": False, "light_paths": False}, "no-light": {"light_paths": False}}
@@ -256,7 +253,7 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
             if spp == 64:  # the default: the renders the base measurement keeps
                 imgs, cpu = _renders(scene, view, g, res, (1, 2), tag)
             else:
-                imgs, cpu, _ = _two_renders(scene, view, g, resolution=res, spp=spp)
+                imgs, cpu, _, _ = _two_renders(scene, view, g, resolution=res, spp=spp)
             if any(i is None for i in imgs) or not np.any(imgs[0]):
                 break
             m = measure(*imgs)
@@ -288,20 +285,20 @@ def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, baseline: 
         return out if paths is None else {"paths_per_pixel": paths, **out}
 
     for g in scene.group_names:
-        plain, plain_cpu, _ = _two_renders(scene, view, g, resolution=res)  # the baseline, same run
+        plain, plain_cpu, _, _ = _two_renders(scene, view, g, resolution=res)  # the baseline, same run
         if not np.any(plain[0]):
             continue
         row = {"room": doc["name"], "group": g}
-        imgs, cpu, paths = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
+        imgs, cpu, paths, stats = _two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp)
         mine = judged(imgs, cpu, paths)
         row.update(mine)
-        row["kinds"] = [st.get("until_clean", {}).get("kinds") for st in _LAST_STATS]
-        row["light_weight"] = [st.get("until_clean", {}).get("light_weight") for st in _LAST_STATS]
+        row["kinds"] = [st.get("until_clean", {}).get("kinds") for st in stats]
+        row["light_weight"] = [st.get("until_clean", {}).get("light_weight") for st in stats]
         if baseline == "no-light" and all(k is None or len(k) <= 2 for k in row["kinds"]):
             row["baseline"] = {**mine, "same_renders": True}
         elif baseline:
             row["baseline"] = judged(*_two_renders(scene, view, g, resolution=res, clean_max_spp=max_spp,
-                                                   **BASELINES[baseline]))
+                                                   **BASELINES[baseline])[:3])
         row["mean_ratio_to_plain"] = round(float(np.mean(imgs) / max(np.mean(plain), 1e-30)), 4)
         row["plain"] = judged(plain, plain_cpu)
         rows.append(row)

@@ -96,10 +96,9 @@ def next_kind(rounds: list[tuple], kinds: list[str], cpu: list[float], camera: s
     eff, ff = {}, {}
     for kind in ("light", camera):
         idx = [i for i, k in enumerate(kinds) if k == kind and i >= GUIDE_FROM_ROUND - 1]
-        var = kind_variance(rounds, idx)
+        h = kind_halves(rounds, idx)
+        var = _halves_variance(h)
         eff[kind] = 1.0 / (var * max(sum(cpu[i] for i in idx), 1e-9)) if var > 0 else np.inf
-        share = _by_samples([rounds[i] for i in idx])
-        h = sum(s * np.asarray(rounds[i][4], np.float64) for s, i in zip(share, idx))
         ff[kind] = measure(h[..., 0], h[..., 1])["ff_light"] >= FIREFLY_LIGHT_MAX
     if ff["light"] and not ff[camera]:
         return camera
@@ -127,11 +126,19 @@ def _by_samples(results: list[tuple]) -> np.ndarray:
     return w / w.sum()
 
 
+def kind_halves(results: list[tuple], idx: list[int]) -> np.ndarray:
+    """``(H, W, 2)``: the two halves of the estimate that rounds ``idx`` make together (by samples)."""
+    share = _by_samples([results[i] for i in idx])
+    return sum(s * np.asarray(results[i][4], np.float64) for s, i in zip(share, idx))
+
+
 def kind_variance(results: list[tuple], idx: list[int]) -> float:
     """The frame-mean variance of the estimate that rounds ``idx`` make together (weighted by samples):
-    from the spread of its two halves, ``mean((h0 − h1)²) / 4`` (of the mean of the two)."""
-    share = _by_samples([results[i] for i in idx])
-    h = sum(s * np.asarray(results[i][4], np.float64) for s, i in zip(share, idx))
+    from the spread of its two halves (:func:`kind_halves`), ``mean((h0 − h1)²) / 4`` (of their mean)."""
+    return _halves_variance(kind_halves(results, idx))
+
+
+def _halves_variance(h: np.ndarray) -> float:
     return float(np.mean((h[..., 0] - h[..., 1]) ** 2)) / 4
 
 
