@@ -267,8 +267,9 @@ def spp_to_clean(doc: dict, res: tuple[int, int], ladder: list[int], tag: str) -
     return rows
 
 
-def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, baseline: str | None = "no-light") -> list[dict]:
-    """Per group of view 0: two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
+def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, baseline: str | None = "no-light",
+                kinds: set[str] = frozenset()) -> list[dict]:
+    """Per group of view 0 (of ``kinds`` only, if given): two renders (seeds 1, 2) with ``RenderSettings.clean_max_spp = max_spp``
     (None: unset, the renderer's default; the renderer adds paths until its own halves are clean): whether the two are clean by
     :func:`is_clean`, the paths each used, the kinds of its rounds and CPU per render (``--clean-max-spp``).
     In the same run, as baselines: two plain 64-spp renders (``plain``) and the rule with ``baseline``'s
@@ -284,7 +285,7 @@ def until_clean(doc: dict, res: tuple[int, int], max_spp: int | None, baseline: 
                "ff_light": round(m["ff_light"], 4), "cpu_s": round(cpu / 2, 1)}
         return out if paths is None else {"paths_per_pixel": paths, **out}
 
-    for g in scene.group_names:
+    for g in [g for g in scene.group_names if not kinds or kind_of(g) in kinds]:
         plain, plain_cpu, _, _ = _two_renders(scene, view, g, resolution=res)  # the baseline, same run
         if not np.any(plain[0]):
             continue
@@ -330,7 +331,7 @@ def main() -> None:
     ap.add_argument("--seeds", default=",".join(map(str, SEEDS)))
     ap.add_argument("--res", default="160x120")
     ap.add_argument("--ablate", default="base")
-    ap.add_argument("--kinds", default="", help="only groups of these kinds (comma-separated)")
+    ap.add_argument("--kinds", default="", help="only groups of these kinds (comma-separated; every mode but --ladder)")
     ap.add_argument("--no-cache", action="store_true", help="regenerate the rooms")
     ap.add_argument("--rng-version", default=None, help="seed the rooms as this generator version did")
     ap.add_argument("--ladder", default="", help="e.g. 64,256,1024: per cube, the spp that makes it clean")
@@ -351,7 +352,7 @@ def main() -> None:
     if args.clean_max_spp:
         cap = None if args.clean_max_spp == "default" else int(args.clean_max_spp)
         baseline = None if args.no_unguided or args.baseline == "none" else args.baseline
-        rows = [r for doc in docs for r in until_clean(doc, res, cap, baseline)]
+        rows = [r for doc in docs for r in until_clean(doc, res, cap, baseline, kinds)]
         u = result["until_clean"] = {"max_spp": args.clean_max_spp, "cubes": len(rows),
                                      "clean": sum(r["clean"] for r in rows),
                                      "cpu_s": round(sum(r["cpu_s"] for r in rows), 1),

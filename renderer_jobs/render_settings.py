@@ -77,7 +77,8 @@ class RenderSettings(BaseModel):
         "With the until-clean rule (a cube of one group): half its third round's paths are traced from the lights "
         "to the camera, and each later round takes whichever kind of path (plain, guided, light) has given the least "
         "noise per CPU second; light paths find light that arrives by bounces (a lamp lighting the ceiling, a lamp "
-        "next door). Unbiased: every kind estimates the same cube. --no-light-paths: camera paths only "
+        "next door, the sun's patch on a floor lighting the next room: a sun's paths start in the windows). "
+        "Unbiased: every kind estimates the same cube. --no-light-paths: camera paths only "
         "(bench/SCENES.md, \"Light paths\")."))
     illumination: bool = Field(True, json_schema_extra=CLI, description=(
         "Also render each cube's illumination cube (what a white surface would show, bounce light included): the "

@@ -21,6 +21,7 @@ from illumix.renderer_jobs.mitsuba.guide_learning import learn_guide
 from illumix.renderer_jobs.mitsuba.light_paths import light_paths_reach, light_set_aovs
 from illumix.renderer_jobs.mitsuba.path_guide import GuideArrays
 from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
+from illumix.renderer_jobs.mitsuba.sun_windows import SunWindows, window_rects
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 from illumix.scene.model import ConstantSky, DirectionalLight, EnvMapSky, Scene
 from illumix.scene.schema import SceneError
@@ -123,9 +124,11 @@ def render_all_bands(scene: Scene, view: str, groups: list[str], passes: list[st
     run = _Run(scene, settings, spp, flat, boost, extra, sets, e_live)
     for k, portals in enumerate(passes):
         ms, sensor = run.load_pass(view, groups, portals, loaded, k)
-        # light paths for lamps: a portal pass, or one with a sun or sky, keeps to camera paths
-        run.light = kind == "light" and portals != "only" and light_paths_reach(ms)
-        run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if kind == "guided" else None
+        # light paths for lamps and a sun through windows: a portal pass, or one with a sky, keeps to camera paths
+        run.light = kind == "light" and portals != "only" and light_paths_reach(ms, run.windows is not None)
+        # a pass a light round leaves to camera paths takes them as a camera round would
+        camera_guided = kind == "guided" or (kind == "light" and not run.light and settings.guide_paths)
+        run.guide = run.guide_of(ms, sensor, loaded, k, live_bands(emission)) if camera_guided else None
         # this pass's band sets' estimates of the band sum
         estimates = [run.render_set(mi, ms, sensor, bands, k, j, noise is not None) for j, bands in enumerate(sets)]
         if noise is not None:
@@ -152,14 +155,17 @@ def flat_emission(scene: Scene, groups: list[str]) -> bool:
 
 def light_paths_apply(scene: Scene, groups: list[str]) -> bool:
     """Whether the cube of ``groups`` may take light paths (:mod:`renderer_jobs.mitsuba.light_paths`):
-    flat emission and a lamp among its emitters — one that is neither a sky portal nor at infinity (a
-    sun, a sky). Light paths from a window's portal did worse than camera paths on every daylight cube
-    measured, and on room 9135's, where their halves looked quiet, they were taken and left the
-    cube 1.4 % dark and noisier (bench/SCENES.md, "Light paths"); a sun's start on a disk as wide as
-    the scene (:func:`~renderer_jobs.mitsuba.light_paths.light_paths_reach`)."""
-    return flat_emission(scene, groups) and any(
-        not scene.is_portal(e) and not isinstance(e, (DirectionalLight, ConstantSky, EnvMapSky))
-        for e in scene.emitters_of(groups[0]))
+    flat emission, and among its emitters a lamp — one that is neither a sky portal nor at infinity —
+    or a sun in a scene with windows to draw its paths through
+    (:mod:`renderer_jobs.mitsuba.sun_windows`). A window's sky portal keeps to camera paths: its light
+    paths did worse than camera paths on every daylight cube measured (bench/SCENES.md, "Light
+    paths"); so does a sky at infinity, and a sun with no window."""
+    if not flat_emission(scene, groups):
+        return False
+    ems = scene.emitters_of(groups[0])
+    lamp = any(not scene.is_portal(e) and not isinstance(e, (DirectionalLight, ConstantSky, EnvMapSky)) for e in ems)
+    sun = any(isinstance(e, DirectionalLight) for e in ems) and window_rects(scene) is not None
+    return lamp or sun
 
 
 class _Run:
@@ -178,7 +184,9 @@ class _Run:
         self.shape = (0, 0)
         self.guide, self.guides = None, []  # this pass's GuideArrays; each pass's learning stats
         self.light = False  # this pass: light paths (with their camera-path complement), not camera paths
-        self.light_sets = 0  # band sets (over passes) that took them: not portal passes, none with a sun or sky
+        self.light_sets = 0  # band sets (over passes) that took them: not portal passes, none with a sky
+        rects = window_rects(scene)
+        self.windows = None if rects is None else SunWindows(rects)  # a sun's light paths start in them
 
     def guide_of(self, ms, sensor, loaded: dict | None, k: int, live: np.ndarray):
         """The path guide of pass ``k`` on the Dr.Jit side: from ``loaded``, else learnt (and kept)."""
@@ -230,7 +238,8 @@ class _Run:
         t2 = time.perf_counter()
         if self.light:
             self.light_sets += 1
-            aov = light_set_aovs(quads, grid.step, self.scene.max_depth, st.illumination, ms, sensor, self.spp, seed)
+            aov = light_set_aovs(quads, grid.step, self.scene.max_depth, st.illumination, ms, sensor, self.spp, seed,
+                                 self.windows)
         else:
             out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=self.spp, seed=seed))
             aov = out[..., out.shape[-1] - n_aov:]

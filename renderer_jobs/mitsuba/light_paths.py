@@ -48,6 +48,7 @@ import numpy as np
 from illumix.renderer_jobs.band_schedule import mix_seed
 from illumix.renderer_jobs.mitsuba.bands import RR_DEPTH, make_integrator
 from illumix.renderer_jobs.mitsuba.scene_dict import band_guard
+from illumix.renderer_jobs.mitsuba.sun_windows import SunWindows
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
 MAX_LANES = 1 << 20  # light paths per launch (the state of each is a few registers per band)
@@ -57,8 +58,10 @@ class LightTracer:
     """Light paths carrying the bands whose lower edges are ``quads`` (nm; width ``step``), with
     ``illumination`` (the white-surface bands) or not; emission flat (the caller scales after)."""
 
-    def __init__(self, quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool):
+    def __init__(self, quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
+                 windows: SunWindows | None = None):
         mi, dr = import_mitsuba()
+        self.windows = windows  # a sun's paths drawn through these (None: from Mitsuba's disk)
         self.lows = [mi.Spectrum(*q) for q in quads]
         dr.make_opaque(*self.lows)  # one compiled kernel for every band set (as bands.py)
         self.guard = band_guard(step)
@@ -98,6 +101,8 @@ class LightTracer:
         offset = self.guard + self.width * sampler.next_1d()
         quads = [low + offset for low in self.lows]
         ray, weight, emitter = ms.sample_emitter_ray(0.0, sampler.next_1d(), sampler.next_2d(), sampler.next_2d(), True)
+        if self.windows is not None:
+            ray, weight = self.windows.draw(mi, dr, ms, ray, weight, emitter, sampler)
         delta_light = mi.has_flag(emitter.flags(), mi.EmitterFlags.Delta)
         w0 = weight[0] / self.wavelength_range
         beta = [mi.Spectrum(w0) for _ in quads]
@@ -182,23 +187,31 @@ class LightTracer:
         dr.scatter_reduce(dr.ReduceOp.Add, bad, mi.Float64(1.0), mi.UInt32(0), ok & ~finite)
 
 
-def light_paths_reach(ms) -> bool:
-    """Whether light paths suit this loaded scene (one emitter pass): none of its emitters is at
-    infinity. A sun's or a sky's light paths start on a disk as wide as the whole scene, and only
-    those through a window count (room 9130's sun, seen from the next room: 256 light paths per pixel
-    came back with 46 % of what camera paths found, the rest in paths too rare to have been drawn,
-    which a variance measured from the halves cannot see): such a pass keeps to camera paths."""
+def light_paths_reach(ms, windows: bool = False) -> bool:
+    """Whether light paths suit this loaded scene (one emitter pass): no sky at infinity among its
+    emitters, and a sun only when its paths can be drawn through ``windows``
+    (:mod:`renderer_jobs.mitsuba.sun_windows`). From Mitsuba's disk as wide as the whole scene, a
+    sun's light paths rarely pass a window (room 9130's sun, seen from the next room: 256 light paths
+    per pixel came back with 46 % of what camera paths found, the rest in paths too rare to have been
+    drawn, which a variance measured from the halves cannot see); a sky's likewise: such a pass keeps
+    to camera paths."""
     mi, _ = import_mitsuba()
-    return not any(mi.has_flag(e.flags(), mi.EmitterFlags.Infinite) for e in ms.emitters())
+    for e in ms.emitters():
+        if mi.has_flag(e.flags(), mi.EmitterFlags.Infinite):
+            if not (windows and mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)):
+                return False
+    return True
 
 
 def light_set_aovs(quads, step: float, max_depth: int, illumination: bool, ms, sensor, spp: int,
-                   seed: int) -> np.ndarray:
+                   seed: int, windows: SunWindows | None = None) -> np.ndarray:
     """One band set's ``(H, W, n_aov)`` in the band integrator's AOV layout (bands, illumination
     bands, the three first-hit kinds — 0 here —, non-finite values): ``spp`` light paths per pixel
-    plus the camera-path complement (``delta_first``) at ``spp`` per pixel on the film's sampler."""
+    plus the camera-path complement (``delta_first``) at ``spp`` per pixel on the film's sampler;
+    a sun's paths through ``windows`` when given."""
     mi, _ = import_mitsuba()
-    tracer = LightTracer(quads, step, max_depth, illumination)
+    sun_windows = windows if windows is not None and windows.has_sun(ms) else None  # lamps: Mitsuba's own rays
+    tracer = LightTracer(quads, step, max_depth, illumination, sun_windows)
     rad, ill, bad = tracer.render(ms, sensor, spp, mix_seed(seed, 0x4C54))
     complement = make_integrator(quads, step, max_depth, False, True, delta_first=True)
     n_c = len(complement.aov_names())

@@ -13,7 +13,7 @@ as two renders of ``spp / 2`` instead.
 
 Late rounds (from the ``GUIDE_FROM_ROUND``-th on) are where a cube is noisy because its light
 arrives by rare camera paths (a lamp lighting the ceiling, a lamp in the next room). With ``light``
-(a lamp's cube: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
+(a lamp's cube, or a sun's through windows: :func:`renderer_jobs.mitsuba.band_render.light_paths_apply`), the first
 late round is split in two: half its paths traced from the lights (**light paths**,
 :mod:`renderer_jobs.mitsuba.light_paths`), half from the camera; each later round is of the kind —
 light or camera paths — whose late rounds have given the least variance per CPU second (each kind's
@@ -178,19 +178,23 @@ def _combine(results: list[tuple], w: np.ndarray, m: dict, clean: bool, kinds: l
     for key in ("load_s", "trace_s", "total_s"):
         stats[key] = round(sum(r[2][key] for r in results), 4)
     for key in ("nonfinite_samples", "paths_per_pixel", "samples_per_band", "paths_per_pixel_rendered",
-                "samples_per_band_rendered"):
-        stats[key] = int(sum(r[2][key] for r in results))
+                "samples_per_band_rendered", "light_path_sets"):
+        stats[key] = int(sum(r[2].get(key, 0) for r in results))
+    stats["light_paths"] = stats["light_path_sets"] > 0
     stats["until_clean"] = {"rounds": len(results), "clean": bool(clean), "rel_noise": m["rel"],
                             "d_above_0_5": round(m["d_above_0_5"], 5), "firefly_light": round(m["ff_light"], 5),
                             "kinds": list(kinds)}
     if cpu is not None:
         stats["until_clean"]["cpu_s"] = [round(c, 3) for c in cpu]
     is_kind = {k: np.array([x == k for x in kinds]) for k in KINDS}
-    guided = [r[2]["guided"] for r, k in zip(results, kinds) if k == "guided" and "guided" in r[2]]
-    if guided:
+    # the guide is learnt by the first round that uses it: a guided round, or a light round's pass
+    # that keeps to camera paths (a window's sky portal)
+    learnt = [r[2]["guided"]["learnt"] for r in results if r[2].get("guided", {}).get("learnt")]
+    if is_kind["guided"].any():
         stats["until_clean"]["guided_rounds"] = int(is_kind["guided"].sum())
         stats["until_clean"]["guided_weight"] = round(float(w[is_kind["guided"]].sum()), 4)
-        stats["until_clean"]["guide"] = guided[0]["learnt"]
+    if learnt:
+        stats["until_clean"]["guide"] = learnt[0]
     if is_kind["light"].any():
         stats["until_clean"]["light_rounds"] = int(is_kind["light"].sum())
         stats["until_clean"]["light_weight"] = round(float(w[is_kind["light"]].sum()), 4)
