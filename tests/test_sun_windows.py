@@ -69,11 +69,11 @@ def test_crossings_count_the_windows_a_line_passes():
     assert list(np.asarray(w.crossings(mi, dr, o, d))) == [1, 2, 1, 0, 0]
 
 
-def test_lines_through_windows_and_the_disk_give_the_suns_flux_everywhere():
+def test_lines_through_windows_give_the_suns_flux_there_and_nothing_elsewhere():
     """The line sampling alone, against a closed form: over 2^20 sun paths, the weight of the lines
-    landing in a patch of the ground is the flux the sun sends there, ``E · cos θ · area``, for the
-    ground its lines reach through no window (the disk's share), through one and through both
-    (counted once). Areas by a fine grid of those lines' own window counts."""
+    landing in a patch of the ground is the flux the sun sends there, ``E · cos θ · area``, where its
+    lines pass one window and where they pass both (counted once); where they pass none, nothing (camera
+    paths take that part). Areas by a fine grid of those lines' own window counts."""
     from illumix.renderer_jobs.mitsuba.scene_dict import load_mitsuba_scene
     from illumix.renderer_jobs.mitsuba.sun_windows import SunWindows, window_rects
     from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
@@ -109,7 +109,35 @@ def test_lines_through_windows_and_the_disk_give_the_suns_flux_everywhere():
         assert area > 0.2, c  # every class is there to be measured
         x = w * (inside & (k == c))
         est, se = x.mean(), x.std() / np.sqrt(n)
-        assert abs(est - 3.0 * cos * area) < 4 * se + 0.01 * est, (c, est, 3.0 * cos * area, se)
+        expected = 3.0 * cos * area if c else 0.0
+        assert abs(est - expected) <= 4 * se + 0.01 * est, (c, est, expected, se)
+    assert not np.any(w[k == 0])
+
+
+def test_light_paths_through_windows_and_camera_paths_elsewhere_make_the_suns_whole_cube():
+    """In the yard, where the sun lights the ground along lines through no window, one and two: light
+    paths through the windows plus camera paths along the other lines (``sun_rest``) give the camera
+    paths' cube over 4 seeds each — the whole frame, the ground in the windows' shadows and outside
+    them — and the illumination cube."""
+    from illumix.renderer_jobs.mitsuba.band_render import render_all_bands
+    from illumix.renderer_jobs.mitsuba.render import emitter_passes, group_emission
+    from illumix.scene.load import scene_from_dict
+
+    yard = scene_from_dict(_yard())
+    e = np.asarray(group_emission(yard, "sun")[0], np.float64)
+
+    def renders(kind):
+        st = [RenderSettings(denoise=None, seed=s, spp=32, clean_max_spp=0, resolution=(40, 30)) for s in range(1, 5)]
+        return [render_all_bands(yard, "cam", ["sun"], emitter_passes(yard, ["sun"]), x, e, None, None, kind) for x in st]
+
+    camera, light = renders("plain"), renders("light")
+    assert light[0][2]["light_path_sets"] > 0 and light[0][2]["nonfinite_samples"] == 0
+    for k in (0, 1):
+        for rows, cols in ((slice(None), slice(None)), (slice(15, None), slice(20, None)), (slice(15, None), slice(0, 12))):
+            mc = np.array([r[k][rows, cols].mean() for r in camera])
+            ml = np.array([r[k][rows, cols].mean() for r in light])
+            se = np.sqrt(mc.var(ddof=1) / 4 + ml.var(ddof=1) / 4)
+            assert abs(mc.mean() - ml.mean()) < 4 * se + 2e-3 * mc.mean(), (k, rows, cols, mc, ml)
 
 
 def test_a_suns_light_paths_through_a_window_estimate_the_camera_paths_cube():

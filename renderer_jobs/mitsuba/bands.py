@@ -74,7 +74,8 @@ FORCE_FIRST: str | None = None  # "mixed" (in-path, where a diffuse lobe exists)
 
 
 def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int, illumination: bool,
-                    flat_emission: bool = False, guide=None, record: bool = False, delta_first: bool = False):
+                    flat_emission: bool = False, guide=None, record: bool = False, delta_first: bool = False,
+                    sun_rest=None):
     """A ``BandPathIntegrator`` carrying the bands whose lower edges are ``quads`` (nm; width
     ``step``), for Mitsuba's ``mi.render``. The class is made here, not at import: it subclasses
     Mitsuba's, which needs the variant selected (its methods are :class:`_BandPath`'s, copied in:
@@ -86,11 +87,15 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
     take; ``record``: :meth:`_BandPath.learn` returns the training records of its paths (same module).
     ``delta_first``: only what light paths cannot give (:mod:`renderer_jobs.mitsuba.light_paths`): the
     first vertex's emission, and paths whose first bounce is drawn from a delta lobe (no light sample
-    at the first vertex, no other continuation)."""
+    at the first vertex, no other continuation). ``sun_rest``: a
+    :class:`renderer_jobs.mitsuba.sun_windows.SunWindows`: only a sun's light samples along lines that
+    cross none of its windows count, and no emission — what a sun's light paths through the windows
+    leave (:mod:`renderer_jobs.mitsuba.sun_windows`)."""
     mi, _ = import_mitsuba()
     methods = {k: v for k, v in vars(_BandPath).items() if k not in ("__dict__", "__weakref__", "__qualname__")}
     cls = type("BandPathIntegrator", (mi.SamplingIntegrator,), methods)
-    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission, guide, record, delta_first)
+    return cls(mi.Properties(), quads, step, max_depth, illumination, flat_emission, guide, record, delta_first,
+               sun_rest)
 
 
 class _BandPath:
@@ -104,7 +109,7 @@ class _BandPath:
     ``rho``) in place and return the other loop values they change."""
 
     def __init__(self, props, quads, step, max_depth, illumination, flat_emission, guide=None, record=False,
-                 delta_first=False):
+                 delta_first=False, sun_rest=None):
         mi, dr = import_mitsuba()
         mi.SamplingIntegrator.__init__(self, props)
         # opaque: the band set's wavelengths are the kernel's inputs, not literals in its code, so
@@ -121,6 +126,7 @@ class _BandPath:
         self.illumination = bool(illumination)
         self.guide, self.record = guide, bool(record)
         self.delta_first = bool(delta_first)
+        self.sun_rest = sun_rest
 
     def aov_names(self):
         names = [f"b{i:03d}" for i in range(4 * len(self.quads))]
@@ -213,6 +219,8 @@ class _BandPath:
         em_pdf = scene.pdf_emitter_direction(prev, ds, ~prev_delta)
         mis = dr.select(prev_delta, 1.0, _power_heuristic(dr, prev_pdf, em_pdf))
         count = active & ~white  # a white first vertex does not emit
+        if self.sun_rest is not None:  # light paths give every emitter's light but the sun's through no window
+            count &= False
         emitter = si.emitter(scene)
         if self.flat:
             le_flat = mis * emitter.eval(si, count)
@@ -237,6 +245,9 @@ class _BandPath:
             em_on &= depth > 0
         ds_em, _ = scene.sample_emitter_direction(si, sampler.next_2d(em_on), False, em_on)
         em_on &= ds_em.pdf != 0.0
+        if self.sun_rest is not None:  # only the sun, along lines through no window
+            sun = mi.has_flag(ds_em.emitter.flags(), mi.EmitterFlags.DeltaDirection)
+            em_on &= sun & (self.sun_rest.crossings(mi, dr, si.p, ds_em.d) == 0.0)
         em_on &= ~scene.ray_test(si.spawn_ray_to(ds_em.p), em_on)
         wo_em = si.to_local(ds_em.d)
         # a white surface faces the camera, whichever side of the shape it sees

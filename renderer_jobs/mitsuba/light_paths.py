@@ -52,6 +52,9 @@ from illumix.renderer_jobs.mitsuba.sun_windows import SunWindows
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
 MAX_LANES = 1 << 20  # light paths per launch (the state of each is a few registers per band)
+# a sun's light along lines through no window, by camera paths at a quarter of the light paths' spp:
+# in a closed room it is nothing (or a leak), and a light sample of the sun finds it at once
+SUN_REST_SPP_DIVISOR = 4
 
 
 class LightTracer:
@@ -207,20 +210,37 @@ def light_set_aovs(quads, step: float, max_depth: int, illumination: bool, ms, s
                    seed: int, windows: SunWindows | None = None) -> np.ndarray:
     """One band set's ``(H, W, n_aov)`` in the band integrator's AOV layout (bands, illumination
     bands, the three first-hit kinds — 0 here —, non-finite values): ``spp`` light paths per pixel
-    plus the camera-path complement (``delta_first``) at ``spp`` per pixel on the film's sampler;
-    a sun's paths through ``windows`` when given."""
+    plus the camera-path complement (``delta_first``) at ``spp`` per pixel on the film's sampler.
+    With a sun and ``windows``: the sun's light paths through the windows, and its light along lines
+    through none from camera paths (``sun_rest``) at ``spp / SUN_REST_SPP_DIVISOR`` per pixel
+    (:mod:`renderer_jobs.mitsuba.sun_windows`)."""
     mi, _ = import_mitsuba()
     sun_windows = windows if windows is not None and windows.has_sun(ms) else None  # lamps: Mitsuba's own rays
     tracer = LightTracer(quads, step, max_depth, illumination, sun_windows)
     rad, ill, bad = tracer.render(ms, sensor, spp, mix_seed(seed, 0x4C54))
-    complement = make_integrator(quads, step, max_depth, False, True, delta_first=True)
-    n_c = len(complement.aov_names())
-    out = np.asarray(mi.render(ms, sensor=sensor, integrator=complement, spp=spp, seed=seed))
-    comp = out[..., out.shape[-1] - n_c:].astype(np.float64)
+    comp = _camera_part(quads, step, max_depth, False, ms, sensor, spp, seed, delta_first=True)
     h, w, nl = rad.shape
     parts = [rad + comp[..., :nl]]
+    flags = comp[..., -1:].copy()  # non-finite values per pixel sample, as the film averages them
+    if sun_windows is not None:
+        rest_spp = max(1, spp // SUN_REST_SPP_DIVISOR)
+        rest = _camera_part(quads, step, max_depth, illumination, ms, sensor, rest_spp, mix_seed(seed, 0x5355),
+                            sun_rest=sun_windows)
+        parts[0] += rest[..., :nl]
+        if illumination:
+            ill = ill + rest[..., nl:2 * nl]
+        flags += rest[..., -1:] * rest_spp / max(1, int(sensor.sampler().sample_count()))
     if illumination:
         parts += [ill, np.zeros((h, w, 3))]
-    flags = comp[..., -1:].copy()  # non-finite values per pixel sample, as the film averages them
     flags[0, 0, 0] += bad / max(1, int(sensor.sampler().sample_count()))
     return np.concatenate(parts + [flags], -1)
+
+
+def _camera_part(quads, step, max_depth, illumination, ms, sensor, spp, seed, **mode) -> np.ndarray:
+    """A camera-path render of the part of the cube light paths leave (``mode``: ``delta_first`` or
+    ``sun_rest``, :func:`renderer_jobs.mitsuba.bands.make_integrator`), its AOVs as float64."""
+    mi, _ = import_mitsuba()
+    integrator = make_integrator(quads, step, max_depth, illumination, True, **mode)
+    n = len(integrator.aov_names())
+    out = np.asarray(mi.render(ms, sensor=sensor, integrator=integrator, spp=spp, seed=seed))
+    return out[..., out.shape[-1] - n:].astype(np.float64)

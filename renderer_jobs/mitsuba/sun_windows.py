@@ -5,19 +5,23 @@ A sun (Mitsuba's ``directional`` emitter) starts its light paths on a disk as wi
 through a window are too few to draw the rare paths that matter (room 9130's sun, seen from the next
 room: 256 light paths per pixel came back with 46 % of what camera paths found). Yet that sunlit
 patch on a floor is just what light paths are good at: a camera path must find it by a bounce, a
-light path starts there (bench/SCENES.md, "Sun light paths through windows").
+light path starts there (bench/SCENES.md, "A sun's light paths through the windows").
 
-So the sun's lines are drawn where the windows are. Every line parallel to the sun's direction
+So the sun's light is split by the line it travels along. Every line parallel to the sun's direction
 either crosses a window rectangle (the scene's sky portals, :func:`window_rects`) or crosses none.
-With probability ``WINDOW_SHARE`` a sun path is drawn from the first kind — a window picked in
-proportion to its area projected across the sun's direction, a point uniform on it, the ray started
-outside the scene on that line — and otherwise from Mitsuba's disk, keeping it only if its line
-crosses no window. Each kind of line is thus sampled by exactly one branch, with density
-``share · k / A⊥`` (``k`` the windows the line crosses, ``A⊥`` their projected areas summed) or
-``(1 − share) / (π R²)`` (``R`` the radius of the disk Mitsuba draws from), and weighted by its
-inverse: the same estimate of every sunlit point, unbiased whatever the geometry — a sunlit wall
-outside, a window's jamb, a line through two windows. Which rectangles are windows decides only
-how well it works, never what it estimates.
+
+- Lines through a window: light paths. A window is picked in proportion to its area projected across
+  the sun's direction, a point uniform on it, and the ray started outside the scene on that line (so
+  a window's frame or jamb is hit first where it is); weight ``E · A⊥ / k`` over Mitsuba's ``E · π R²``
+  (``k`` the windows the line crosses: a line through two is drawn from either, counted once).
+- Lines through no window — a sunlit wall outside, sun through an opening that is not a portal:
+  camera paths, whose light sample of the sun counts only along such lines
+  (:func:`renderer_jobs.mitsuba.bands.make_integrator`'s ``sun_rest``). Light paths would reach them
+  only from Mitsuba's disk, rarely and with a heavy weight: room 9135's view gets 5.8 % of its sunlight
+  that way, which light paths drawn from the disk returned as one pixel in a few renders.
+
+The two parts add up to the sun's whole contribution whatever the geometry; which rectangles are
+windows decides only how well it works, never what it estimates.
 """
 
 from __future__ import annotations
@@ -26,7 +30,6 @@ import numpy as np
 
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
 
-WINDOW_SHARE = 0.9  # of the sun's paths, those drawn through windows (the rest keep the outside estimated)
 
 
 def window_rects(scene) -> np.ndarray | None:
@@ -48,9 +51,8 @@ def window_rects(scene) -> np.ndarray | None:
 class SunWindows:
     """The windows on the Dr.Jit side, and the sun's lines drawn through them (module docstring)."""
 
-    def __init__(self, rects: np.ndarray, share: float = WINDOW_SHARE):
+    def __init__(self, rects: np.ndarray):
         self.rects = np.asarray(rects, np.float64)
-        self.share = float(share)
         # a point's coordinates in a rectangle's (u, v), for rectangles that a transform has sheared
         self.dual = []
         for c, u, v, _ in self.rects:
@@ -69,14 +71,13 @@ class SunWindows:
 
     def draw(self, mi, dr, ms, ray, weight, emitter, sampler):
         """``(ray, weight)``: Mitsuba's emitter ray and weight, with the lanes whose emitter is a sun
-        drawn through the windows or from the disk as the module docstring says."""
+        drawn along a line through the windows (weight 0 where no window faces the sun: camera paths
+        take all of it then)."""
         is_sun = mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite) & mi.has_flag(
             emitter.flags(), mi.EmitterFlags.DeltaDirection)
         d = ray.d  # on a sun's lanes, its direction of travel
         proj = [a * dr.abs(dr.dot(d, mi.Vector3f(*r[3]))) for a, r in zip(self.area, self.vec)]
         total = sum(proj[1:], proj[0])
-        share = dr.select(total > 0.0, self.share, 0.0)
-        through = is_sun & (sampler.next_1d() < share)
         pick = sampler.next_1d() * total
         s2 = sampler.next_2d()
         c, u, v = mi.Point3f(*self.vec[0][0]), mi.Vector3f(*self.vec[0][1]), mi.Vector3f(*self.vec[0][2])
@@ -91,12 +92,10 @@ class SunWindows:
         sphere = ms.bbox().bounding_sphere()
         radius = dr.dot(sphere.center - ray.o, d)  # the disk's radius: Mitsuba starts it that far back
         start = p - d * (dr.dot(p - sphere.center, d) + radius)  # outside the scene, on p's line
-        o = dr.select(through, start, ray.o)
-        k = self.crossings(mi, dr, o, d)
-        w_through = weight * (total / (dr.pi * dr.square(radius) * self.share * dr.maximum(k, 1.0)))
-        w_disk = dr.select(k > 0.0, 0.0, weight / (1.0 - share))
-        w = dr.select(is_sun, dr.select(through, w_through, w_disk), weight)
-        return mi.Ray3f(o, d, ray.time, ray.wavelengths), w
+        k = self.crossings(mi, dr, start, d)
+        w_sun = dr.select(total > 0.0, weight * (total / (dr.pi * dr.square(radius) * dr.maximum(k, 1.0))), 0.0)
+        o = dr.select(is_sun, start, ray.o)
+        return mi.Ray3f(o, d, ray.time, ray.wavelengths), dr.select(is_sun, w_sun, weight)
 
     def crossings(self, mi, dr, o, d):
         """How many window rectangles the line ``o + t·d`` (every t) crosses, per lane (a Float)."""
