@@ -14,11 +14,12 @@ either crosses a window rectangle (the scene's sky portals, :func:`window_rects`
   the sun's direction, a point uniform on it, and the ray started outside the scene on that line (so
   a window's frame or jamb is hit first where it is); weight ``E · A⊥ / k`` over Mitsuba's ``E · π R²``
   (``k`` the windows the line crosses: a line through two is drawn from either, counted once).
-- Lines through no window — a sunlit wall outside, sun through an opening that is not a portal:
-  camera paths, whose light sample of the sun counts only along such lines
-  (:func:`renderer_jobs.mitsuba.bands.make_integrator`'s ``sun_rest``). Light paths would reach them
-  only from Mitsuba's disk, rarely and with a heavy weight: room 9135's view gets 5.8 % of its sunlight
-  that way, which light paths drawn from the disk returned as one pixel in a few renders.
+- Lines through no window — a sunlit wall outside, whose light may reflect in through a window; sun
+  through an opening that is not a portal: camera paths, whose light sample of the sun counts only
+  along such lines (:func:`renderer_jobs.mitsuba.bands.make_integrator`'s ``sun_rest``). Light paths
+  would reach them only from Mitsuba's disk, rarely and with a heavy weight: room 9135's view gets
+  5.8 % of its sunlight off the building's outside walls, which light paths drawn from the disk
+  returned as one pixel in a few renders.
 
 The two parts add up to the sun's whole contribution whatever the geometry; which rectangles are
 windows decides only how well it works, never what it estimates.
