@@ -199,11 +199,9 @@ def light_paths_reach(ms, windows: bool = False) -> bool:
     drawn, which a variance measured from the halves cannot see); a sky's likewise: such a pass keeps
     to camera paths."""
     mi, _ = import_mitsuba()
-    for e in ms.emitters():
-        if mi.has_flag(e.flags(), mi.EmitterFlags.Infinite):
-            if not (windows and mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)):
-                return False
-    return True
+    sun_ok = bool(windows)
+    return not any(mi.has_flag(e.flags(), mi.EmitterFlags.Infinite)
+                   and not (sun_ok and mi.has_flag(e.flags(), mi.EmitterFlags.DeltaDirection)) for e in ms.emitters())
 
 
 def light_set_aovs(quads, step: float, max_depth: int, illumination: bool, ms, sensor, spp: int,
@@ -214,7 +212,6 @@ def light_set_aovs(quads, step: float, max_depth: int, illumination: bool, ms, s
     With a sun and ``windows``: the sun's light paths through the windows, and its light along lines
     through none from camera paths (``sun_rest``) at ``spp / SUN_REST_SPP_DIVISOR`` per pixel
     (:mod:`renderer_jobs.mitsuba.sun_windows`)."""
-    mi, _ = import_mitsuba()
     sun_windows = windows if windows is not None and windows.has_sun(ms) else None  # lamps: Mitsuba's own rays
     tracer = LightTracer(quads, step, max_depth, illumination, sun_windows)
     rad, ill, bad = tracer.render(ms, sensor, spp, mix_seed(seed, 0x4C54))

@@ -28,9 +28,7 @@ windows decides only how well it works, never what it estimates.
 from __future__ import annotations
 
 import numpy as np
-
 from illumix.renderer_jobs.mitsuba.variant import import_mitsuba
-
 
 
 def window_rects(scene) -> np.ndarray | None:
