@@ -65,7 +65,7 @@ def cube_row(scene, group: str, res, spp: int, other: str = "guided", against: s
     if passes not in ("all", *emitter_passes(scene, [group])):
         return None
     row["against"], row["passes"] = against, passes
-    for kind in ("plain", other) if against == "plain" else (against, other):
+    for kind in (against, other):
         imgs, cpu = _pair(scene, view, group, res, spp, kind, passes)
         if not np.any(imgs[0]):
             return None

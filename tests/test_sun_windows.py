@@ -13,8 +13,8 @@ from illumix.renderer_jobs.render_settings import RenderSettings  # noqa: E402
 
 
 def _yard() -> dict:
-    """A floor and a back wall in the sun, seen by a camera, with two overlapping "windows" (sky
-    portals of another group) floating above them: some sunlit points are reached by lines through
+    """A floor and a back wall in the sun, seen by a camera, with a glass ball and two overlapping
+    "windows" (sky portals of another group) floating above them: some sunlit points are reached by lines through
     no window, some through one, some through both — every branch of the line sampling counts."""
     from illumix.scene import demo
 
@@ -23,12 +23,14 @@ def _yard() -> dict:
               {"name": "back", "type": "rectangle", "material": "white",
                "transform": {"matrix": demo.frame_matrix((0, 1, -1.5), (0, 0, 1), (0, 1, 0), (3, 2))}},
               {"name": "box", "type": "cube", "material": "white",
-               "transform": {"matrix": [[0.2, 0, 0, 0.3], [0, 0.2, 0, 0.2], [0, 0, 0.2, -0.4], [0, 0, 0, 1]]}}]
+               "transform": {"matrix": [[0.2, 0, 0, 0.3], [0, 0.2, 0, 0.2], [0, 0, 0.2, -0.4], [0, 0, 0, 1]]}},
+              {"name": "ball", "type": "sphere", "material": "glass", "center": (-0.45, 0.3, 0.1), "radius": 0.3}]
     for k, (c, size) in enumerate((((0.2, 1.6, -0.2), (0.8, 0.6)), ((-0.1, 1.9, -0.3), (0.6, 0.9)))):
         shapes.append({"name": f"window{k}", "type": "rectangle", "emitter": {"group": "sky", "strength": 1.0, "portal": True},
                        "transform": {"matrix": demo.frame_matrix(c, (0, -1, 0), (0, 0, -1), size)}})
     return {"name": "yard",
-            "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.6}}},
+            "materials": {"white": {"kind": "diffuse", "reflectance": {"value": 0.6}},
+                          "glass": {"kind": "dielectric", "int_ior": 1.5}},
             "shapes": shapes,
             "lights": [{"name": "sun", "type": "directional", "group": "sun", "direction": [0.25, -0.9, -0.3],
                         "strength": 3.0}],
@@ -118,7 +120,8 @@ def test_light_paths_through_windows_and_camera_paths_elsewhere_make_the_suns_wh
     """In the yard, where the sun lights the ground along lines through no window, one and two: light
     paths through the windows plus camera paths along the other lines (``sun_rest``) give the camera
     paths' cube over 4 seeds each — the whole frame, the ground in the windows' shadows and outside
-    them — and the illumination cube."""
+    them, the glass ball (seen through it, the delta complement's alone: +11 % on the frame when the
+    camera part counted it too) — and the illumination cube."""
     from illumix.renderer_jobs.mitsuba.band_render import render_all_bands
     from illumix.renderer_jobs.mitsuba.render import emitter_passes, group_emission
     from illumix.scene.load import scene_from_dict
@@ -133,7 +136,8 @@ def test_light_paths_through_windows_and_camera_paths_elsewhere_make_the_suns_wh
     camera, light = renders("plain"), renders("light")
     assert light[0][2]["light_path_sets"] > 0 and light[0][2]["nonfinite_samples"] == 0
     for k in (0, 1):
-        for rows, cols in ((slice(None), slice(None)), (slice(15, None), slice(20, None)), (slice(15, None), slice(0, 12))):
+        for rows, cols in ((slice(None), slice(None)), (slice(15, None), slice(20, None)), (slice(15, None), slice(0, 12)),
+                           (slice(15, 27), slice(5, 17))):  # … and the glass ball
             mc = np.array([r[k][rows, cols].mean() for r in camera])
             ml = np.array([r[k][rows, cols].mean() for r in light])
             se = np.sqrt(mc.var(ddof=1) / 4 + ml.var(ddof=1) / 4)

@@ -89,8 +89,9 @@ def make_integrator(quads: list[tuple[float, ...]], step: float, max_depth: int,
     first vertex's emission, and paths whose first bounce is drawn from a delta lobe (no light sample
     at the first vertex, no other continuation). ``sun_rest``: a
     :class:`renderer_jobs.mitsuba.sun_windows.SunWindows`: only a sun's light samples along lines that
-    cross none of its windows count, and no emission — what a sun's light paths through the windows
-    leave (:mod:`renderer_jobs.mitsuba.sun_windows`)."""
+    cross none of its windows count, no emission, and nothing after a delta first bounce (the
+    ``delta_first`` complement's) but the white estimate — what a sun's light paths through the
+    windows and that complement leave (:mod:`renderer_jobs.mitsuba.sun_windows`)."""
     mi, _ = import_mitsuba()
     methods = {k: v for k, v in vars(_BandPath).items() if k not in ("__dict__", "__weakref__", "__qualname__")}
     cls = type("BandPathIntegrator", (mi.SamplingIntegrator,), methods)
@@ -295,12 +296,17 @@ class _BandPath:
         delta = ~white & mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
         if self.delta_first:  # light paths give every first bounce but a delta one
             go &= (depth > 0) | delta
+        # sun_rest: what follows a delta first bounce is the delta_first complement's, every light in
+        # it; only the white estimate (which that complement leaves to light paths) goes on here
+        drop = (depth == 0) & delta if self.sun_rest is not None else None
         if split:  # white surface, BSDF-sampled direction: weight (cos/π)/pdf
             cos_u = dr.maximum(side * mi.Frame3f.cos_theta(bs.wo), 0.0)
             w_u = dr.select(bs.pdf > 0.0, cos_u / (dr.pi * bs.pdf), 0.0)
         bmax = mi.Float(0.0)
         for q in range(len(self.quads)):
             beta[q] = dr.select(white, mi.Spectrum(1.0), beta[q])
+            if drop is not None:
+                beta[q] = dr.select(drop, mi.Spectrum(0.0), beta[q])
             if split:
                 beta_u[q] = dr.select(u_first, mi.Spectrum(w_u), beta_u[q])
                 bmax = dr.maximum(bmax, dr.max(beta_u[q]))
